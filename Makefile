@@ -1,0 +1,37 @@
+# workzone_ros: `make demo` runs the graph on a generated bag, `make test` runs the suite.
+# The virtual environment is created on first use and only reinstalled when setup.py changes.
+PY      ?= python3
+VENV    := .venv
+BIN     := $(VENV)/bin
+STAMP   := $(VENV)/.installed
+DEMO_BAG := bags/demo
+
+.PHONY: all install demo test bench contact-sheet clean
+
+all: test
+
+$(STAMP): setup.py setup.cfg package.xml
+	test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip >/dev/null
+	$(BIN)/pip install -q -e '.[wheels,test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+$(DEMO_BAG)/metadata.yaml: $(STAMP) $(wildcard config/scenarios/demo.yaml)
+	$(BIN)/workzone-ros synth --scenario demo -o $(DEMO_BAG) --overwrite
+
+demo: $(DEMO_BAG)/metadata.yaml
+	$(BIN)/workzone-ros launch --bag $(DEMO_BAG) --rate 1.0 --report
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q test
+
+bench: $(STAMP)
+	$(BIN)/workzone-ros bench all --json bags/bench.json
+
+contact-sheet: $(STAMP)
+	$(BIN)/workzone-ros synth sheet -o bags/contact_sheet.png
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,51 @@
+"""``workzone-ros <subcommand>``: one entry point for the tools.
+
+Each subcommand lives in its own module with a ``main(argv) -> int``; it is imported only when
+used, so ``workzone-ros echo`` does not pay for OpenCV and ``synth`` does not pay for rclpy.
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+__all__ = ['SUBCOMMANDS', 'main']
+
+#: name -> (module, one-line help)
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    'launch': ('workzone_ros.tools.launcher', 'run the node graph (optionally replaying a bag)'),
+    'play': ('workzone_ros.tools.player', 'replay a rosbag2 / ROS 1 bag with /clock'),
+    'record': ('workzone_ros.tools.recorder', 'record topics to an MCAP bag'),
+    'echo': ('workzone_ros.tools.echo', 'print a topic (our JSON payloads readably)'),
+    'synth': ('workzone_ros.sim.cli', 'write a synthetic work-zone bag with ground truth'),
+    'train': ('workzone_ros.tools.train', 'train a model (color, ...)'),
+    'evaluate': ('workzone_ros.tools.evaluate', 'accuracy reports against ground truth'),
+    'bench': ('workzone_ros.tools.bench', 'benchmarks (transport, lidar, color, tracker)'),
+}
+
+
+def _usage() -> str:
+    lines = ['usage: workzone-ros <subcommand> [options]', '', 'subcommands:']
+    lines += [f'  {name:<9} {text}' for name, (_, text) in SUBCOMMANDS.items()]
+    lines += ['', "'workzone-ros <subcommand> --help' for its options."]
+    return '\n'.join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch to a subcommand's ``main``; returns its exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ('-h', '--help', 'help'):
+        print(_usage())
+        return 0 if argv else 2
+    name, rest = argv[0], argv[1:]
+    if name not in SUBCOMMANDS:
+        print(f'workzone-ros: unknown subcommand {name!r}\n\n{_usage()}', file=sys.stderr)
+        return 2
+    module = importlib.import_module(SUBCOMMANDS[name][0])
+    try:
+        return int(module.main(rest) or 0)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Pure algorithms: numpy in, numpy and dataclasses out.  Nothing here imports rclpy."""

@@ -1,0 +1,1 @@
+"""rclpy nodes (one per file), the shared node base and message <-> numpy conversions."""

@@ -1,0 +1,1 @@
+"""Command-line tools: launcher, bag player/recorder/echo, training, evaluation, benchmarks."""

@@ -24,7 +24,7 @@ __all__ = [
     'LANE_WIDTH', 'LANE_CENTERS', 'ROAD_HALF_WIDTH', 'RIGHT_SHOULDER', 'LEFT_SHOULDER',
     'SIGN_LATERAL', 'SIGN_BOTTOM_HEIGHT', 'LIDAR_IN_BASE', 'CAMERA_IN_BASE', 'LIDAR_TO_CAMERA',
     'BASE_TO_CAMERA_ROT', 'CameraModel', 'DEFAULT_CAMERA', 'Material', 'MATERIALS', 'Road',
-    'SignPanel', 'Cylinder', 'Cone', 'Box', 'Quad', 'Pose', 'rot_zyx',
+    'SignPanel', 'Cylinder', 'Cone', 'Box', 'Quad', 'Pose', 'Scene', 'rot_zyx',
 ]
 
 LANE_WIDTH = 3.7
@@ -298,3 +298,27 @@ class Quad:
     kind: str
     corners: np.ndarray      # (4, 3) world
     material: str
+
+
+@dataclass
+class Scene:
+    """Everything static about one scenario run, built by sim/scenario.py.
+
+    ``objects`` holds every non-sign object (posts, drums, cones, vehicles, guardrails, tree
+    line...); ``signs`` the sign faces (their posts are Cylinders in ``objects``).  Vehicles
+    move with :meth:`Box.at`.  ``weather`` is a preset name understood by the renderer:
+    ``winter_overcast``, ``spring_sunny``, ``spring_rain`` or ``dusk``.
+    """
+
+    name: str
+    seed: int
+    road: Road
+    signs: list[SignPanel] = field(default_factory=list)
+    objects: list = field(default_factory=list)
+    weather: str = 'spring_sunny'
+    ground_cover: str = 'grass'            # 'grass' or 'snow' beyond the shoulders
+    overpasses: list[float] = field(default_factory=list)   # arc lengths of overpass shadows
+
+    def objects_at(self, t: float) -> list:
+        """Objects with moving vehicles advanced to time ``t``."""
+        return [o.at(t) if isinstance(o, Box) and o.speed else o for o in self.objects]

@@ -144,7 +144,9 @@ def xyz_array(points: np.ndarray, drop_nan: bool = True) -> np.ndarray:
     out[:, 1] = points['y']
     out[:, 2] = points['z']
     if drop_nan:
-        out = out[np.isfinite(out).all(axis=1)]
+        finite = np.isfinite(out[:, 0]) & np.isfinite(out[:, 1]) & np.isfinite(out[:, 2])
+        if not finite.all():
+            out = out[finite]
     return out
 
 

@@ -302,7 +302,9 @@ def numpy_to_compressed(arr: np.ndarray, fmt: str = 'jpeg', quality: int = 90,
         arr: the image.
         fmt: ``'jpeg'`` (or ``'jpg'``) or ``'png'``.
         quality: jpeg quality 1..100 (ignored for png).
-        header, stamp, frame_id: as :func:`numpy_to_image`.
+        header: ``std_msgs/Header`` or :class:`interfaces.Header`.
+        stamp: overrides the header's stamp.
+        frame_id: overrides the header's frame.
 
     Raises:
         ConversionError: unknown format, wrong dtype/shape, or encoding failed.
@@ -381,7 +383,9 @@ def array_to_pointcloud2(arr: np.ndarray, header: HeaderLike = None, *,
 
     Args:
         arr: structured array (see ``core.pointcloud.make_points``).
-        header, frame_id, stamp: as :func:`numpy_to_image`.
+        header: ``std_msgs/Header`` or :class:`interfaces.Header`.
+        frame_id: overrides the header's frame.
+        stamp: overrides the header's stamp.
 
     Raises:
         ConversionError: not structured, more than 2 dimensions, or a field type that
@@ -429,7 +433,16 @@ class CameraInfoData:
 
     Construct it directly for :func:`numpy_to_camera_info`: ``D`` may be empty (no
     distortion: zeros of the model's length), ``R`` defaults to identity, ``P`` to
-    ``[K | 0]``.  Arrays are float64 and read-only.
+    ``[K | 0]`` (also when a driver sends them all zero).  Arrays are float64 and read-only.
+
+    Attributes:
+        width: image width in pixels.
+        height: image height in pixels.
+        K: (3, 3) intrinsic matrix.
+        D: (n,) distortion coefficients of ``distortion_model``.
+        R: (3, 3) rectification rotation.
+        P: (3, 4) projection matrix.
+        distortion_model: 'plumb_bob', 'rational_polynomial', 'equidistant' or ''.
 
     Raises:
         ConversionError: on construction, when the calibration is unusable.
@@ -512,7 +525,14 @@ def camera_info_to_numpy(msg: CameraInfo) -> CameraInfoData:
 def numpy_to_camera_info(info: CameraInfoData, header: HeaderLike = None, *,
                          stamp: StampLike = None,
                          frame_id: Optional[str] = None) -> CameraInfo:
-    """:class:`CameraInfoData` -> ``sensor_msgs/CameraInfo`` (no binning, full-image ROI)."""
+    """:class:`CameraInfoData` -> ``sensor_msgs/CameraInfo`` (no binning, full-image ROI).
+
+    Args:
+        info: the calibration.
+        header: ``std_msgs/Header`` or :class:`interfaces.Header`.
+        stamp: overrides the header's stamp.
+        frame_id: overrides the header's frame.
+    """
     msg = CameraInfo()
     msg.header = make_header(header, stamp=stamp, frame_id=frame_id)
     msg.width, msg.height = info.width, info.height

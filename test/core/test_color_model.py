@@ -1,0 +1,147 @@
+"""core.color_model: boosted stumps -> LUT (seed 000 eq. 2), prior, versioned model file."""
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from workzone_ros.core import color_model as cm
+
+ORANGE = (0, 110, 245)
+
+
+def _training_images(n=6, seed=0):
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        img = np.empty((120, 160, 3), np.uint8)
+        img[:60] = (200, 170, 140)                         # sky
+        img[60:] = (70, 110, 60)                           # grass
+        img = cv2.add(img, rng.integers(0, 30, img.shape, dtype=np.uint8))
+        mask = np.zeros(img.shape[:2], np.uint8)
+        x, y = int(rng.integers(10, 110)), int(rng.integers(5, 60))
+        col = (np.array(ORANGE) * rng.uniform(0.6, 1.0)).tolist()
+        cv2.rectangle(img, (x, y), (x + 30, y + 30), col, -1)
+        cv2.rectangle(mask, (x, y), (x + 30, y + 30), 1, -1)
+        cv2.circle(img, (150, 110), 6, (30, 80, 150), -1)       # a brown, orange-ish stone
+        img = cv2.add(img, rng.integers(0, 12, img.shape, dtype=np.uint8))
+        out.append((img, mask, (x, y, 31, 31)))
+    return out
+
+
+@pytest.fixture(scope='module')
+def trained():
+    pos = np.zeros((cm.H_BINS, cm.S_BINS))
+    neg = np.zeros_like(pos)
+    for img, mask, _ in _training_images():
+        p, n = cm.histogram_from_pixels(cv2.cvtColor(img, cv2.COLOR_BGR2HSV), mask, v_min=40)
+        pos += p
+        neg += n
+    return cm.fit_boosted(pos, neg, n_estimators=15)
+
+
+def test_logistic_link_is_the_seed_formula():
+    f = np.linspace(-30, 30, 61)
+    ref = np.exp(f) / (np.exp(f) + np.exp(-f))
+    np.testing.assert_allclose(cm.logistic_link(f), ref, atol=1e-12)
+    assert cm.logistic_link(np.array([1e4]))[0] == 1.0          # no overflow
+
+
+def test_lut_equals_boosted_model_on_every_bin(trained):
+    lut = cm.boosted_lut(trained)
+    assert lut.shape == (180, 256) and lut.dtype == np.float32
+    h, s = np.meshgrid(np.arange(180), np.arange(256), indexing='ij')
+    X = np.column_stack([h.ravel(), s.ravel()])
+    # independent reference: stump by stump, f = sum alpha_i h_i, g(f) = e^f / (e^f + e^-f)
+    ref = cm.logistic_link(cm.stump_margin(trained, X)).reshape(180, 256)
+    np.testing.assert_allclose(lut, ref, atol=1e-6)
+    # and scikit-learn's predict_proba ranks every bin the same way (same sign of the margin)
+    pp = trained.predict_proba(X)[:, 1].reshape(180, 256)
+    np.testing.assert_array_equal(lut > 0.5, pp > 0.5)
+
+
+def test_learned_model_separates_orange(trained):
+    lut = cm.boosted_lut(trained)
+    hsv = cv2.cvtColor(np.array([[ORANGE, (200, 170, 140), (70, 110, 60)]], np.uint8),
+                       cv2.COLOR_BGR2HSV)[0]
+    p = [lut[h, s] for h, s, _ in hsv]
+    assert p[0] > 0.9 and p[1] < 0.1 and p[2] < 0.1
+
+
+def test_prior_heat_map_and_roi():
+    boxes = [(400, 100, 40, 40), (420, 120, 30, 30), (500, 80, 60, 60)]
+    prior = cm.fit_prior(boxes, (640, 480))
+    img = prior.prior_image(640, 480)
+    assert img.shape == (480, 640)
+    assert img[130, 430] > 0.9 and abs(img[470, 10] - prior.floor) < 1e-3
+    x, y, w, h = prior.roi
+    assert x <= 400 and y <= 80 and x + w >= 560 and y + h >= 140 and y + h < 480
+    u = cm.SpatialPrior.uniform()
+    assert np.all(u.prior_image(64, 48) == 1.0)
+
+
+def test_save_load_round_trip(tmp_path, trained):
+    prior = cm.fit_prior([(400, 100, 40, 40)], (640, 480))
+    model = cm.default_model(cm.boosted_lut(trained), 40, prior, {'images': 6})
+    path = tmp_path / 'models' / 'color_orange.npz'
+    cm.save_model(model, path)
+    back = cm.load_model(path)
+    assert back.classes == ('orange', 'red', 'yellow')
+    np.testing.assert_array_equal(back.luts, model.luts)
+    np.testing.assert_array_equal(back.prior.heat, prior.heat)
+    assert back.prior.roi == prior.roi and back.v_min == model.v_min
+    assert back.metadata == {'images': 6}
+    assert path.stat().st_size < 400_000
+
+
+def test_missing_file_is_a_clear_error(tmp_path):
+    with pytest.raises(cm.ModelError, match='does not exist'):
+        cm.load_model(tmp_path / 'nope.npz')
+
+
+def test_truncated_file_is_a_clear_error(tmp_path):
+    path = tmp_path / 'm.npz'
+    cm.save_model(cm.default_model(), path)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(cm.ModelError, match='truncated or corrupt'):
+        cm.load_model(path)
+    path.write_bytes(b'not a zip at all')
+    with pytest.raises(cm.ModelError):
+        cm.load_model(path)
+
+
+def test_other_version_is_a_clear_error(tmp_path):
+    path = tmp_path / 'm.npz'
+    cm.save_model(cm.default_model(), path)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays['version'] = np.array(cm.VERSION + 1)
+    np.savez(path, **arrays)
+    with pytest.raises(cm.ModelError, match='version 2'):
+        cm.load_model(path)
+    arrays['schema'] = np.array('someone/Else')
+    np.savez(path, **arrays)
+    with pytest.raises(cm.ModelError, match='schema'):
+        cm.load_model(path)
+
+
+def test_model_file_never_unpickles(tmp_path):
+    path = tmp_path / 'm.npz'
+    cm.save_model(cm.default_model(), path)
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays['metadata'] = np.array([{'evil': 1}], dtype=object)
+    np.savez(path, **arrays)
+    with pytest.raises(cm.ModelError):
+        cm.load_model(path)
+
+
+def test_hsv_range_tables():
+    lut, v_min = cm.hsv_range_lut(cm.HSV_RANGES['red'])
+    assert lut[0, 200] > 0.9 and lut[175, 200] > 0.9 and lut[60, 200] == 0 and lut[0, 20] == 0
+    assert v_min == 60
+    m = cm.default_model()
+    bgr = np.full((4, 4, 3), (40, 35, 195), np.uint8)
+    assert np.all(m.likelihood(bgr, 'red') > 0.9) and np.all(m.likelihood(bgr, 'orange') == 0)
+    assert json.dumps(dict(m.metadata)) == '{}'

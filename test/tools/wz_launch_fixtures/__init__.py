@@ -1,0 +1,1 @@
+"""Tiny node modules for the launcher tests (run with PYTHONPATH=test/tools)."""

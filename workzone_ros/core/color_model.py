@@ -1,0 +1,399 @@
+"""Per-pixel sign colour models: boosted hue/saturation stumps baked into a lookup table.
+
+Seed 000, section III.A (and seed 001, III.A): the likelihood that a pixel belongs to an
+orange work-zone sign is learned with AdaBoost over decision stumps on the pixel's hue and
+saturation,
+
+    f(x) = sum_i alpha_i h_i(x),   h_i(x) in {-1, +1}                  (seed 000, eq. 2)
+    g(f) = e^f / (e^f + e^-f)                                          (seed 000, eq. 2; [8])
+
+and the posterior multiplies it by a prior over image locations learned from the ground-truth
+boxes (the heat map of seed 000, Fig. 1):  P(sign | x) = eta P(x | sign) P(sign)  (eq. 1).
+
+Because the model only sees (hue, saturation) and OpenCV's 8-bit HSV has 180 x 256 distinct
+values, the whole boosted model is evaluated once per bin and stored as a table: a frame
+then costs one lookup per pixel instead of H stump evaluations (``workzone-ros bench color``
+measures the ratio).
+
+The red and yellow models of the general signs (stop, yield, do-not-enter; yellow warning
+diamonds) are the seed 004 (section 3.4.2) HSV ranges baked into the same kind of table.
+
+A model file is a compressed ``.npz`` read with ``allow_pickle=False`` (loading it never
+executes code).  It carries a schema name and version, the tables, the class list, the prior
+and its ROI, and the training metadata as JSON.  A missing, truncated or other-version file
+raises one :class:`ModelError` whose message says what is wrong.
+"""
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Optional, Sequence
+
+import cv2
+import numpy as np
+
+__all__ = [
+    'ModelError', 'SCHEMA', 'VERSION', 'H_BINS', 'S_BINS', 'HSV_RANGES', 'ColorModel',
+    'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
+    'boosted_lut', 'hsv_range_lut', 'histogram_from_pixels', 'fit_prior', 'save_model',
+    'load_model', 'default_model',
+]
+
+SCHEMA = 'workzone_ros/ColorModel'
+VERSION = 1
+H_BINS = 180       # OpenCV 8-bit hue 0..179
+S_BINS = 256       # saturation 0..255
+
+#: Seed 004 section 3.4.2 colour-blob ranges (OpenCV HSV, inclusive): a colour is a list of
+#: (h_lo, h_hi, s_lo, v_lo) intervals.  The seed names the colours, not the numbers; these are
+#: the usual MUTCD sheeting hues and were set on our development renders, not the evaluation
+#: scenarios.  ``orange`` is used only by the seed 004 baseline.
+HSV_RANGES: dict[str, list[tuple[int, int, int, int]]] = {
+    'red': [(0, 6, 110, 60), (168, 179, 110, 60)],
+    'orange': [(7, 19, 130, 90)],
+    'yellow': [(20, 34, 110, 90)],
+}
+
+
+class ModelError(Exception):
+    """A colour model file that is missing, truncated, malformed or of another version."""
+
+
+# --- the boosted model -------------------------------------------------------------------
+
+def logistic_link(f: np.ndarray) -> np.ndarray:
+    """g(f) = e^f / (e^f + e^-f) = 1 / (1 + e^(-2f)) (seed 000, eq. 2), overflow-safe."""
+    f = np.asarray(f, dtype=np.float64)
+    return 0.5 * (1.0 + np.tanh(f))
+
+
+def stump_margin(clf: Any, X: np.ndarray) -> np.ndarray:
+    """f(x) = sum_i alpha_i h_i(x) evaluated stump by stump (the reference implementation).
+
+    ``alpha_i`` is half of scikit-learn's SAMME estimator weight: for two classes SAMME's
+    weight is log((1 - err) / err), twice the discrete-AdaBoost coefficient that the
+    logistic link of Friedman et al. [8] (seed 000) assumes.
+
+    Args:
+        clf: a fitted binary ``AdaBoostClassifier`` over (hue, saturation).
+        X: (N, 2) features.
+
+    Returns:
+        (N,) float64 margins.
+    """
+    X = np.asarray(X, dtype=np.float64)
+    f = np.zeros(len(X))
+    positive = clf.classes_[1]
+    for est, w in zip(clf.estimators_, clf.estimator_weights_):
+        if w == 0:
+            continue
+        h = np.where(est.predict(X) == positive, 1.0, -1.0)
+        f += 0.5 * w * h
+    return f
+
+
+def boosted_probability(clf: Any, X: np.ndarray) -> np.ndarray:
+    """P(x | sign) = g(f(x)) through scikit-learn's vectorised ``decision_function``.
+
+    scikit-learn's binary decision function is ``2 sum_i w_i h_i / sum_i w_i``; multiplied
+    by ``sum_i w_i / 4`` it is the margin of :func:`stump_margin`.  (scikit-learn's own
+    ``predict_proba`` is the same link on the margin divided by ``sum_i w_i / 2``: the same
+    ranking, squeezed into [0.27, 0.73].)
+    """
+    d = clf.decision_function(np.asarray(X, dtype=np.float64))
+    return logistic_link(d * 0.25 * float(np.sum(clf.estimator_weights_)))
+
+
+def _grid() -> np.ndarray:
+    h, s = np.meshgrid(np.arange(H_BINS), np.arange(S_BINS), indexing='ij')
+    return np.column_stack([h.ravel(), s.ravel()]).astype(np.float64)
+
+
+def boosted_lut(clf: Any) -> np.ndarray:
+    """The boosted model evaluated on every (hue, saturation) bin: (180, 256) float32."""
+    return boosted_probability(clf, _grid()).reshape(H_BINS, S_BINS).astype(np.float32)
+
+
+def histogram_from_pixels(hsv: np.ndarray, mask: np.ndarray,
+                          v_min: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Count positive and negative pixels per (hue, saturation) bin.
+
+    Args:
+        hsv: (H, W, 3) uint8 OpenCV HSV image.
+        mask: (H, W) bool/uint8, nonzero on sign pixels.
+        v_min: pixels darker than this are left out (the detector gates them out too).
+
+    Returns:
+        (pos, neg): two (180, 256) float64 count tables.
+    """
+    keep = hsv[..., 2] >= v_min
+    idx = hsv[..., 0].astype(np.int64) * S_BINS + hsv[..., 1]
+    m = mask.astype(bool)
+    pos = np.bincount(idx[keep & m], minlength=H_BINS * S_BINS)
+    neg = np.bincount(idx[keep & ~m], minlength=H_BINS * S_BINS)
+    n = H_BINS * S_BINS
+    return (pos[:n].reshape(H_BINS, S_BINS).astype(np.float64),
+            neg[:n].reshape(H_BINS, S_BINS).astype(np.float64))
+
+
+def fit_boosted(pos: np.ndarray, neg: np.ndarray, n_estimators: int = 40,
+                pos_weight: float = 1.0, random_state: int = 0) -> Any:
+    """Fit AdaBoost over decision stumps (H = ``n_estimators``) on (hue, saturation).
+
+    Training on the per-bin counts with sample weights is exactly training on every pixel
+    (identical features have identical stump outputs), and it costs 46 080 rows at most.
+
+    Args:
+        pos, neg: (180, 256) pixel counts from :func:`histogram_from_pixels`.
+        n_estimators: number of weak learners H.
+        pos_weight: total weight of the positive class relative to the negative class
+            (1.0 balances the classes, whatever their pixel counts).
+        random_state: for reproducibility.
+
+    Returns:
+        The fitted ``sklearn.ensemble.AdaBoostClassifier``.
+
+    Raises:
+        ModelError: no positive or no negative pixels.
+    """
+    from sklearn.ensemble import AdaBoostClassifier
+    from sklearn.tree import DecisionTreeClassifier
+
+    if pos.sum() <= 0 or neg.sum() <= 0:
+        raise ModelError('training needs both sign and background pixels')
+    grid = _grid()
+    p, n = pos.ravel(), neg.ravel()
+    ip, ineg = np.nonzero(p)[0], np.nonzero(n)[0]
+    X = np.concatenate([grid[ip], grid[ineg]])
+    y = np.concatenate([np.ones(len(ip), int), np.zeros(len(ineg), int)])
+    w = np.concatenate([p[ip] / p.sum() * pos_weight, n[ineg] / n.sum()])
+    clf = AdaBoostClassifier(estimator=DecisionTreeClassifier(max_depth=1),
+                             n_estimators=n_estimators, random_state=random_state)
+    clf.fit(X, y, sample_weight=w / w.sum())
+    return clf
+
+
+def hsv_range_lut(ranges: Sequence[tuple[int, int, int, int]],
+                  inside: float = 0.95) -> tuple[np.ndarray, int]:
+    """A hue x saturation table from seed 004 HSV ranges.
+
+    Returns:
+        (lut, v_min): ``inside`` on the bins of any range, 0 elsewhere, and the smallest
+        value bound of the ranges (the detector's value gate).
+    """
+    lut = np.zeros((H_BINS, S_BINS), np.float32)
+    for h_lo, h_hi, s_lo, _ in ranges:
+        lut[h_lo:h_hi + 1, s_lo:] = inside
+    return lut, int(min(r[3] for r in ranges))
+
+
+# --- the spatial prior -------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SpatialPrior:
+    """P(sign) over image locations (seed 000, Fig. 1) and the ROI it implies.
+
+    Attributes:
+        heat: (gh, gw) float32 in [0, 1]: smoothed box density normalised to its maximum.
+        image_size: (width, height) the heat map covers.
+        roi: (x, y, w, h) pixels: where the heat is at least ``roi_level``.
+        floor: prior value where no training sign ever was (signs do appear there).
+    """
+
+    heat: np.ndarray
+    image_size: tuple[int, int]
+    roi: tuple[int, int, int, int]
+    floor: float = 0.2
+
+    def prior_image(self, width: int, height: int) -> np.ndarray:
+        """The prior resampled to ``width`` x ``height``: floor + (1 - floor) * heat."""
+        heat = cv2.resize(self.heat, (width, height), interpolation=cv2.INTER_LINEAR)
+        return (self.floor + (1.0 - self.floor) * np.clip(heat, 0.0, 1.0)).astype(np.float32)
+
+    def roi_for(self, width: int, height: int) -> tuple[int, int, int, int]:
+        """The ROI scaled to an image of ``width`` x ``height``."""
+        sx, sy = width / self.image_size[0], height / self.image_size[1]
+        x, y, w, h = self.roi
+        return (int(x * sx), int(y * sy), int(np.ceil(w * sx)), int(np.ceil(h * sy)))
+
+    @classmethod
+    def uniform(cls, width: int = 640, height: int = 480) -> 'SpatialPrior':
+        """A flat prior over the whole image (no location knowledge)."""
+        return cls(np.ones((8, 8), np.float32), (width, height), (0, 0, width, height), 1.0)
+
+
+def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tuple[int, int],
+              cell: int = 8, sigma_cells: float = 2.5, roi_level: float = 0.02,
+              roi_margin: int = 16, floor: float = 0.2) -> SpatialPrior:
+    """Project every ground-truth box onto one image and smooth it (seed 000, Fig. 1).
+
+    Args:
+        boxes: (x, y, w, h) ground-truth boxes in pixels.
+        image_size: (width, height).
+        cell: heat-map cell size in pixels.
+        sigma_cells: Gaussian smoothing in cells.
+        roi_level: the ROI is the bounding rectangle of cells with heat >= this level.
+        roi_margin: pixels added around the ROI.
+        floor: prior outside the training signs' locations.
+
+    Returns:
+        The :class:`SpatialPrior`; uniform if ``boxes`` is empty.
+    """
+    width, height = image_size
+    if len(boxes) == 0:
+        return SpatialPrior.uniform(width, height)
+    gw, gh = -(-width // cell), -(-height // cell)
+    acc = np.zeros((gh, gw), np.float64)
+    for x, y, w, h in boxes:
+        x0, y0 = int(max(0, x // cell)), int(max(0, y // cell))
+        x1 = int(min(gw, np.ceil((x + w) / cell)))
+        y1 = int(min(gh, np.ceil((y + h) / cell)))
+        if x1 > x0 and y1 > y0:
+            acc[y0:y1, x0:x1] += 1.0
+    acc = cv2.GaussianBlur(acc, (0, 0), sigma_cells)
+    heat = (acc / acc.max()).astype(np.float32) if acc.max() > 0 else np.ones_like(acc, np.float32)
+    ys, xs = np.nonzero(heat >= roi_level)
+    x0 = max(0, int(xs.min()) * cell - roi_margin)
+    y0 = max(0, int(ys.min()) * cell - roi_margin)
+    x1 = min(width, (int(xs.max()) + 1) * cell + roi_margin)
+    y1 = min(height, (int(ys.max()) + 1) * cell + roi_margin)
+    return SpatialPrior(heat, (width, height), (x0, y0, x1 - x0, y1 - y0), floor)
+
+
+# --- the model and its file --------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ColorModel:
+    """Per-colour likelihood tables, the value gate, and the spatial prior.
+
+    Attributes:
+        classes: colour names, one per table (``orange`` first when learned).
+        luts: (C, 180, 256) float32 P(x | colour) per (hue, saturation) bin.
+        v_min: per-colour minimum HSV value (darker pixels have no reliable hue).
+        prior: the spatial prior of the orange work-zone signs.
+        metadata: training metadata (JSON-serialisable).
+    """
+
+    classes: tuple[str, ...]
+    luts: np.ndarray
+    v_min: tuple[int, ...]
+    prior: SpatialPrior
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.luts.shape != (len(self.classes), H_BINS, S_BINS):
+            raise ModelError(f'tables of shape {self.luts.shape} do not match '
+                             f'{len(self.classes)} classes x {H_BINS} x {S_BINS}')
+        if len(self.v_min) != len(self.classes):
+            raise ModelError('one value gate per class is required')
+
+    def index(self, color: str) -> int:
+        """Position of ``color`` in :attr:`classes`.
+
+        Raises:
+            ModelError: the model has no such colour.
+        """
+        try:
+            return self.classes.index(color)
+        except ValueError:
+            raise ModelError(f'colour {color!r} not in model classes {self.classes}') from None
+
+    def lut(self, color: str) -> np.ndarray:
+        """The (180, 256) float32 table of ``color``."""
+        return self.luts[self.index(color)]
+
+    def likelihood(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
+        """P(x | colour) for every pixel of a BGR image (value gate applied), float32."""
+        hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+        i = self.index(color)
+        p = self.luts[i][hsv[..., 0], hsv[..., 1]]
+        p[hsv[..., 2] < self.v_min[i]] = 0.0
+        return p
+
+    def with_prior(self, prior: SpatialPrior) -> 'ColorModel':
+        """A copy with another prior (e.g. uniform)."""
+        return ColorModel(self.classes, self.luts, self.v_min, prior, dict(self.metadata))
+
+
+def default_model(orange_lut: Optional[np.ndarray] = None, orange_v_min: int = 60,
+                  prior: Optional[SpatialPrior] = None,
+                  metadata: Optional[Mapping[str, Any]] = None) -> ColorModel:
+    """A model with the given (learned) orange table and the seed 004 red/yellow ranges.
+
+    Without ``orange_lut`` the orange table is the seed 004 orange range too (a fallback
+    that needs no training).
+    """
+    red, v_red = hsv_range_lut(HSV_RANGES['red'])
+    yellow, v_yellow = hsv_range_lut(HSV_RANGES['yellow'])
+    if orange_lut is None:
+        orange_lut, orange_v_min = hsv_range_lut(HSV_RANGES['orange'])
+    luts = np.stack([orange_lut, red, yellow]).astype(np.float32)
+    return ColorModel(('orange', 'red', 'yellow'), luts, (int(orange_v_min), v_red, v_yellow),
+                      prior or SpatialPrior.uniform(), dict(metadata or {}))
+
+
+def save_model(model: ColorModel, path: str | os.PathLike) -> None:
+    """Write ``model`` as a compressed, versioned ``.npz`` (no pickled objects)."""
+    path = os.fspath(path)
+    os.makedirs(os.path.dirname(path) or '.', exist_ok=True)
+    tmp = path + '.tmp.npz'
+    np.savez_compressed(
+        tmp, schema=np.array(SCHEMA), version=np.array(VERSION, np.int64),
+        classes=np.array(model.classes), luts=model.luts.astype(np.float32),
+        v_min=np.array(model.v_min, np.int64), prior_heat=model.prior.heat.astype(np.float32),
+        prior_image_size=np.array(model.prior.image_size, np.int64),
+        prior_roi=np.array(model.prior.roi, np.int64),
+        prior_floor=np.array(model.prior.floor, np.float64),
+        metadata=np.array(json.dumps(dict(model.metadata), sort_keys=True)))
+    os.replace(tmp, path)
+
+
+_KEYS = ('schema', 'version', 'classes', 'luts', 'v_min', 'prior_heat', 'prior_image_size',
+         'prior_roi', 'prior_floor', 'metadata')
+
+
+def load_model(path: str | os.PathLike) -> ColorModel:
+    """Read a model file written by :func:`save_model`.
+
+    Raises:
+        ModelError: the file is missing, not a readable ``.npz`` (e.g. truncated), lacks a
+            field, or has another schema or version.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise ModelError(f'colour model file {path!r} does not exist; train one with '
+                         "'workzone-ros train color' or set the model_path parameter")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in ('schema', 'version') if k not in z.files]
+            if missing:
+                raise ModelError(f'{path!r} is not a workzone_ros colour model (no '
+                                 f'{", ".join(missing)})')
+            schema, version = str(z['schema']), int(z['version'])
+            if schema != SCHEMA:
+                raise ModelError(f'{path!r} has schema {schema!r}, expected {SCHEMA!r}')
+            if version != VERSION:
+                raise ModelError(f'{path!r} is colour model version {version}; this build reads '
+                                 f'version {VERSION} (retrain with workzone-ros train color)')
+            missing = [k for k in _KEYS if k not in z.files]
+            if missing:
+                raise ModelError(f'{path!r} lacks {", ".join(missing)}')
+            data = {k: z[k] for k in _KEYS}
+    except ModelError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
+        raise ModelError(f'cannot read colour model {path!r} (truncated or corrupt?): '
+                         f'{exc}') from None
+    try:
+        prior = SpatialPrior(data['prior_heat'].astype(np.float32),
+                             tuple(int(v) for v in data['prior_image_size']),
+                             tuple(int(v) for v in data['prior_roi']),
+                             float(data['prior_floor']))
+        return ColorModel(tuple(str(c) for c in data['classes']),
+                          data['luts'].astype(np.float32),
+                          tuple(int(v) for v in data['v_min']), prior,
+                          json.loads(str(data['metadata'])))
+    except (ValueError, TypeError) as exc:
+        raise ModelError(f'colour model {path!r} is malformed: {exc}') from None

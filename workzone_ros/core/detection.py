@@ -1,0 +1,672 @@
+"""Colour sign detection: posterior mask -> blobs -> filtered, scored, extended boxes.
+
+Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A):
+
+1. P(x | sign) from the colour model's hue x saturation table, one lookup per pixel, on an
+   image downscaled by ``scale`` (a 640x480 frame is looked up at 320x240); pixels darker than
+   the model's value gate have no reliable hue and are left out.
+2. Posterior threshold P(x | sign) P(sign) >= tau (eq. 1), done as a comparison with the
+   precomputed per-pixel threshold tau / P(sign).  Only the prior's ROI is evaluated (Fig. 1).
+   LiDAR ROIs (``/workzone/rois``) raise the prior inside them to ``roi_prior`` and use the
+   lower ``roi_threshold``, so a sign the colour model half-sees is still found (seed 004's
+   two-layer idea, done as fusion).
+3. Erosion then dilation (opening, seed 004 3.4.2) and a closing, connected components
+   (``cv2.connectedComponentsWithStats``), radius filters (seed 000 footnote 2: centroid to
+   side distance, here half the smaller box side).
+4. Each blob's box is refined at full resolution inside a small window (so the half-
+   resolution mask costs no box accuracy), its shape measured (convex-hull fill: ~0.5 for a
+   diamond, ~1 for a rectangle) and its confidence computed as the mode of its pixels'
+   posterior probabilities (eq. 2: mode of g(f(x_j))).  The seed takes the mode over all
+   pixels of the box; we take it over the blob's pixels, because on a diamond half of the
+   box is background and the mode would be the background's.
+5. The regulatory two-colour extension (seed 000): a wide orange rectangle with white rows
+   under it (orange top, white bottom: R22-1, R2-1 + G20-5aP) is extended down over the
+   white part; the aspect ratio selects the candidates, the white rows decide how far.
+6. Non-maximum suppression; unlike the seed (which keeps the largest box) every sign in the
+   frame is kept.  Each detection lists its sources: ``color``, ``lidar`` or both.  A blob
+   no LiDAR candidate supports keeps its own confidence (the LiDAR misses signs too); a
+   supported one is raised by noisy-OR with ``lidar_confidence``; a LiDAR ROI with no
+   colour blob can be reported as a ``lidar``-only detection (``lidar_only``).
+
+Alternatives, selectable with ``method``:
+
+- ``rgb_lp`` (seed 002, "Color-based Candidate Detection"): the OR of linear RGB thresholds
+  alpha R + beta G + lambda B >= t (eq. 1), the subset chosen by a Boolean linear program
+  minimising FP + w FN (eq. 2, ``scipy.optimize.milp``), pixels grouped by MSER.
+- ``hsv`` (seed 004, section 3.4.2): fixed HSV ranges, erosion then dilation, aspect-ratio
+  and fill-ratio filters.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, Optional, Sequence
+
+import cv2
+import numpy as np
+
+from workzone_ros.core.color_model import (
+    H_BINS, HSV_RANGES, S_BINS, ColorModel, ModelError, SpatialPrior,
+)
+from workzone_ros.interfaces import Box, Detection, Roi
+
+__all__ = [
+    'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
+    'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
+    'dominant_color',
+]
+
+METHODS = ('learned', 'rgb_lp', 'hsv')
+_P_SCALE = 254.0          # probabilities as uint8 0..254; a threshold of 255 never passes
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Detector parameters (the node's parameters of the same names).
+
+    Attributes:
+        method: ``learned`` (seed 000), ``rgb_lp`` (seed 002) or ``hsv`` (seed 004).
+        colors: colours to detect: ``orange`` (work zone), ``red``, ``yellow`` (general).
+        threshold: posterior threshold tau.
+        scale: the mask is computed on the image downscaled by this integer factor.
+        use_prior: multiply by the spatial prior and evaluate only its ROI.
+        open_px, close_px: opening (erosion then dilation) and closing kernel sizes at the
+            mask's resolution (0 disables).
+        min_radius_px, max_radius_px: radius filter in full-resolution pixels.
+        min_area_px: smallest blob area at full resolution.
+        min_hull_fill: smallest convex-hull area / box area (rejects thin, ragged blobs).
+        max_aspect: largest w/h or h/w of an orange blob.
+        diamond_hull_fill: below this hull fill an orange blob is a diamond (warning sign).
+        refine: refine boxes at full resolution.
+        nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
+            a box lying mostly (``nms_contain``) inside a larger one too.
+        extension: regulatory two-colour extension on/off.
+        ext_min_aspect: an orange rectangle at least this wide (w/h) is examined for a
+            white bottom.
+        ext_max_ratio: the extension adds at most this many times the orange height.
+        white_s_max, white_v_rel: a pixel is white if S <= white_s_max and V >= white_v_rel x
+            the orange blob's median V.
+        roi_prior, roi_threshold, roi_margin: LiDAR ROIs: prior and posterior threshold
+            inside them, and the fraction of their size added around them.
+        lidar_confidence: noisy-OR weight of LiDAR support.
+        lidar_only: report LiDAR ROIs without a colour blob as ``lidar``-only detections.
+        lidar_only_confidence: their confidence.
+        general_max_aspect, general_min_fill: seed 004 filters for red / yellow blobs.
+        mser_delta: MSER delta of the ``rgb_lp`` method.
+    """
+
+    method: str = 'learned'
+    colors: tuple[str, ...] = ('orange', 'red', 'yellow')
+    threshold: float = 0.5
+    scale: int = 2
+    use_prior: bool = True
+    open_px: int = 2
+    close_px: int = 3
+    min_radius_px: float = 4.0
+    max_radius_px: float = 240.0
+    min_area_px: float = 40.0
+    min_hull_fill: float = 0.35
+    max_aspect: float = 4.0
+    diamond_hull_fill: float = 0.72
+    refine: bool = True
+    nms_iou: float = 0.3
+    nms_contain: float = 0.7
+    extension: bool = True
+    ext_min_aspect: float = 1.5
+    ext_max_ratio: float = 3.0
+    white_s_max: int = 70
+    white_v_rel: float = 0.8
+    roi_prior: float = 1.0
+    roi_threshold: float = 0.3
+    roi_margin: float = 0.25
+    lidar_confidence: float = 0.5
+    lidar_only: bool = False
+    lidar_only_confidence: float = 0.3
+    general_max_aspect: float = 1.6
+    general_min_fill: float = 0.35
+    mser_delta: int = 2
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f'method {self.method!r} is not one of {METHODS}')
+        bad = [c for c in self.colors if c not in ('orange', 'red', 'yellow')]
+        if bad:
+            raise ValueError(f'unknown colours {bad}; use orange, red, yellow')
+        if not 0.0 < self.threshold < 1.0:
+            raise ValueError('threshold must be in (0, 1)')
+        if int(self.scale) < 1:
+            raise ValueError('scale must be >= 1')
+
+
+@dataclass
+class Candidate:
+    """A blob on its way to a :class:`Detection` (full-resolution pixels)."""
+
+    x: float
+    y: float
+    w: float
+    h: float
+    color: str
+    confidence: float
+    kind: str = 'unknown'
+    area: float = 0.0
+    hull_fill: float = 1.0
+    extended: bool = False
+    sources: list[str] = field(default_factory=lambda: ['color'])
+    roi_id: Optional[int] = None
+
+    @property
+    def box(self) -> Box:
+        """The candidate's :class:`Box`."""
+        return Box(float(self.x), float(self.y), float(self.w), float(self.h))
+
+    def detection(self) -> Detection:
+        """The candidate as an interfaces :class:`Detection`."""
+        return Detection(box=self.box, confidence=float(min(max(self.confidence, 0.0), 1.0)),
+                         color=self.color, kind=self.kind, sources=list(self.sources),
+                         roi_id=self.roi_id)
+
+
+# --- small helpers -----------------------------------------------------------------------
+
+def _iou(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
+    """(IoU, intersection / smaller area) of two (x, y, w, h) boxes."""
+    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    if iw <= 0 or ih <= 0:
+        return 0.0, 0.0
+    inter = iw * ih
+    aa, ab = a[2] * a[3], b[2] * b[3]
+    return inter / (aa + ab - inter), inter / max(min(aa, ab), 1e-9)
+
+
+def nms(cands: list[Candidate], iou: float, contain: float) -> list[Candidate]:
+    """Greedy non-maximum suppression, larger boxes first; every non-overlapping box stays."""
+    order = sorted(cands, key=lambda c: (c.w * c.h, c.confidence), reverse=True)
+    kept: list[Candidate] = []
+    for c in order:
+        b = (c.x, c.y, c.w, c.h)
+        if all((lambda r: r[0] <= iou and r[1] <= contain)(_iou(b, (k.x, k.y, k.w, k.h)))
+               for k in kept):
+            kept.append(c)
+    return kept
+
+
+def box_metrics(det: Box, gt: Box) -> tuple[float, float, float]:
+    """(IoU, area precision, area recall) of a detection against a ground-truth box.
+
+    Seed 000, section III.A: precision = |o n g| / |o|, recall = |o n g| / |g|.
+    """
+    iw = min(det.x2, gt.x2) - max(det.x, gt.x)
+    ih = min(det.y2, gt.y2) - max(det.y, gt.y)
+    if iw <= 0 or ih <= 0:
+        return 0.0, 0.0, 0.0
+    inter = iw * ih
+    return (inter / (det.area + gt.area - inter), inter / max(det.area, 1e-9),
+            inter / max(gt.area, 1e-9))
+
+
+def dominant_color(hsv: np.ndarray) -> str:
+    """The main colour of an HSV patch: orange / red / yellow / green / white."""
+    if hsv.size == 0:
+        return 'white'
+    h, s, v = (hsv[..., i].ravel().astype(np.int32) for i in range(3))
+    chroma = (s >= 90) & (v >= 60)
+    if chroma.mean() < 0.15:
+        return 'white'
+    hh = h[chroma]
+    votes = {'red': np.count_nonzero((hh <= 6) | (hh >= 168)),
+             'orange': np.count_nonzero((hh >= 7) & (hh <= 19)),
+             'yellow': np.count_nonzero((hh >= 20) & (hh <= 34)),
+             'green': np.count_nonzero((hh >= 35) & (hh <= 95))}
+    return max(votes, key=votes.get)
+
+
+def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) -> float:
+    """Mode of ``values`` as the centre of the fullest of ``bins`` histogram bins."""
+    if values.size == 0:
+        return 0.0
+    hist, edges = np.histogram(values, bins=bins, range=(lo, hi))
+    i = int(np.argmax(hist))
+    return float(0.5 * (edges[i] + edges[i + 1]))
+
+
+# --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
+
+_RGB_Q = 8            # RGB quantisation step for the LP's pixel bins
+
+
+def rgb_histograms(bgr: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positive / negative pixel counts per quantised RGB bin (32^3 bins)."""
+    q = (bgr // _RGB_Q).astype(np.int64)
+    n = 256 // _RGB_Q
+    idx = (q[..., 2] * n + q[..., 1]) * n + q[..., 0]       # R, G, B order
+    m = mask.astype(bool)
+    return (np.bincount(idx[m], minlength=n ** 3).astype(np.float64),
+            np.bincount(idx[~m], minlength=n ** 3).astype(np.float64))
+
+
+def _bin_centres() -> np.ndarray:
+    n = 256 // _RGB_Q
+    r, g, b = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing='ij')
+    return (np.column_stack([r.ravel(), g.ravel(), b.ravel()]) * _RGB_Q + _RGB_Q / 2.0)
+
+
+def candidate_rgb_thresholds(pos_rgb: np.ndarray, levels: Sequence[float] = (
+        0.02, 0.1, 0.25, 0.5)) -> np.ndarray:
+    """Candidate thresholds (alpha, beta, lambda, t) of seed 002 eq. 1.
+
+    Directions: every (alpha, beta, lambda) in {-1, -0.5, 0, 0.5, 1}^3 up to scale; levels t:
+    quantiles of the positive pixels' projections (a threshold keeps at least that share
+    of them).
+    """
+    dirs = set()
+    for a, b, c in itertools.product((-1.0, -0.5, 0.0, 0.5, 1.0), repeat=3):
+        v = np.array([a, b, c])
+        if not v.any():
+            continue
+        dirs.add(tuple(np.round(v / np.abs(v).max(), 3)))
+    out = []
+    for d in sorted(dirs):
+        proj = pos_rgb @ np.array(d)
+        for q in levels:
+            out.append((*d, float(np.quantile(proj, q))))
+    return np.array(out, np.float64)
+
+
+@dataclass(frozen=True)
+class RgbLpModel:
+    """The selected thresholds rho* of seed 002 (rows alpha, beta, lambda, t on R, G, B)."""
+
+    thresholds: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+    def mask(self, bgr: np.ndarray) -> np.ndarray:
+        """uint8 count of thresholds each pixel passes (0 = none)."""
+        count = np.zeros(bgr.shape[:2], np.uint8)
+        f = bgr.astype(np.float32)
+        for a, b, c, t in self.thresholds:
+            # cv2.transform: BGR -> alpha R + beta G + lambda B
+            proj = cv2.transform(f, np.array([[c, b, a]], np.float32))
+            count += (proj >= t).astype(np.uint8)
+        return count
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Arrays for an ``.npz`` next to the colour model."""
+        return {'rgb_lp_thresholds': self.thresholds.astype(np.float64)}
+
+
+def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds: int = 6,
+               max_candidates: int = 300, time_limit: float = 60.0) -> RgbLpModel:
+    """Choose rho* = argmin FP(rho) + w FN(rho) over subsets of thresholds (seed 002, eq. 2).
+
+    Boolean linear program over quantised RGB bins with pixel counts as weights: x_k selects
+    threshold k, y_i = 1 when positive bin i passes a selected threshold (y_i <= sum_k A_ik
+    x_k), z_j = 1 when negative bin j does (deg_j z_j >= sum_k A_jk x_k); minimise
+    sum_j n_j z_j + w sum_i p_i (1 - y_i), with at most ``max_thresholds`` thresholds.
+    Solved with ``scipy.optimize.milp`` (HiGHS).
+
+    Args:
+        pos, neg: counts from :func:`rgb_histograms`.
+        w: the weight of a false negative relative to a false positive.
+        max_thresholds: cardinality bound (each threshold costs time per frame).
+        max_candidates: candidates kept after a single-threshold pre-screen.
+        time_limit: solver time limit in seconds.
+
+    Returns:
+        The :class:`RgbLpModel`.
+    """
+    from scipy.optimize import Bounds, LinearConstraint, milp
+    from scipy.sparse import csr_matrix, hstack, identity, vstack
+
+    centres = _bin_centres()
+    ip, ineg = np.nonzero(pos)[0], np.nonzero(neg)[0]
+    if len(ip) == 0 or len(ineg) == 0:
+        raise ModelError('the RGB threshold LP needs both sign and background pixels')
+    pw, nw = pos[ip], neg[ineg]
+    rep = np.repeat(centres[ip], np.minimum(pw, 50).astype(int), axis=0)
+    cands = candidate_rgb_thresholds(rep)
+    # Pre-screen: the single-threshold objective; keep the best candidates.
+    a_pos = (centres[ip] @ cands[:, :3].T) >= cands[:, 3]
+    a_neg = (centres[ineg] @ cands[:, :3].T) >= cands[:, 3]
+    single = nw @ a_neg + w * (pw @ ~a_pos)
+    keep = np.argsort(single)[:max_candidates]
+    cands, a_pos, a_neg = cands[keep], a_pos[:, keep], a_neg[:, keep]
+    # Only negative bins that some candidate passes matter.
+    live = a_neg.any(axis=1)
+    a_neg, nw = a_neg[live], nw[live]
+    k, npos, nneg = len(cands), len(ip), len(nw)
+    # variables: x (k), y (npos), z (nneg)
+    c = np.concatenate([np.zeros(k), -w * pw, nw]) / (pw.sum() * w + nw.sum())
+    ap, an = csr_matrix(a_pos.astype(np.float64)), csr_matrix(a_neg.astype(np.float64))
+    deg = np.asarray(an.sum(axis=1)).ravel()
+    from scipy.sparse import diags
+    rows = [
+        hstack([-ap, identity(npos), csr_matrix((npos, nneg))]),          # y - A x <= 0
+        hstack([an, csr_matrix((nneg, npos)), -diags(deg)]),              # A x - deg z <= 0
+        hstack([csr_matrix(np.ones((1, k))), csr_matrix((1, npos + nneg))]),  # sum x <= m
+    ]
+    A = vstack(rows).tocsr()
+    ub = np.concatenate([np.zeros(npos + nneg), [max_thresholds]])
+    res = milp(c, constraints=LinearConstraint(A, -np.inf, ub),
+               integrality=np.ones(k + npos + nneg), bounds=Bounds(0, 1),
+               options={'time_limit': time_limit, 'disp': False})
+    if res.x is None:
+        raise ModelError(f'RGB threshold LP failed: {res.message}')
+    sel = np.nonzero(res.x[:k] > 0.5)[0]
+    chosen = cands[sel]
+    passed_pos = a_pos[:, sel].any(axis=1) if len(sel) else np.zeros(npos, bool)
+    passed_neg = a_neg[:, sel].any(axis=1) if len(sel) else np.zeros(nneg, bool)
+    meta = {'w': w, 'candidates': int(k), 'selected': int(len(sel)),
+            'fn_rate': float(pw[~passed_pos].sum() / pw.sum()),
+            'fp_rate': float(nw[passed_neg].sum() / neg.sum()),
+            'status': str(res.message), 'mip_gap': float(getattr(res, 'mip_gap', 0.0) or 0.0)}
+    return RgbLpModel(chosen, meta)
+
+
+# --- the detector ------------------------------------------------------------------------
+
+class ColorDetector:
+    """Colour sign detector over a :class:`ColorModel` (and optional seed 002 thresholds).
+
+    Args:
+        model: the colour model (tables and prior).
+        config: detector parameters.
+        rgb_lp: thresholds for ``method='rgb_lp'``.
+
+    Raises:
+        ModelError: the model lacks a configured colour, or ``rgb_lp`` is missing.
+    """
+
+    def __init__(self, model: ColorModel, config: DetectorConfig = DetectorConfig(),
+                 rgb_lp: Optional[RgbLpModel] = None) -> None:
+        self.model = model
+        self.config = config
+        self.rgb_lp = rgb_lp
+        if config.method == 'rgb_lp' and rgb_lp is None:
+            raise ModelError("method 'rgb_lp' needs the seed 002 thresholds (train them with "
+                             'workzone-ros train color --rgb-lp)')
+        colors = config.colors if config.method != 'rgb_lp' else ('orange',)
+        self.colors = tuple(colors)
+        self._idx = {c: model.index(c) for c in self.colors} if config.method == 'learned' \
+            else {}
+        self._lut_u8 = {c: np.ascontiguousarray(
+            np.round(model.luts[i] * _P_SCALE).astype(np.uint8).reshape(-1))
+            for c, i in self._idx.items()}
+        self._vmin = {c: model.v_min[i] for c, i in self._idx.items()}
+        self._cache: dict[tuple, Any] = {}
+
+    def with_config(self, **changes) -> 'ColorDetector':
+        """A detector sharing the model with some parameters changed."""
+        return ColorDetector(self.model, replace(self.config, **changes), self.rgb_lp)
+
+    # -- geometry caches --
+    def _frame_setup(self, width: int, height: int) -> tuple:
+        key = (width, height)
+        if key not in self._cache:
+            s = int(self.config.scale)
+            sw, sh = -(-width // s), -(-height // s)
+            prior = self.model.prior if self.config.use_prior else SpatialPrior.uniform(
+                width, height)
+            p = prior.prior_image(sw, sh)
+            thr = np.clip(np.ceil(self.config.threshold / p * _P_SCALE), 0, 255).astype(np.uint8)
+            p_full = prior.prior_image(width, height)
+            rx, ry, rw, rh = prior.roi_for(width, height) if self.config.use_prior else (
+                0, 0, width, height)
+            roi = (max(0, rx // s), max(0, ry // s), min(sw, -(-(rx + rw) // s)),
+                   min(sh, -(-(ry + rh) // s)))
+            self._cache[key] = (s, sw, sh, thr, p_full, roi)
+        return self._cache[key]
+
+    # -- the public API --
+    def detect(self, bgr: np.ndarray, rois: Sequence[Roi] = ()) -> list[Detection]:
+        """Detect colour signs in one BGR frame.
+
+        Args:
+            bgr: (H, W, 3) uint8 image.
+            rois: LiDAR ROIs of this frame (empty when there is no LiDAR).
+
+        Returns:
+            Every detected sign, largest first.
+        """
+        return [c.detection() for c in self.candidates(bgr, rois)]
+
+    def candidates(self, bgr: np.ndarray, rois: Sequence[Roi] = ()) -> list[Candidate]:
+        """As :meth:`detect`, returning :class:`Candidate` objects (with shape features)."""
+        if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
+            raise ValueError(f'expected an (H, W, 3) uint8 BGR image, got {bgr.shape} '
+                             f'{bgr.dtype}')
+        height, width = bgr.shape[:2]
+        s, sw, sh, thr_base, p_full, roi = self._frame_setup(width, height)
+        cfg = self.config
+        # LiDAR ROIs in mask coordinates, expanded by roi_margin.
+        lboxes = []
+        for r in rois:
+            mx, my = r.box.w * cfg.roi_margin, r.box.h * cfg.roi_margin
+            x0 = int(max(0, (r.box.x - mx) // s))
+            y0 = int(max(0, (r.box.y - my) // s))
+            x1 = int(min(sw, math.ceil((r.box.x2 + mx) / s)))
+            y1 = int(min(sh, math.ceil((r.box.y2 + my) / s)))
+            if x1 > x0 and y1 > y0:
+                lboxes.append((x0, y0, x1, y1))
+        # The evaluated region: the prior's ROI plus every LiDAR ROI.
+        cx0, cy0, cx1, cy1 = roi
+        for x0, y0, x1, y1 in lboxes:
+            cx0, cy0, cx1, cy1 = min(cx0, x0), min(cy0, y0), max(cx1, x1), max(cy1, y1)
+        small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_AREA) if s > 1 else bgr
+        crop = small[cy0:cy1, cx0:cx1]
+        if crop.size == 0:
+            return []
+        thr = thr_base
+        if lboxes:
+            thr = thr_base.copy()
+            t_roi = np.uint8(min(255, math.ceil(cfg.roi_threshold / cfg.roi_prior * _P_SCALE)))
+            for x0, y0, x1, y1 in lboxes:
+                np.minimum(thr[y0:y1, x0:x1], t_roi, out=thr[y0:y1, x0:x1])
+        thr = thr[cy0:cy1, cx0:cx1]
+        hsv = cv2.cvtColor(crop, cv2.COLOR_BGR2HSV)
+        cands: list[Candidate] = []
+        if cfg.method == 'learned':
+            h, sat, v = cv2.split(hsv)
+            idx = cv2.merge([sat, h]).view(np.uint16)[..., 0]      # h * 256 + s
+            for color in self.colors:
+                prob = np.take(self._lut_u8[color], idx)
+                mask = cv2.compare(prob, thr, cv2.CMP_GE)
+                if self._vmin[color] > 0:
+                    mask &= cv2.compare(v, self._vmin[color], cv2.CMP_GE)
+                cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
+        elif cfg.method == 'hsv':
+            for color in self.colors:
+                mask = np.zeros(hsv.shape[:2], np.uint8)
+                for h_lo, h_hi, s_lo, v_lo in HSV_RANGES[color]:
+                    mask |= cv2.inRange(hsv, (h_lo, s_lo, v_lo), (h_hi, 255, 255))
+                cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
+        else:
+            count = self.rgb_lp.mask(crop)
+            cands += self._mser_blobs(count, bgr, (cx0, cy0), s)
+        cands = nms(cands, cfg.nms_iou, cfg.nms_contain)
+        return self._fuse(cands, rois, hsv, (cx0, cy0), s)
+
+    # -- seed 000 / 004 blob path --
+    def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
+               s: int, thr_base: np.ndarray, lboxes: list) -> list[Candidate]:
+        cfg = self.config
+        if cfg.method == 'hsv':
+            # seed 004: erosion removes speckle, dilation reconnects the remaining blobs
+            k = np.ones((3, 3), np.uint8)
+            mask = cv2.dilate(cv2.erode(mask, k), k, iterations=2)
+        else:
+            if cfg.open_px > 1:
+                mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN,
+                                        np.ones((cfg.open_px, cfg.open_px), np.uint8))
+            if cfg.close_px > 1:
+                mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE,
+                                        np.ones((cfg.close_px, cfg.close_px), np.uint8))
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        out = []
+        min_area_small = cfg.min_area_px / (s * s)
+        for i in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[i])
+            if area < min_area_small:
+                continue
+            fx, fy, fw, fh = (x + off[0]) * s, (y + off[1]) * s, w * s, h * s
+            if min(fw, fh) / 2.0 < cfg.min_radius_px or max(fw, fh) / 2.0 > cfg.max_radius_px:
+                continue
+            comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
+            c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes)
+            if c is not None:
+                out.append(c)
+        return out
+
+    def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
+                 thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
+        """Refine a blob at full resolution, measure its shape, score and filter it."""
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        fx, fy, fw, fh = box
+        m = 2 * s + 1
+        x0, y0 = max(0, fx - m), max(0, fy - m)
+        x1, y1 = min(W, fx + fw + m), min(H, fy + fh + m)
+        win = bgr[y0:y1, x0:x1]
+        hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
+        region = np.zeros(win.shape[:2], np.uint8)
+        up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
+        region[fy - y0:fy - y0 + fh, fx - x0:fx - x0 + fw] = up
+        if s > 1:
+            region = cv2.dilate(region, np.ones((4 * s + 1, 4 * s + 1), np.uint8))
+        if cfg.method == 'learned':
+            i = self._idx[color]
+            like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
+            like[hsv[..., 2] < self.model.v_min[i]] = 0.0
+            # posterior threshold at full resolution: tau / prior, or the ROI threshold
+            cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
+            cy, cx = min(cy, thr_base.shape[0] - 1), min(cx, thr_base.shape[1] - 1)
+            t = thr_base[cy, cx] / _P_SCALE
+            for bx0, by0, bx1, by1 in lboxes:
+                if bx0 <= cx < bx1 and by0 <= cy < by1:
+                    t = min(t, cfg.roi_threshold / cfg.roi_prior)
+            pix = (like >= t - 1e-6) & (region > 0)
+            post = like
+        else:
+            pix = np.zeros(win.shape[:2], bool)
+            for h_lo, h_hi, s_lo, v_lo in HSV_RANGES[color]:
+                pix |= cv2.inRange(hsv, (h_lo, s_lo, v_lo), (h_hi, 255, 255)) > 0
+            pix &= region > 0
+            post = pix.astype(np.float32)
+        if cfg.refine and pix.any():
+            ys, xs = np.nonzero(pix)
+            bx0, by0, bx1, by1 = xs.min(), ys.min(), xs.max() + 1, ys.max() + 1
+        else:
+            bx0, by0 = fx - x0, fy - y0
+            bx1, by1 = bx0 + fw, by0 + fh
+            pix = region > 0 if not pix.any() else pix
+        bw, bh = int(bx1 - bx0), int(by1 - by0)
+        if bw < 2 or bh < 2:
+            return None
+        area = float(np.count_nonzero(pix))
+        if area < cfg.min_area_px:
+            return None
+        pts = cv2.findNonZero(pix.astype(np.uint8))
+        hull_fill = float(cv2.contourArea(cv2.convexHull(pts))) / (bw * bh)
+        fill = area / (bw * bh)
+        aspect = bw / bh
+        if color == 'orange' and cfg.method == 'learned':
+            if hull_fill < cfg.min_hull_fill or max(aspect, 1 / aspect) > cfg.max_aspect:
+                return None
+            kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
+        else:
+            # seed 004: width/height close to 1, blob fills much of its box
+            if max(aspect, 1 / aspect) > cfg.general_max_aspect or fill < cfg.general_min_fill:
+                return None
+            if color == 'orange':
+                kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
+            else:
+                kind = 'general'
+        conf = _mode(post[pix]) if cfg.method == 'learned' else fill
+        cand = Candidate(x0 + bx0, y0 + by0, bw, bh, color, conf, kind, area, hull_fill)
+        if (color == 'orange' and cfg.method == 'learned' and cfg.extension
+                and kind == 'regulatory' and aspect >= cfg.ext_min_aspect):
+            self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
+        return cand
+
+    def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:
+        """Seed 000's regulatory two-colour extension: grow the box over a white bottom."""
+        cfg = self.config
+        H = bgr.shape[0]
+        x0, x1 = int(cand.x), int(cand.x + cand.w)
+        y_top = int(cand.y + cand.h)
+        y_max = min(H, int(y_top + cfg.ext_max_ratio * cand.h))
+        if y_max - y_top < 2:
+            return
+        strip = cv2.cvtColor(bgr[y_top:y_max, x0:x1], cv2.COLOR_BGR2HSV)
+        v_ref = float(np.median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
+        white = (strip[..., 1] <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
+        # black legend rows inside the white part: judge rows on a short running window
+        frac = white.mean(axis=1)
+        k = max(1, int(round(cand.h * 0.25)))
+        smooth = np.convolve(frac, np.ones(k) / k, mode='full')[:len(frac)]
+        run = 0
+        for j, f in enumerate(smooth):
+            if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
+                run = j + 1
+            elif j - run > k:
+                break
+        # trim rows at the bottom that are not white themselves
+        while run > 0 and frac[run - 1] < 0.3:
+            run -= 1
+        if run >= 0.3 * cand.h:
+            cand.h = float(run + cand.h)
+            cand.extended = True
+
+    # -- seed 002 MSER path --
+    def _mser_blobs(self, count: np.ndarray, bgr: np.ndarray, off: tuple[int, int],
+                    s: int) -> list[Candidate]:
+        cfg = self.config
+        img = (np.minimum(count, 5) * 50).astype(np.uint8)
+        mser = cv2.MSER_create(delta=cfg.mser_delta,
+                               min_area=max(4, int(cfg.min_area_px / (s * s))),
+                               max_area=int(img.size * 0.25))
+        # MSER finds dark-on-bright regions; the passing pixels are bright
+        _, bboxes = mser.detectRegions(255 - img)
+        out = []
+        for x, y, w, h in (bboxes if len(bboxes) else []):
+            fx, fy, fw, fh = (x + off[0]) * s, (y + off[1]) * s, w * s, h * s
+            if min(fw, fh) / 2.0 < cfg.min_radius_px or max(fw, fh) / 2.0 > cfg.max_radius_px:
+                continue
+            fill = float(np.count_nonzero(count[y:y + h, x:x + w])) / (w * h)
+            out.append(Candidate(fx, fy, fw, fh, 'orange', fill, 'unknown', fill * fw * fh))
+        return out
+
+    # -- LiDAR fusion --
+    def _fuse(self, cands: list[Candidate], rois: Sequence[Roi], hsv: np.ndarray,
+              off: tuple[int, int], s: int) -> list[Candidate]:
+        cfg = self.config
+        used = set()
+        for c in cands:
+            best, best_score = None, 0.0
+            for j, r in enumerate(rois):
+                mx, my = r.box.w * cfg.roi_margin, r.box.h * cfg.roi_margin
+                inside = (r.box.x - mx <= c.x + c.w / 2 <= r.box.x2 + mx
+                          and r.box.y - my <= c.y + c.h / 2 <= r.box.y2 + my)
+                score = max(_iou((c.x, c.y, c.w, c.h), (r.box.x, r.box.y, r.box.w,
+                                                         r.box.h))[0], 0.01 if inside else 0.0)
+                if score > best_score:
+                    best, best_score = j, score
+            if best is not None:
+                used.add(best)
+                c.sources = ['color', 'lidar']
+                c.roi_id = int(rois[best].candidate_id)
+                c.confidence = 1.0 - (1.0 - c.confidence) * (1.0 - cfg.lidar_confidence)
+        if cfg.lidar_only:
+            for j, r in enumerate(rois):
+                if j in used or r.box.w < 2 or r.box.h < 2:
+                    continue
+                x0 = int(r.box.x // s) - off[0]
+                y0 = int(r.box.y // s) - off[1]
+                patch = hsv[max(0, y0):max(0, y0 + int(r.box.h // s)),
+                            max(0, x0):max(0, x0 + int(r.box.w // s))]
+                cands.append(Candidate(r.box.x, r.box.y, r.box.w, r.box.h, dominant_color(patch),
+                                       cfg.lidar_only_confidence, 'unknown',
+                                       sources=['lidar'], roi_id=int(r.candidate_id)))
+        return cands

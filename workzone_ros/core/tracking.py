@@ -1,0 +1,798 @@
+"""Kernel-based mean-shift sign tracking (seed 001, section III.B) and its track life.
+
+The target is a hue-saturation histogram of ``nh x ns = 20 x 20`` bins weighted by a kernel
+that multiplies the Epanechnikov profile by the detection's shape mask over normalized pixel
+coordinates (seed 001, Fig. 2 and eq. 1).  In the next frame five candidates (kernels 0, 2, 5,
+7 and 10 % larger) are each moved by mean-shift (seed 001, eq. 3, weights
+``sqrt(t_u / c_u(z))``) until the shift is below a threshold or a maximum number of iterations
+is reached; the candidate with the highest Bhattacharyya coefficient is the result.
+
+Everything runs on a *search window* around the track, sub-sampled on a regular pixel grid so
+that a track costs the same whatever the sign's size (positions stay in full-resolution pixel
+units, so the weighted means of eq. 3 are sub-pixel).  The colour conversion and the bin index
+are computed once per window; a mean-shift iteration is a ``bincount`` and two dot products.
+
+Track life (:class:`MultiTracker`): a track starts from a detection; detections are associated
+to tracks by IoU, then by histogram similarity; an agreeing detection corrects the track (and
+refreshes its model); when the detector misses, the tracker runs on its own; the track ends
+when the similarity stays below a threshold, the box leaves the image or grows past a size
+limit.
+
+Regulatory two-colour boxes (orange top, white bottom; ``work_zone_begin``,
+``work_zone_speed_limit``): white has no usable hue and almost no saturation, so in a
+hue-saturation histogram it is indistinguishable from grey road, sky or concrete; a model
+built on the whole box mostly describes "achromatic" and slides over background.  The seed
+tracked the orange top and grew the box heuristically by an aspect ratio, which over-cropped.
+Here every track is anchored on the coloured part of the detection (the convex hull of the
+dominant-hue pixels: the shape mask), and the *measured* geometry of the detection box
+relative to that anchor (offset and size ratios, refreshed by each agreeing detection) maps
+the tracked anchor back to the full box.  For a diamond the anchor is the orange face inside
+the black border and the relation is close to identity; for a two-colour box it is the orange
+band and the relation restores the white part exactly as the detector saw it, scaled with the
+tracked anchor.  ``anchor_on_color=False`` tracks the whole box instead (the ablation).
+
+A CamShift peer (``method='camshift'``: ``cv2.CamShift`` on a hue back-projection of the same
+search window, same anchors and starts, same track life) is provided for comparison.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Optional, Sequence
+
+import cv2
+import numpy as np
+
+from workzone_ros.interfaces import Box, Detection, Track
+
+__all__ = [
+    'TrackerConfig', 'TrackingError', 'TargetModel', 'SearchWindow', 'MultiTracker',
+    'MODES', 'METHODS', 'SCALES', 'bhattacharyya', 'shape_mask', 'build_target',
+    'meanshift_localise', 'camshift_localise', 'box_iou',
+]
+
+MODES = ('detection_only', 'detection_and_tracking')
+METHODS = ('meanshift', 'camshift')
+#: Kernel sizes of the candidates relative to the previous box (seed 001, III.B).
+SCALES = (1.0, 1.02, 1.05, 1.07, 1.10)
+_MASK_GRID = 32          # resolution of the shape mask over normalized coordinates [-1, 1]^2
+
+
+class TrackingError(ValueError):
+    """An invalid tracker configuration or input (wrong image type, bad mode, ...)."""
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Tracker parameters (the node's ``tracker`` section maps onto these one to one).
+
+    Attributes:
+        mode: ``detection_only`` (seed 001's baseline) or ``detection_and_tracking``.
+        method: ``meanshift`` (seed 001) or ``camshift`` (OpenCV peer).
+        hue_bins: nh (seed: 20).
+        sat_bins: ns (seed: 20).
+        scales: candidate kernel sizes relative to the previous box (seed: 0/2/5/7/10 %).
+        max_iterations: mean-shift iterations per candidate.
+        shift_threshold_px: stop iterating when the centre moves less than this.
+        max_samples: pixels sampled inside a box (the grid stride grows with the box).
+        search_margin: search window half-size beyond the largest candidate, in half-boxes.
+        use_velocity: start mean-shift from the constant-velocity prediction (not in the seed).
+        min_similarity: Bhattacharyya coefficient below which the track is lost.
+        max_lost_frames: consecutive frames below ``min_similarity`` before the track ends.
+        max_coast_frames: frames without an agreeing detection before the track ends.
+        min_hits_to_coast: detections a track needs before it may run on its own.
+        max_background_similarity: a target whose model resembles its surroundings more than
+            this is not trackable (a featureless region): it never runs on its own.
+        iou_gate: IoU at which a detection agrees with a track.
+        similarity_gate: histogram similarity at which an overlapping detection agrees.
+        model_update: weight of a correcting detection's histogram in the model (1 = replace).
+        max_box_fraction: end the track when the box is wider/taller than this image fraction.
+        min_inside_fraction: end the track when less of the box than this is in the image.
+        min_box_px: ignore detections smaller than this (either side).
+        anchor_on_color: track the coloured part and keep the box geometry (two-colour guard).
+        duplicate_iou: two tracks overlapping more than this: the one with fewer hits ends.
+        background_weighting: scale the mean-shift weights of bins that are common in the
+            target's surroundings down (corrected background-weighted histogram, Ning et al.
+            2012; not in seed 001, whose plain ``sqrt(t_u / c_u)`` weights give every bin
+            present in the target, including its background fringe, the same pull).
+        surround_weight: candidate score = ``B(t, c) - surround_weight * B(t, ring)`` where
+            ring is the band outside the candidate's shape up to ``surround_size`` times its
+            box: a too-small candidate leaves sign colour in its ring (0 = seed 001: the
+            best Bhattacharyya coefficient alone, which prefers the smallest kernel).
+        surround_size: outer size of that band relative to the candidate box.
+    """
+
+    mode: str = 'detection_and_tracking'
+    method: str = 'meanshift'
+    hue_bins: int = 20
+    sat_bins: int = 20
+    scales: tuple[float, ...] = SCALES
+    max_iterations: int = 10
+    shift_threshold_px: float = 0.3
+    max_samples: int = 900
+    search_margin: float = 1.0
+    use_velocity: bool = True
+    min_similarity: float = 0.75
+    max_lost_frames: int = 2
+    max_coast_frames: int = 45
+    min_hits_to_coast: int = 2
+    max_background_similarity: float = 0.9
+    iou_gate: float = 0.3
+    similarity_gate: float = 0.8
+    model_update: float = 0.7
+    max_box_fraction: float = 0.5
+    min_inside_fraction: float = 0.6
+    min_box_px: int = 6
+    anchor_on_color: bool = True
+    duplicate_iou: float = 0.6
+    background_weighting: bool = True
+    surround_weight: float = 0.5
+    surround_size: float = 1.3
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise TrackingError(f'mode {self.mode!r} is not one of {MODES}')
+        if self.method not in METHODS:
+            raise TrackingError(f'method {self.method!r} is not one of {METHODS}')
+        if self.hue_bins < 1 or self.sat_bins < 1:
+            raise TrackingError('hue_bins and sat_bins must be positive')
+        if not self.scales or min(self.scales) <= 0:
+            raise TrackingError(f'scales must be positive, got {self.scales!r}')
+        if self.max_samples < 16:
+            raise TrackingError('max_samples must be at least 16')
+
+
+# --- histograms ---------------------------------------------------------------------------
+
+def _luts(nh: int, ns: int) -> tuple[np.ndarray, np.ndarray]:
+    h = np.arange(256)
+    hue = (np.minimum(h, 179) * nh // 180) * ns           # OpenCV 8-bit hue is 0..179
+    sat = h * ns // 256
+    return hue.astype(np.uint16), sat.astype(np.uint16)
+
+
+def bhattacharyya(p: np.ndarray, q: np.ndarray) -> float:
+    """Bhattacharyya coefficient of two normalized histograms (seed 001, B(t, c))."""
+    return float(np.sqrt(p * q).sum())
+
+
+def box_iou(a: Sequence[float], b: Sequence[float]) -> float:
+    """IoU of two ``(x, y, w, h)`` boxes (0 when either is empty)."""
+    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    if iw <= 0 or ih <= 0:
+        return 0.0
+    inter = iw * ih
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return inter / union if union > 0 else 0.0
+
+
+class SearchWindow:
+    """A sub-sampled HSV view of a frame region and its hue-saturation bin index.
+
+    Attributes:
+        x0, y0: full-resolution pixel of grid sample (0, 0).
+        stride: grid spacing in pixels.
+        xs, ys: full-resolution coordinates of the grid columns / rows (float64).
+        hsv: (ny, nx, 3) uint8 HSV samples.
+        bins: (ny, nx) intp hue-saturation bin of each sample.
+    """
+
+    __slots__ = ('x0', 'y0', 'stride', 'xs', 'ys', 'hsv', 'bins', 'nx', 'ny')
+
+    def __init__(self, frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, stride: int,
+                 luts: tuple[np.ndarray, np.ndarray]) -> None:
+        h, w = frame.shape[:2]
+        x0, y0 = max(0, int(x0)), max(0, int(y0))
+        x1, y1 = min(w, int(x1)), min(h, int(y1))
+        self.x0, self.y0, self.stride = x0, y0, int(stride)
+        if x1 <= x0 or y1 <= y0:
+            self.hsv = np.zeros((0, 0, 3), np.uint8)
+        else:
+            sub = np.ascontiguousarray(frame[y0:y1:self.stride, x0:x1:self.stride])
+            self.hsv = cv2.cvtColor(sub, cv2.COLOR_BGR2HSV)
+        self.ny, self.nx = self.hsv.shape[:2]
+        self.xs = x0 + self.stride * np.arange(self.nx, dtype=np.float64)
+        self.ys = y0 + self.stride * np.arange(self.ny, dtype=np.float64)
+        self.bins = (luts[0][self.hsv[..., 0]] + luts[1][self.hsv[..., 1]]).astype(np.intp)
+
+    def span(self, zx: float, zy: float, ax: float, ay: float) -> tuple[int, int, int, int]:
+        """Grid index ranges ``(kx0, kx1, ky0, ky1)`` of the box centred at z, half-size a."""
+        s = self.stride
+        kx0 = max(0, math.ceil((zx - ax - self.x0) / s))
+        kx1 = min(self.nx, math.floor((zx + ax - self.x0) / s) + 1)
+        ky0 = max(0, math.ceil((zy - ay - self.y0) / s))
+        ky1 = min(self.ny, math.floor((zy + ay - self.y0) / s) + 1)
+        return kx0, kx1, ky0, ky1
+
+
+def _stride(ax: float, ay: float, max_samples: int) -> int:
+    return max(1, int(math.sqrt(4.0 * ax * ay / max_samples)))
+
+
+def _kernel(win: SearchWindow, mask: np.ndarray, zx: float, zy: float, ax: float,
+            ay: float):
+    """Kernel of eq. 1 at centre z: Epanechnikov profile times the shape mask.
+
+    Returns:
+        ``(bins, k, xs, ys)`` of the samples inside the box, or None when it holds fewer than
+        four samples.
+    """
+    kx0, kx1, ky0, ky1 = win.span(zx, zy, ax, ay)
+    if kx1 - kx0 < 2 or ky1 - ky0 < 2:
+        return None
+    xs, ys = win.xs[kx0:kx1], win.ys[ky0:ky1]
+    px = (xs - zx) / ax
+    py = (ys - zy) / ay
+    g = mask.shape[0]
+    ix = np.clip(((px + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
+    iy = np.clip(((py + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
+    k = 1.0 - (py * py)[:, None] - (px * px)[None, :]       # Epanechnikov profile 1 - |p|^2
+    np.maximum(k, 0.0, out=k)
+    k *= mask[iy[:, None], ix[None, :]]
+    return win.bins[ky0:ky1, kx0:kx1], k, xs, ys
+
+
+def _surround(win: SearchWindow, mask: np.ndarray, zx: float, zy: float, ax: float,
+              ay: float, size: float, nb: int) -> Optional[np.ndarray]:
+    """Normalized histogram of the samples outside the candidate's shape, inside ``size``
+    times its box (uniform weights)."""
+    kx0, kx1, ky0, ky1 = win.span(zx, zy, ax * size, ay * size)
+    if kx1 - kx0 < 2 or ky1 - ky0 < 2:
+        return None
+    px = (win.xs[kx0:kx1] - zx) / ax
+    py = (win.ys[ky0:ky1] - zy) / ay
+    g = mask.shape[0]
+    inx = np.abs(px) < 1.0
+    iny = np.abs(py) < 1.0
+    ix = np.clip(((px + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
+    iy = np.clip(((py + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
+    shape = (mask[iy[:, None], ix[None, :]] > 0) & iny[:, None] & inx[None, :]
+    ring = win.bins[ky0:ky1, kx0:kx1][~shape]
+    if ring.size < 4:
+        return None
+    h = np.bincount(ring, minlength=nb).astype(np.float64)
+    return h / ring.size
+
+
+def _histogram(bins: np.ndarray, k: np.ndarray, nb: int) -> Optional[np.ndarray]:
+    p = np.bincount(bins.ravel(), k.ravel(), nb)
+    total = p.sum()
+    if total <= 0:
+        return None
+    return p / total
+
+
+# --- target model -------------------------------------------------------------------------
+
+def shape_mask(hsv: np.ndarray, min_saturation: int = 70, min_value: int = 50,
+               hue_tolerance: int = 12, min_fraction: float = 0.08) -> Optional[np.ndarray]:
+    """Shape mask of a detection (seed 001, Fig. 2): convex hull of its dominant-hue pixels.
+
+    The dominant hue is the mode of the chromatic pixels near the box centre; the mask is the
+    filled convex hull of the pixels within ``hue_tolerance`` of it (so a black legend and the
+    inside of a border belong to the shape).
+
+    Args:
+        hsv: (h, w, 3) uint8 HSV patch of the detection box.
+        min_saturation: saturation below which a pixel has no usable hue.
+        min_value: value below which a pixel has no usable hue.
+        hue_tolerance: half-width of the accepted hue range (OpenCV hue units, 0..179).
+        min_fraction: fewer dominant-hue pixels than this fraction of the box: no mask.
+
+    Returns:
+        uint8 mask (h, w) with 1 inside the shape, or None for an achromatic/featureless box.
+    """
+    h, w = hsv.shape[:2]
+    if h < 2 or w < 2:
+        return None
+    hue = hsv[..., 0].astype(np.int16)
+    chroma = (hsv[..., 1] >= min_saturation) & (hsv[..., 2] >= min_value)
+    yy, xx = np.ogrid[:h, :w]
+    inner = (((xx - (w - 1) / 2) / (w / 2)) ** 2 + ((yy - (h - 1) / 2) / (h / 2)) ** 2) < 1.0
+    sel = chroma & inner
+    if sel.sum() < max(3, min_fraction * h * w):
+        return None
+    mode = int(np.argmax(np.bincount(hue[sel] // 6, minlength=30))) * 6 + 3
+    diff = np.abs(hue - mode)
+    diff = np.minimum(diff, 180 - diff)
+    on = chroma & (diff <= hue_tolerance)
+    if on.sum() < max(3, min_fraction * h * w):
+        return None
+    pts = cv2.findNonZero(on.astype(np.uint8))
+    hull = cv2.convexHull(pts)
+    mask = np.zeros((h, w), np.uint8)
+    cv2.fillConvexPoly(mask, hull, 1)
+    return mask
+
+
+@dataclass
+class TargetModel:
+    """What a track follows: the anchor box, its shape mask and its histogram (eq. 1).
+
+    Attributes:
+        q: target histogram t_b (nh * ns, normalized).
+        qw: the histogram the mean-shift weights use: ``q`` with the bins common in the
+            surroundings scaled down when ``background_weighting`` is on, else ``q``.
+        mask: (32, 32) float32 shape mask over normalized anchor coordinates.
+        relation: the output box relative to the anchor: ``(dx, dy, rw, rh)`` with
+            ``box = (ax0 + dx * aw, ay0 + dy * ah, rw * aw, rh * ah)``.
+        anchor: anchor box ``(x, y, w, h)`` in the frame it was built from.
+        background_similarity: Bhattacharyya coefficient of the model and its surroundings.
+        colored: a shape mask was found (False: featureless or achromatic box).
+        hue_hist: hue histogram for the CamShift peer (float32, 180 bins, max 255).
+    """
+
+    q: np.ndarray
+    qw: np.ndarray
+    mask: np.ndarray
+    relation: tuple[float, float, float, float]
+    anchor: tuple[float, float, float, float]
+    background_similarity: float
+    colored: bool
+    hue_hist: np.ndarray
+
+    def box_from_anchor(self, anchor: Sequence[float]) -> tuple[float, float, float, float]:
+        """The output box for an anchor ``(x, y, w, h)``."""
+        dx, dy, rw, rh = self.relation
+        return (anchor[0] + dx * anchor[2], anchor[1] + dy * anchor[3], rw * anchor[2],
+                rh * anchor[3])
+
+
+def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
+                 luts: Optional[tuple[np.ndarray, np.ndarray]] = None) -> Optional[TargetModel]:
+    """Target model of a detection box (seed 001, eq. 1) with its anchor and shape mask.
+
+    Args:
+        frame: BGR uint8 image.
+        box: detection ``(x, y, w, h)`` in pixels.
+        cfg: tracker configuration.
+        luts: bin look-up tables (computed from ``cfg`` when None).
+
+    Returns:
+        The model, or None when the box is (almost) outside the image.
+    """
+    luts = luts or _luts(cfg.hue_bins, cfg.sat_bins)
+    H, W = frame.shape[:2]
+    x, y, w, h = (float(v) for v in box)
+    xi0, yi0 = max(0, int(math.floor(x))), max(0, int(math.floor(y)))
+    xi1, yi1 = min(W, int(math.ceil(x + w))), min(H, int(math.ceil(y + h)))
+    if xi1 - xi0 < 2 or yi1 - yi0 < 2:
+        return None
+    s = _stride(w / 2, h / 2, 4 * cfg.max_samples)
+    patch = cv2.cvtColor(np.ascontiguousarray(frame[yi0:yi1:s, xi0:xi1:s]), cv2.COLOR_BGR2HSV)
+    m = shape_mask(patch)
+    colored = m is not None
+    anchor = (x, y, w, h)
+    if colored and cfg.anchor_on_color:
+        ys_, xs_ = np.nonzero(m)
+        ax0, ax1 = xi0 + s * xs_.min(), xi0 + s * (xs_.max() + 1)
+        ay0, ay1 = yi0 + s * ys_.min(), yi0 + s * (ys_.max() + 1)
+        anchor = (float(ax0), float(ay0), float(ax1 - ax0), float(ay1 - ay0))
+        sub = m[ys_.min():ys_.max() + 1, xs_.min():xs_.max() + 1]
+    elif colored:
+        ox0, oy0 = int(round((x - xi0) / s)), int(round((y - yi0) / s))
+        sub = m[max(0, oy0):, max(0, ox0):]
+    else:
+        sub = np.ones((2, 2), np.uint8)
+    mask = cv2.resize(sub.astype(np.float32), (_MASK_GRID, _MASK_GRID),
+                      interpolation=cv2.INTER_AREA)
+    mask = (mask >= 0.5).astype(np.float32)
+    if mask.sum() < 4:
+        mask[:] = 1.0
+    aw, ah = max(anchor[2], 1.0), max(anchor[3], 1.0)
+    relation = ((x - anchor[0]) / aw, (y - anchor[1]) / ah, w / aw, h / ah)
+    ax, ay = aw / 2, ah / 2
+    zx, zy = anchor[0] + ax, anchor[1] + ay
+    stride = _stride(ax, ay, cfg.max_samples)
+    win = SearchWindow(frame, zx - 2 * ax, zy - 2 * ay, zx + 2 * ax + 1, zy + 2 * ay + 1,
+                       stride, luts)
+    nb = cfg.hue_bins * cfg.sat_bins
+    kern = _kernel(win, mask, zx, zy, ax, ay)
+    q = None if kern is None else _histogram(kern[0], kern[1], nb)
+    if q is None:
+        return None
+    # Surroundings: the window outside the anchor box (seed 001 has no such check).
+    inside = np.zeros(win.bins.shape, bool)
+    kx0, kx1, ky0, ky1 = win.span(zx, zy, ax, ay)
+    inside[ky0:ky1, kx0:kx1] = True
+    ring = win.bins[~inside]
+    bg_sim = 1.0
+    qw = q
+    if ring.size >= 8:
+        bg = np.bincount(ring, minlength=nb).astype(np.float64)
+        bg /= bg.sum()
+        bg_sim = bhattacharyya(q, bg)
+        if cfg.background_weighting:
+            # Corrected background-weighted histogram: v_u = min(o* / o_u, 1).
+            nz = bg[bg > 0]
+            v = np.ones(nb)
+            v[bg > 0] = np.minimum(nz.min() / nz, 1.0)
+            qw = q * v
+            qw = qw / qw.sum() if qw.sum() > 0 else q
+    # CamShift peer model: hue histogram of the chromatic anchor samples.
+    hsv_in = win.hsv[ky0:ky1, kx0:kx1]
+    valid = ((hsv_in[..., 1] >= 60) & (hsv_in[..., 2] >= 32)).astype(np.uint8)
+    hue_hist = cv2.calcHist([np.ascontiguousarray(hsv_in)], [0], valid, [180], [0, 180])
+    cv2.normalize(hue_hist, hue_hist, 0, 255, cv2.NORM_MINMAX)
+    return TargetModel(q=q, qw=qw, mask=mask, relation=relation, anchor=anchor,
+                       background_similarity=bg_sim, colored=colored, hue_hist=hue_hist)
+
+
+# --- localisation -------------------------------------------------------------------------
+
+def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: float,
+                       ax: float, ay: float, cfg: TrackerConfig
+                       ) -> tuple[float, float, float, float, float]:
+    """Seed 001's multi-scale mean-shift: five kernel sizes, eq. 3, best Bhattacharyya.
+
+    Args:
+        win: search window of the current frame.
+        target: the track's model.
+        zx, zy: start centre (previous or predicted anchor centre).
+        ax, ay: previous anchor half-size.
+        cfg: tracker configuration (scales, iterations, threshold).
+
+    Returns:
+        ``(cx, cy, half_w, half_h, rho)`` of the best candidate; rho = 0 when none converged.
+    """
+    nb = target.q.size
+    q, qw, mask = target.q, target.qw, target.mask
+    eps2 = cfg.shift_threshold_px ** 2
+    best = (zx, zy, ax, ay, 0.0)
+    best_score = -math.inf
+    start = (zx, zy)
+    for scale in cfg.scales:
+        bx, by = ax * scale, ay * scale
+        cx, cy = start
+        rho = 0.0
+        for _ in range(cfg.max_iterations):
+            kern = _kernel(win, mask, cx, cy, bx, by)
+            if kern is None:
+                break
+            bins, k, xs, ys = kern
+            p = _histogram(bins, k, nb)
+            if p is None:
+                break
+            rho = bhattacharyya(p, q)
+            with np.errstate(divide='ignore', invalid='ignore'):
+                ratio = np.where(p > 0, np.sqrt(qw / p), 0.0)
+            wts = ratio[bins] * (k > 0)                     # eq. 3: w_i * mask on the support
+            total = wts.sum()
+            if total <= 0:
+                break
+            nx = float(wts.sum(axis=0) @ xs) / total
+            ny = float(wts.sum(axis=1) @ ys) / total
+            moved2 = (nx - cx) ** 2 + (ny - cy) ** 2
+            cx, cy = nx, ny
+            if moved2 < eps2:
+                break
+        kern = _kernel(win, mask, cx, cy, bx, by)
+        if kern is not None:
+            p = _histogram(kern[0], kern[1], nb)
+            rho = bhattacharyya(p, q) if p is not None else 0.0
+        else:
+            rho = 0.0
+        score = rho
+        if cfg.surround_weight > 0 and rho > 0:
+            ring = _surround(win, mask, cx, cy, bx, by, cfg.surround_size, nb)
+            if ring is not None:
+                score -= cfg.surround_weight * bhattacharyya(ring, q)
+        if score > best_score:
+            best, best_score = (cx, cy, bx, by, rho), score
+        if scale == cfg.scales[0]:
+            start = (cx, cy)          # the other sizes start where the first one converged
+    return best
+
+
+def camshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: float,
+                      ax: float, ay: float, cfg: TrackerConfig
+                      ) -> tuple[float, float, float, float, float]:
+    """OpenCV CamShift on the hue back-projection of the same search window (the peer).
+
+    The similarity reported is the same kernel Bhattacharyya coefficient as mean-shift's, at
+    the CamShift box, so both methods share the track-life rules.
+
+    Returns:
+        ``(cx, cy, half_w, half_h, rho)``.
+    """
+    if win.nx < 2 or win.ny < 2:
+        return zx, zy, ax, ay, 0.0
+    s = win.stride
+    hsv = win.hsv
+    bp = cv2.calcBackProject([hsv], [0], target.hue_hist, [0, 180], 1)
+    bp[(hsv[..., 1] < 60) | (hsv[..., 2] < 32)] = 0
+    gx0 = int(round((zx - ax - win.x0) / s))
+    gy0 = int(round((zy - ay - win.y0) / s))
+    gw = max(1, int(round(2 * ax / s)))
+    gh = max(1, int(round(2 * ay / s)))
+    gx0 = min(max(gx0, 0), win.nx - 1)
+    gy0 = min(max(gy0, 0), win.ny - 1)
+    gw, gh = min(gw, win.nx - gx0), min(gh, win.ny - gy0)
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, cfg.max_iterations,
+            max(cfg.shift_threshold_px / s, 0.1))
+    _, (x, y, w, h) = cv2.CamShift(bp, (gx0, gy0, gw, gh), crit)
+    if w <= 0 or h <= 0:
+        return zx, zy, ax, ay, 0.0
+    cx = win.x0 + s * (x + w / 2.0) - s / 2.0
+    cy = win.y0 + s * (y + h / 2.0) - s / 2.0
+    bx, by = s * w / 2.0, s * h / 2.0
+    kern = _kernel(win, target.mask, cx, cy, bx, by)
+    rho = 0.0
+    if kern is not None:
+        p = _histogram(kern[0], kern[1], target.q.size)
+        rho = bhattacharyya(p, target.q) if p is not None else 0.0
+    return cx, cy, bx, by, rho
+
+
+# --- track life ---------------------------------------------------------------------------
+
+@dataclass
+class _Track:
+    track_id: int
+    target: TargetModel
+    anchor: tuple[float, float, float, float]
+    box: tuple[float, float, float, float]
+    kind: str
+    color: str
+    confidence: float
+    age: int = 1
+    hits: int = 1
+    lost: int = 0
+    coast: int = 0
+    similarity: float = 1.0
+    velocity: tuple[float, float] = (0.0, 0.0)
+    pred_anchor: Optional[tuple[float, float, float, float]] = None
+    pred_box: Optional[tuple[float, float, float, float]] = None
+    pred_rho: float = 0.0
+    history: list = field(default_factory=list)
+
+
+@dataclass
+class _DetModel:
+    det: Detection
+    box: tuple[float, float, float, float]
+    target: Optional[TargetModel]
+
+
+class MultiTracker:
+    """Track life around the per-track localiser (see the module docstring).
+
+    Usage::
+
+        tracker = MultiTracker(TrackerConfig())
+        for frame, detections in stream:
+            tracks = tracker.step(frame, detections)     # list of interfaces.Track
+    """
+
+    def __init__(self, config: Optional[TrackerConfig] = None) -> None:
+        """Create an empty tracker.
+
+        Args:
+            config: parameters (defaults when None).
+        """
+        self.config = config or TrackerConfig()
+        self._luts = _luts(self.config.hue_bins, self.config.sat_bins)
+        self._tracks: list[_Track] = []
+        self._next_id = 1
+        self.frames = 0
+        #: seconds spent in localisation per track in the last step (for the bench).
+        self.last_localise_s: list[float] = []
+
+    def reconfigure(self, config: TrackerConfig) -> None:
+        """Use new parameters from the next frame on (keeps the tracks)."""
+        self.config = config
+        self._luts = _luts(config.hue_bins, config.sat_bins)
+
+    def reset(self) -> None:
+        """Drop every track (e.g. when the bag loops or time jumps back)."""
+        self._tracks.clear()
+
+    @property
+    def active_ids(self) -> list[int]:
+        """Ids of the live tracks."""
+        return [t.track_id for t in self._tracks]
+
+    # -- per-track localisation ----------------------------------------------------------
+
+    def _localise(self, frame: np.ndarray, tr: _Track) -> None:
+        cfg = self.config
+        x, y, w, h = tr.anchor
+        ax, ay = w / 2.0, h / 2.0
+        zx, zy = x + ax, y + ay
+        if cfg.use_velocity:
+            zx += tr.velocity[0]
+            zy += tr.velocity[1]
+        smax = max(cfg.scales)
+        mx = ax * (smax + cfg.search_margin) + 2
+        my = ay * (smax + cfg.search_margin) + 2
+        stride = _stride(ax, ay, cfg.max_samples)
+        win = SearchWindow(frame, zx - mx, zy - my, zx + mx + 1, zy + my + 1, stride,
+                           self._luts)
+        fn = meanshift_localise if cfg.method == 'meanshift' else camshift_localise
+        cx, cy, bx, by, rho = fn(win, tr.target, zx, zy, ax, ay, cfg)
+        tr.pred_anchor = (cx - bx, cy - by, 2 * bx, 2 * by)
+        tr.pred_box = tr.target.box_from_anchor(tr.pred_anchor)
+        tr.pred_rho = rho
+
+    # -- the frame step ------------------------------------------------------------------
+
+    def step(self, frame: np.ndarray, detections: Sequence[Detection] = ()) -> list[Track]:
+        """Process one frame and its detections; returns the tracks to publish.
+
+        Args:
+            frame: BGR uint8 image (H, W, 3).
+            detections: the detector's output for this very frame (empty when it missed).
+
+        Returns:
+            One :class:`~workzone_ros.interfaces.Track` per published track, detections first
+            in input order, then tracks running on their own.
+
+        Raises:
+            TrackingError: ``frame`` is not an (H, W, 3) uint8 image.
+        """
+        if not isinstance(frame, np.ndarray) or frame.ndim != 3 or frame.shape[2] != 3 \
+                or frame.dtype != np.uint8:
+            raise TrackingError('frame must be an (H, W, 3) uint8 BGR image, got '
+                                f'{getattr(frame, "shape", None)} '
+                                f'{getattr(frame, "dtype", type(frame).__name__)}')
+        cfg = self.config
+        self.frames += 1
+        H, W = frame.shape[:2]
+        tracking = cfg.mode == 'detection_and_tracking'
+        self.last_localise_s = []
+
+        # 1. Localise every live track in this frame.
+        if tracking:
+            for tr in self._tracks:
+                t0 = time.perf_counter()
+                self._localise(frame, tr)
+                self.last_localise_s.append(time.perf_counter() - t0)
+        else:
+            for tr in self._tracks:
+                tr.pred_anchor, tr.pred_box, tr.pred_rho = tr.anchor, tr.box, 0.0
+
+        # 2. Detection models.
+        dets: list[_DetModel] = []
+        for d in detections:
+            b = d.box
+            if b.w < cfg.min_box_px or b.h < cfg.min_box_px:
+                continue
+            box = (float(b.x), float(b.y), float(b.w), float(b.h))
+            dets.append(_DetModel(d, box, build_target(frame, box, cfg, self._luts)))
+
+        # 3. Associate: IoU first, then histogram similarity (greedy on the combined score).
+        pairs = []
+        for ti, tr in enumerate(self._tracks):
+            ref = tr.pred_box if tr.pred_box is not None else tr.box
+            for di, dm in enumerate(dets):
+                iou = max(box_iou(ref, dm.box), box_iou(tr.box, dm.box))
+                if iou <= 0.0:
+                    continue
+                sim = bhattacharyya(tr.target.q, dm.target.q) if dm.target is not None else 0.0
+                if iou >= cfg.iou_gate or sim >= cfg.similarity_gate:
+                    pairs.append((iou + sim, iou, sim, ti, di))
+        pairs.sort(reverse=True)
+        t_match: dict[int, tuple[int, float]] = {}
+        d_used: set[int] = set()
+        for _, _, sim, ti, di in pairs:
+            if ti in t_match or di in d_used:
+                continue
+            t_match[ti] = (di, sim)
+            d_used.add(di)
+
+        out_det: list[tuple[int, Track]] = []
+        out_trk: list[Track] = []
+        survivors: list[_Track] = []
+        for ti, tr in enumerate(self._tracks):
+            tr.age += 1
+            if ti in t_match:
+                di, sim = t_match[ti]
+                dm = dets[di]
+                self._correct(tr, dm, sim)
+                survivors.append(tr)
+                out_det.append((di, self._payload(tr, 'detection')))
+                continue
+            if not tracking:
+                tr.lost += 1
+                if tr.lost <= cfg.max_lost_frames:
+                    survivors.append(tr)
+                continue
+            # The detector missed: the track runs on its own.
+            tr.coast += 1
+            if tr.coast > cfg.max_coast_frames:
+                continue
+            ok_rho = tr.pred_rho >= cfg.min_similarity
+            if not ok_rho:
+                tr.lost += 1
+                if tr.lost <= cfg.max_lost_frames:
+                    survivors.append(tr)      # hold the box; search again next frame
+                continue
+            pb = tr.pred_box
+            if not self._inside(pb, W, H) or pb[2] > cfg.max_box_fraction * W \
+                    or pb[3] > cfg.max_box_fraction * H:
+                continue
+            self._advance(tr, tr.pred_anchor, pb)
+            tr.similarity = tr.pred_rho
+            tr.lost = 0
+            survivors.append(tr)
+            if tr.hits >= cfg.min_hits_to_coast and tr.target.colored \
+                    and tr.target.background_similarity <= cfg.max_background_similarity:
+                out_trk.append(self._payload(tr, 'tracking'))
+
+        # 4. Unmatched detections start tracks.
+        for di, dm in enumerate(dets):
+            if di in d_used or dm.target is None:
+                if di not in d_used:
+                    out_det.append((di, self._det_only(dm)))
+                continue
+            tr = _Track(self._next_id, dm.target, dm.target.anchor, dm.box, dm.det.kind,
+                        dm.det.color, dm.det.confidence)
+            self._next_id += 1
+            survivors.append(tr)
+            out_det.append((di, self._payload(tr, 'detection')))
+
+        # 5. Duplicates: two tracks on one sign -> the one with fewer hits ends.
+        survivors.sort(key=lambda t: (-t.hits, t.track_id))
+        kept: list[_Track] = []
+        for tr in survivors:
+            if any(box_iou(tr.box, k.box) > cfg.duplicate_iou for k in kept):
+                continue
+            kept.append(tr)
+        kept_ids = {t.track_id for t in kept}
+        self._tracks = sorted(kept, key=lambda t: t.track_id)
+        out_det.sort(key=lambda p: p[0])
+        return [t for _, t in out_det] + [t for t in out_trk if t.track_id in kept_ids]
+
+    # -- helpers -------------------------------------------------------------------------
+
+    def _inside(self, box: Sequence[float], W: int, H: int) -> bool:
+        """At least ``min_inside_fraction`` of ``box`` is inside the image."""
+        x, y, w, h = box
+        if w <= 0 or h <= 0:
+            return False
+        iw = max(0.0, min(x + w, W) - max(x, 0.0))
+        ih = max(0.0, min(y + h, H) - max(y, 0.0))
+        return iw * ih >= self.config.min_inside_fraction * w * h
+
+    def _advance(self, tr: _Track, anchor, box) -> None:
+        ox = tr.anchor[0] + tr.anchor[2] / 2
+        oy = tr.anchor[1] + tr.anchor[3] / 2
+        nx = anchor[0] + anchor[2] / 2
+        ny = anchor[1] + anchor[3] / 2
+        vx, vy = tr.velocity
+        tr.velocity = (0.5 * vx + 0.5 * (nx - ox), 0.5 * vy + 0.5 * (ny - oy))
+        tr.anchor, tr.box = anchor, box
+
+    def _correct(self, tr: _Track, dm: _DetModel, sim: float) -> None:
+        cfg = self.config
+        new = dm.target
+        if new is not None:
+            a = cfg.model_update
+            q = (1 - a) * tr.target.q + a * new.q
+            qw = (1 - a) * tr.target.qw + a * new.qw
+            tr.target = replace(new, q=q / q.sum(), qw=qw / qw.sum())
+            self._advance(tr, new.anchor, dm.box)
+        else:
+            tr.box = dm.box           # no model from this box (mostly outside): keep the old
+        tr.hits += 1
+        tr.lost = 0
+        tr.coast = 0
+        tr.similarity = min(1.0, max(0.0, sim))
+        tr.kind, tr.color, tr.confidence = dm.det.kind, dm.det.color, dm.det.confidence
+
+    def _payload(self, tr: _Track, source: str) -> Track:
+        x, y, w, h = tr.box
+        return Track(track_id=tr.track_id, box=Box(x=float(x), y=float(y), w=float(max(w, 0)),
+                                                   h=float(max(h, 0))),
+                     source=source, age=tr.age, hits=tr.hits,
+                     similarity=float(min(1.0, max(0.0, tr.similarity))),
+                     confidence=float(min(1.0, max(0.0, tr.confidence))), kind=tr.kind,
+                     color=tr.color)
+
+    def _det_only(self, dm: _DetModel) -> Track:
+        """A detection that cannot start a track (outside the image): published, id 0."""
+        return Track(track_id=0, box=dm.det.box, source='detection', age=1, hits=1,
+                     similarity=0.0, confidence=dm.det.confidence, kind=dm.det.kind,
+                     color=dm.det.color)

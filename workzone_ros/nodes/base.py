@@ -1,0 +1,710 @@
+"""The shared node base: parameters, QoS helpers, input accounting and ``/diagnostics``.
+
+Every workzone_ros node subclasses :class:`WorkzoneNode` and declares a ``PARAMS`` table of
+:class:`Param`.  The base then
+
+* declares them with descriptors (description, numeric range, string choices, read-only),
+  reads them into the frozen ``self.params`` and logs the effective configuration in one block;
+* warns about parameters given to this node (params file section, ``/**`` wildcard, ``-p``,
+  ``parameter_overrides``) that no ``Param`` declares -- ROS ignores them silently;
+* validates live changes (``ros2 param set``) and rejects them with a reason;
+* wraps every subscription made through its QoS helpers so a bad message is counted, logged
+  once per reason per 5 s and dropped, and the node never dies on input (DESIGN.md,
+  principle 4);
+* publishes a ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` at 1 Hz with message,
+  drop, age, publisher-count and processing-time figures per input topic, and detects the
+  classic QoS mismatch (publishers exist, nothing arrives).
+
+Usage::
+
+    class Detector(WorkzoneNode):
+        PARAMS = (Param('image_topic', '/camera/image_raw', 'input image'),
+                  Param('threshold', 0.5, 'score threshold', min=0.0, max=1.0))
+        INPUT_TOPICS = ('image_topic',)
+
+        def __init__(self, **kwargs):
+            super().__init__('detector', **kwargs)
+            self.sensor_subscription(Image, self.params.image_topic, self._on_image)
+
+    def main(args=None):
+        return run_node(Detector, args)
+"""
+from __future__ import annotations
+
+import collections
+import dataclasses
+import difflib
+import math
+import re
+import sys
+import threading
+import time
+import traceback
+from dataclasses import dataclass
+from typing import Any, Callable, Optional, Sequence
+
+import numpy as np
+import rclpy
+import yaml
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import (
+    FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult,
+)
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_check_compatible,
+)
+
+from workzone_ros.nodes.conversions import InputError
+
+__all__ = ['Param', 'WorkzoneNode', 'run_node', 'InputError', 'ConfigError', 'TopicStats']
+
+HARDWARE_ID = 'workzone_ros'
+_TIMING_WINDOW = 200            # processing times kept per topic for p50/p99
+_INT_MIN, _INT_MAX = -2 ** 63, 2 ** 63 - 1
+
+# Arguments rclpy.init() got in run_node(), for finding --params-file in the global args.
+_GLOBAL_ARGS: Optional[list[str]] = None
+
+
+class ConfigError(ValueError):
+    """A parameter table or parameter value that prevents the node from starting."""
+
+
+@dataclass(frozen=True)
+class Param:
+    """One declared parameter: name, default (fixes the type), description and constraints.
+
+    Attributes:
+        name: parameter name; dots allowed (the attribute in ``params`` uses ``_``).
+        default: default value; bool, int, float, str or a list/tuple of one of them.
+        description: shown by ``ros2 param describe`` and in the start-up log.
+        min, max: numeric range (inclusive); either may be omitted.
+        choices: allowed values of a string parameter.
+        read_only: reject every change after start-up.
+    """
+
+    name: str
+    default: Any
+    description: str
+    min: Optional[float] = None
+    max: Optional[float] = None
+    choices: Optional[tuple] = None
+    read_only: bool = False
+
+    @property
+    def attr(self) -> str:
+        """The attribute name in the node's ``params``."""
+        return self.name.replace('.', '_')
+
+    def kind(self) -> str:
+        """'bool', 'int', 'float', 'str' or '<scalar>[]'."""
+        value = self.default
+        if isinstance(value, (list, tuple)):
+            if not value:
+                raise ConfigError(f'parameter {self.name!r}: an empty list default has no type')
+            kinds = {_scalar_kind(v) for v in value}
+            if kinds == {'int', 'float'}:
+                kinds = {'float'}
+            if len(kinds) != 1:
+                raise ConfigError(f'parameter {self.name!r}: mixed list default {value!r}')
+            return kinds.pop() + '[]'
+        return _scalar_kind(value)
+
+    def check(self, value: Any) -> Optional[str]:
+        """Why ``value`` is not acceptable for this parameter, or None when it is."""
+        kind = self.kind()
+        scalar = kind[:-2] if kind.endswith('[]') else kind
+        values = value if kind.endswith('[]') else [value]
+        if kind.endswith('[]') and not isinstance(value, (list, tuple)):
+            return f'{self.name} must be a list of {scalar}, got {value!r}'
+        for v in values:
+            got = _scalar_kind(v, strict=False)
+            if got != scalar and not (scalar == 'float' and got == 'int'):
+                return f'{self.name} must be {scalar}, got {type(v).__name__} {v!r}'
+            if scalar in ('int', 'float'):
+                if scalar == 'float' and not math.isfinite(float(v)) and (
+                        self.min is not None or self.max is not None):
+                    return f'{self.name} = {v} is not finite'
+                if self.min is not None and v < self.min:
+                    return f'{self.name} = {v} is below the minimum {self.min}'
+                if self.max is not None and v > self.max:
+                    return f'{self.name} = {v} is above the maximum {self.max}'
+            if self.choices is not None and v not in self.choices:
+                return (f'{self.name} = {v!r} is not one of '
+                        f'{", ".join(repr(c) for c in self.choices)}')
+        return None
+
+    def normalise(self, value: Any) -> Any:
+        """The value as stored in ``params``: floats as float, lists as tuples."""
+        kind = self.kind()
+        if kind == 'float':
+            return float(value)
+        if kind == 'float[]':
+            return tuple(float(v) for v in value)
+        if kind.endswith('[]'):
+            return tuple(value)
+        return value
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The ``ParameterDescriptor`` this parameter is declared with."""
+        kind = self.kind()
+        text = self.description
+        if self.choices is not None:
+            text += f' (one of: {", ".join(str(c) for c in self.choices)})'
+        desc = ParameterDescriptor(description=text, read_only=self.read_only)
+        if self.choices is not None:
+            desc.additional_constraints = 'one of: ' + ', '.join(str(c) for c in self.choices)
+        # Floats accept integers too (YAML `1` for a float is the classic start-up failure);
+        # the on-set callback checks the type instead of rclpy.
+        desc.dynamic_typing = kind in ('float', 'float[]')
+        if (self.min is not None or self.max is not None) and kind in ('int', 'float'):
+            if kind == 'int':
+                desc.integer_range = [IntegerRange(
+                    from_value=int(self.min) if self.min is not None else _INT_MIN,
+                    to_value=int(self.max) if self.max is not None else _INT_MAX, step=0)]
+            else:
+                desc.floating_point_range = [FloatingPointRange(
+                    from_value=float(self.min) if self.min is not None else -math.inf,
+                    to_value=float(self.max) if self.max is not None else math.inf,
+                    step=0.0)]
+        return desc
+
+
+def _scalar_kind(value: Any, strict: bool = True) -> str:
+    if isinstance(value, bool):
+        return 'bool'
+    if isinstance(value, int):
+        return 'int'
+    if isinstance(value, float):
+        return 'float'
+    if isinstance(value, str):
+        return 'str'
+    if strict:
+        raise ConfigError(f'unsupported parameter default {value!r}')
+    return type(value).__name__
+
+
+class _Throttle:
+    """Per-key rate limiting with a count of what was suppressed."""
+
+    def __init__(self) -> None:
+        self._last: dict[str, float] = {}
+        self._suppressed: collections.Counter = collections.Counter()
+        self._lock = threading.Lock()
+
+    def __call__(self, key: str, period_s: float) -> Optional[int]:
+        """None when the line must be suppressed, else how many were suppressed before it."""
+        now = time.monotonic()
+        with self._lock:
+            last = self._last.get(key)
+            if last is not None and now - last < period_s:
+                self._suppressed[key] += 1
+                return None
+            self._last[key] = now
+            return self._suppressed.pop(key, 0)
+
+
+@dataclass
+class TopicStats:
+    """What the base knows about one input topic (wall-clock times from ``time.monotonic``)."""
+
+    topic: str
+    created: float
+    subscription: Any = None
+    messages: int = 0
+    dropped: int = 0
+    dropped_in_period: int = 0
+    last_drop_reason: str = ''
+    last_arrival: Optional[float] = None
+    last_stamp: Any = None
+    publishers_since: Optional[float] = None
+    times_s: collections.deque = dataclasses.field(
+        default_factory=lambda: collections.deque(maxlen=_TIMING_WINDOW))
+
+
+class WorkzoneNode(Node):
+    """Base class of every workzone_ros node (see the module docstring).
+
+    Attributes:
+        PARAMS: the subclass's parameter table.
+        INPUT_TOPICS: names of parameters that hold input topic names; they appear in
+            ``/diagnostics`` even before (or without) a subscription through the helpers.
+        params: frozen dataclass of the current parameter values (attribute per ``Param``).
+        config_warnings: every configuration warning logged at start-up (for tests/tools).
+    """
+
+    PARAMS: tuple[Param, ...] = ()
+    INPUT_TOPICS: tuple[str, ...] = ()
+
+    def __init__(self, node_name: str, *, diagnostics_period_s: float = 1.0,
+                 silent_input_warn_s: float = 3.0, **kwargs: Any) -> None:
+        """Create the node, declare and read parameters, start the diagnostics timer.
+
+        Args:
+            node_name: the node's default name (remappable with ``__node:=``).
+            diagnostics_period_s: period of ``/diagnostics`` (tests use a shorter one).
+            silent_input_warn_s: WARN when a topic has publishers but no message for longer.
+            **kwargs: passed to ``rclpy.node.Node`` (``parameter_overrides``, ``cli_args``,
+                ``context``, ``namespace``, ...).
+
+        Raises:
+            ConfigError: an invalid ``PARAMS`` table or an invalid parameter value at start-up.
+        """
+        super().__init__(node_name, **kwargs)
+        self._diag_period_s = float(diagnostics_period_s)
+        self._silent_warn_s = float(silent_input_warn_s)
+        self._throttle = _Throttle()
+        self._stats_lock = threading.Lock()
+        self._topic_stats: dict[str, TopicStats] = {}
+        self._traceback_logged: set[str] = set()
+        self.config_warnings: list[str] = []
+        self._param_table: dict[str, Param] = {}
+        self._cli_args = list(kwargs.get('cli_args') or [])
+        self._use_global_args = kwargs.get('use_global_arguments', True)
+
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        try:
+            self._check_param_table()
+            self._declare_params()
+        except ConfigError:
+            self.destroy_node()
+            raise
+        self.add_post_set_parameters_callback(self._parameters_set)
+        self._warn_undeclared()
+        self._log_configuration()
+
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._wall_clock = Clock(clock_type=ClockType.STEADY_TIME)
+        self._diag_timer = self.create_timer(self._diag_period_s, self._publish_diagnostics,
+                                             clock=self._wall_clock)
+
+    # --- parameters -----------------------------------------------------------------------
+
+    def _check_param_table(self) -> None:
+        attrs = set()
+        for p in self.PARAMS:
+            if p.name in self._param_table:
+                raise ConfigError(f'{type(self).__name__}.PARAMS declares {p.name!r} twice')
+            if not p.attr.isidentifier() or p.attr in attrs:
+                raise ConfigError(f'parameter name {p.name!r} cannot be an attribute')
+            p.kind()
+            reason = p.check(p.default)
+            if reason:
+                raise ConfigError(f'{type(self).__name__}.PARAMS default invalid: {reason}')
+            self._param_table[p.name] = p
+            attrs.add(p.attr)
+        self._params_cls = dataclasses.make_dataclass(
+            f'{type(self).__name__}Params', [(p.attr, Any) for p in self.PARAMS], frozen=True)
+
+    def _declare_params(self) -> None:
+        overrides = getattr(self, '_parameter_overrides', {})
+        for p in self.PARAMS:
+            if p.name in overrides:
+                reason = p.check(overrides[p.name].value)
+                if reason:
+                    raise ConfigError(f'node {self.get_fully_qualified_name()}: {reason}')
+        try:
+            self.declare_parameters('', [(p.name, p.default, p.descriptor())
+                                         for p in self.PARAMS])
+        except Exception as exc:  # noqa: BLE001 - rclpy raises several unrelated types
+            raise ConfigError(f'node {self.get_fully_qualified_name()}: {exc}') from None
+        self.params = self._read_params({})
+
+    def _read_params(self, changed: dict[str, Any]) -> Any:
+        values = {}
+        for p in self.PARAMS:
+            value = changed[p.name] if p.name in changed else self.get_parameter(p.name).value
+            values[p.attr] = p.normalise(value)
+        return self._params_cls(**values)
+
+    def _validate_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        for param in parameters:
+            spec = self._param_table.get(param.name)
+            if spec is None:
+                continue
+            if param.type_ == Parameter.Type.NOT_SET:
+                return SetParametersResult(successful=False,
+                                           reason=f'{param.name} cannot be unset')
+            reason = spec.check(param.value)
+            if reason:
+                return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def _parameters_set(self, parameters: list[Parameter]) -> None:
+        if not hasattr(self, 'params'):
+            return              # the declaration itself
+        changed = {p.name: p.value for p in parameters if p.name in self._param_table}
+        if not changed:
+            return
+        self.params = self._read_params(changed)
+        self.get_logger().info('parameters changed: ' + ', '.join(
+            f'{k} = {getattr(self.params, self._param_table[k].attr)!r}' for k in changed))
+        self.on_parameters_changed(changed)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Hook for subclasses: called after ``self.params`` took accepted new values."""
+
+    def _log_configuration(self) -> None:
+        overrides = set(getattr(self, '_parameter_overrides', {}))
+        lines = [f'configuration of {self.get_fully_qualified_name()}:']
+        for p in self.PARAMS:
+            value = getattr(self.params, p.attr)
+            mark = '' if p.name not in overrides else '   (set)'
+            lines.append(f'  {p.name} = {value!r}{mark}')
+        if self.has_parameter('use_sim_time'):
+            lines.append(f'  use_sim_time = {self.get_parameter("use_sim_time").value!r}')
+        self.get_logger().info('\n'.join(lines))
+
+    def _warn_undeclared(self) -> None:
+        declared = set(self._param_table) | {'use_sim_time', 'start_type_description_service'}
+        known = sorted(self._param_table)
+        reported: set[str] = set()
+
+        def hint(key: str) -> str:
+            close = difflib.get_close_matches(key, known, n=1)
+            return f' (did you mean {close[0]!r}?)' if close else ''
+
+        files = _params_files(self._cli_args)
+        if self._use_global_args:
+            global_args = _GLOBAL_ARGS if _GLOBAL_ARGS is not None else (
+                sys.argv if self.context is rclpy.utilities.get_default_context() else [])
+            files += _params_files(global_args)
+        fqn = self.get_fully_qualified_name()
+        for path in files:
+            try:
+                with open(path, encoding='utf-8') as f:
+                    doc = yaml.safe_load(f) or {}
+            except (OSError, yaml.YAMLError) as exc:
+                self._config_warning(f'cannot read params file {path}: {exc}')
+                continue
+            for section, params in _yaml_sections(doc):
+                if not _section_matches(section, fqn):
+                    continue
+                for key in params:
+                    if key in declared or key in reported:
+                        continue
+                    reported.add(key)
+                    self._config_warning(
+                        f'params file {path}: {section}: {key!r} is not a parameter of node '
+                        f'{fqn}; it is ignored{hint(key)}')
+        # Everything rcl resolved for this node (-p, files, parameter_overrides=...).
+        for key in sorted(getattr(self, '_parameter_overrides', {})):
+            if key not in declared and key not in reported:
+                reported.add(key)
+                self._config_warning(f'parameter override {key!r} is not a parameter of node '
+                                     f'{fqn}; it is ignored{hint(key)}')
+
+    def _config_warning(self, text: str) -> None:
+        self.config_warnings.append(text)
+        self.get_logger().warning(text)
+
+    # --- QoS helpers ----------------------------------------------------------------------
+
+    def sensor_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
+                            depth: int = 5) -> Any:
+        """Subscribe with the sensor-data profile (best effort, keep last ``depth``).
+
+        Best effort subscriptions connect to reliable and best-effort publishers alike.
+        """
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                         reliability=ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.VOLATILE)
+        return self._subscribe(msg_type, topic, callback, qos)
+
+    def reliable_subscription(self, msg_type: type, topic: str,
+                              callback: Callable[[Any], None], depth: int = 10,
+                              transient_local: bool = False) -> Any:
+        """Subscribe reliably (optionally transient local, to get a latched last message)."""
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL if transient_local
+                         else DurabilityPolicy.VOLATILE)
+        return self._subscribe(msg_type, topic, callback, qos)
+
+    def reliable_publisher(self, msg_type: type, topic: str, depth: int = 10,
+                           transient_local: bool = False) -> Any:
+        """Publisher for outputs: reliable, optionally transient local (latched)."""
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                         reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL if transient_local
+                         else DurabilityPolicy.VOLATILE)
+        return self.create_publisher(msg_type, topic, qos)
+
+    def sensor_publisher(self, msg_type: type, topic: str, depth: int = 5) -> Any:
+        """Publisher with the sensor-data profile (best effort, keep last ``depth``)."""
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                         reliability=ReliabilityPolicy.BEST_EFFORT,
+                         durability=DurabilityPolicy.VOLATILE)
+        return self.create_publisher(msg_type, topic, qos)
+
+    def _subscribe(self, msg_type: type, topic: str, callback: Callable[[Any], None],
+                   qos: QoSProfile) -> Any:
+        stats = self._stats_for(self.resolve_topic_name(topic))
+
+        def wrapped(msg: Any) -> None:
+            arrival = time.monotonic()
+            t0 = time.perf_counter()
+            header = getattr(msg, 'header', None)
+            with self._stats_lock:
+                stats.messages += 1
+                stats.last_arrival = arrival
+                stats.last_stamp = getattr(header, 'stamp', None)
+            try:
+                callback(msg)
+            except InputError as exc:
+                self.drop(stats.topic, str(exc))
+            except Exception as exc:  # noqa: BLE001 - the node must survive any message
+                reason = f'internal error: {type(exc).__name__}: {exc}'
+                key = f'{stats.topic}:{type(exc).__name__}'
+                if key not in self._traceback_logged:
+                    self._traceback_logged.add(key)
+                    self.get_logger().error(f'{stats.topic}: {reason}\n'
+                                            f'{traceback.format_exc().rstrip()}')
+                self.drop(stats.topic, reason)
+            finally:
+                elapsed = time.perf_counter() - t0
+                with self._stats_lock:
+                    stats.times_s.append(elapsed)
+
+        sub = self.create_subscription(msg_type, topic, wrapped, qos)
+        stats.subscription = sub
+        stats.created = time.monotonic()
+        return sub
+
+    def _stats_for(self, topic: str) -> TopicStats:
+        with self._stats_lock:
+            stats = self._topic_stats.get(topic)
+            if stats is None:
+                stats = self._topic_stats[topic] = TopicStats(topic, time.monotonic())
+            return stats
+
+    # --- input accounting -----------------------------------------------------------------
+
+    def drop(self, topic: str, reason: str) -> None:
+        """Count one invalid input on ``topic`` and log it (rate limited per reason).
+
+        Args:
+            topic: the input topic (as subscribed; relative names are resolved).
+            reason: one line saying what was wrong.
+        """
+        if topic not in self._topic_stats:
+            try:
+                topic = self.resolve_topic_name(topic)
+            except Exception:  # noqa: BLE001 - an unresolvable name is still a useful key
+                pass
+        stats = self._stats_for(topic)
+        with self._stats_lock:
+            stats.dropped += 1
+            stats.dropped_in_period += 1
+            stats.last_drop_reason = reason
+        self.warn_throttled(f'drop:{topic}:{reason}', f'dropped message on {topic}: {reason}')
+
+    def warn_throttled(self, key: str, text: str, period_s: float = 5.0) -> None:
+        """Log ``text`` as a warning at most once per ``period_s`` per ``key``.
+
+        The next line logged for a key says how many were suppressed since the last one.
+        """
+        suppressed = self._throttle(key, period_s)
+        if suppressed is None:
+            return
+        if suppressed:
+            text += f' ({suppressed} similar suppressed in the last {period_s:g} s)'
+        self.get_logger().warning(text)
+
+    def topic_stats(self) -> dict[str, TopicStats]:
+        """A snapshot copy of the per-topic input statistics (keyed by resolved topic)."""
+        with self._stats_lock:
+            return {k: dataclasses.replace(v, times_s=collections.deque(v.times_s))
+                    for k, v in self._topic_stats.items()}
+
+    # --- diagnostics ----------------------------------------------------------------------
+
+    def _input_topics(self) -> list[str]:
+        for name in self.INPUT_TOPICS:
+            value = getattr(self.params, name.replace('.', '_'), None)
+            if isinstance(value, str) and value:
+                try:
+                    self._stats_for(self.resolve_topic_name(value))
+                except Exception:  # noqa: BLE001 - an invalid name is reported elsewhere
+                    pass
+        return sorted(self._topic_stats)
+
+    def diagnostic_status(self) -> DiagnosticStatus:
+        """This node's current ``DiagnosticStatus`` (what the 1 Hz timer publishes)."""
+        now = time.monotonic()
+        level, problems, values = DiagnosticStatus.OK, [], []
+        for topic in self._input_topics():
+            stats = self._topic_stats[topic]
+            try:
+                publishers = self.count_publishers(topic)
+            except Exception:  # noqa: BLE001 - graph queries fail during shutdown
+                publishers = -1
+            with self._stats_lock:
+                dropped_now, stats.dropped_in_period = stats.dropped_in_period, 0
+                messages, dropped = stats.messages, stats.dropped
+                reason, arrival = stats.last_drop_reason, stats.last_arrival
+                times = np.fromiter(stats.times_s, dtype=float)
+            age = None if arrival is None else now - arrival
+            if publishers <= 0:
+                stats.publishers_since = None
+            elif stats.publishers_since is None:
+                stats.publishers_since = now
+            stamp = stats.last_stamp
+            values += [
+                (f'{topic} messages', str(messages)),
+                (f'{topic} dropped', str(dropped)),
+                (f'{topic} last drop reason', reason),
+                (f'{topic} age of last input s', 'never' if age is None else f'{age:.3f}'),
+                (f'{topic} last stamp', '' if stamp is None
+                 else f'{stamp.sec}.{stamp.nanosec:09d}'),
+                (f'{topic} publishers', str(publishers)),
+                (f'{topic} processing p50 ms',
+                 f'{np.percentile(times, 50) * 1e3:.3f}' if times.size else ''),
+                (f'{topic} processing p99 ms',
+                 f'{np.percentile(times, 99) * 1e3:.3f}' if times.size else ''),
+            ]
+            if dropped_now:
+                level = DiagnosticStatus.WARN
+                problems.append(f'{dropped_now} message(s) dropped on {topic}: {reason}')
+            # silence counts from the later of the last message and the publishers' appearance
+            silent_since = max(arrival if arrival is not None else -math.inf,
+                               stats.publishers_since if stats.publishers_since is not None
+                               else math.inf)
+            if stats.subscription is not None and publishers > 0 \
+                    and now - silent_since > self._silent_warn_s:
+                level = DiagnosticStatus.WARN
+                if arrival is None:
+                    text = f'publisher(s) on {topic} but nothing received: QoS mismatch?'
+                    detail = self._qos_detail(stats)
+                    self.warn_throttled(f'silent:{topic}', text + detail)
+                else:
+                    text = f'publisher(s) on {topic} but no message for {age:.1f} s'
+                    self.warn_throttled(f'silent:{topic}', text)
+                problems.append(text)
+        status = DiagnosticStatus(level=level, name=self.get_name(), hardware_id=HARDWARE_ID,
+                                  message='; '.join(problems) if problems else 'ok')
+        status.values = [KeyValue(key=k, value=v) for k, v in values]
+        return status
+
+    def _qos_detail(self, stats: TopicStats) -> str:
+        sub = stats.subscription
+        if sub is None:
+            return ''
+        try:
+            infos = self.get_publishers_info_by_topic(stats.topic)
+            sub_qos = sub.qos_profile
+            bad = [i for i in infos if qos_check_compatible(i.qos_profile, sub_qos)[0].name
+                   == 'ERROR']
+        except Exception:  # noqa: BLE001 - the detail is best effort
+            return ''
+        if not bad:
+            return ''
+        return (f' ({len(bad)} publisher(s) offer '
+                f'{_rel(bad[0].qos_profile)}/{_dur(bad[0].qos_profile)}, this subscription '
+                f'asks {_rel(sub_qos)}/{_dur(sub_qos)})')
+
+    def _publish_diagnostics(self) -> None:
+        try:
+            msg = DiagnosticArray()
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.status = [self.diagnostic_status()]
+            self._diag_pub.publish(msg)
+        except Exception as exc:  # noqa: BLE001 - diagnostics must never kill the node
+            self.warn_throttled('diagnostics', f'diagnostics failed: {exc}')
+
+
+def _rel(qos: QoSProfile) -> str:
+    return ReliabilityPolicy(int(qos.reliability)).name.lower()
+
+
+def _dur(qos: QoSProfile) -> str:
+    return DurabilityPolicy(int(qos.durability)).name.lower()
+
+
+# --- params-file parsing ------------------------------------------------------------------
+
+def _params_files(args: Sequence[str]) -> list[str]:
+    """The ``--params-file`` paths inside the ``--ros-args`` parts of ``args``."""
+    out, in_ros, it = [], False, iter(list(args))
+    for arg in it:
+        if arg == '--ros-args':
+            in_ros = True
+        elif arg == '--':
+            in_ros = False
+        elif in_ros and arg == '--params-file':
+            path = next(it, None)
+            if path:
+                out.append(path)
+    return out
+
+
+def _flatten(params: Any, prefix: str = '') -> list[str]:
+    if not isinstance(params, dict):
+        return [prefix] if prefix else []
+    out = []
+    for key, value in params.items():
+        name = f'{prefix}.{key}' if prefix else str(key)
+        out += _flatten(value, name) if isinstance(value, dict) else [name]
+    return out
+
+
+def _yaml_sections(doc: Any, path: str = '') -> list[tuple[str, list[str]]]:
+    """(node pattern, flattened parameter names) for every ``ros__parameters`` block."""
+    out = []
+    if not isinstance(doc, dict):
+        return out
+    for key, value in doc.items():
+        if key == 'ros__parameters':
+            out.append((path or '/', _flatten(value)))
+        elif isinstance(value, dict):
+            sub = str(key) if str(key).startswith('/') else '/' + str(key)
+            out += _yaml_sections(value, (path.rstrip('/') + sub) if path else sub)
+    return out
+
+
+def _section_matches(pattern: str, fqn: str) -> bool:
+    """Match a params-file node key like rcl: `*` one token, `**` any, `/**` every node."""
+    if pattern in ('/**', '**'):
+        return True
+    regex = ''
+    for part in re.split('(\\*\\*|\\*)', pattern.rstrip('/') or '/'):
+        regex += {'**': '.*', '*': '[^/]*'}.get(part, re.escape(part))
+    return re.fullmatch(regex, fqn) is not None
+
+
+def run_node(node_factory: Callable[[], Node], args: Optional[list[str]] = None) -> int:
+    """The Jazzy ``main()``: init, build the node, spin, shut down cleanly.
+
+    Args:
+        node_factory: builds the node (usually the node class).
+        args: command line (``sys.argv`` when None).
+
+    Returns:
+        Process exit code: 0 on a normal or Ctrl-C shutdown, 2 on a configuration error, 1 on
+        any other failure.
+    """
+    global _GLOBAL_ARGS
+    _GLOBAL_ARGS = list(args) if args is not None else list(sys.argv)
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = node_factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ConfigError as exc:
+        print(f'configuration error: {exc}', file=sys.stderr)
+        code = 2
+    except Exception:  # noqa: BLE001 - report and exit non-zero
+        traceback.print_exc()
+        code = 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code

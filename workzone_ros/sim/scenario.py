@@ -1,0 +1,981 @@
+"""Scenario YAML schema, loader and scene builder for the synthetic highway work zone.
+
+A scenario file (config/scenarios/*.yaml) says *what* happens along the route: the road shape,
+the weather, the ego lane and speed, one work zone with its driving-condition changes (speed
+limit, lane closure, lane shifts), extra signs and how many hard negatives to scatter.  The
+builder turns it into a :class:`~workzone_ros.sim.world.Scene` laid out as MUTCD typical
+applications do (advance warning signs on the right shoulder: W20-1 about 450 m before the
+taper, then W20-5L/R, W4-2L/R, the work-zone speed limit, W1-4 lane shifts, R22-1; drums
+along the taper and the activity area; G20-2 after it), an :class:`EgoTrajectory` that keeps
+its lane and follows merges and shifts, and the ground-truth events.
+
+Schema (every key optional except where noted; unknown keys are errors)::
+
+    name: demo                      # default: the file stem
+    description: one line           # shown by `workzone-ros synth list`
+    duration: 40.0                  # seconds (or `frames:` at 15 fps)
+    weather: spring_sunny           # winter_overcast | spring_sunny | spring_rain | dusk
+    ground_cover: grass             # grass | snow (default: snow in winter)
+    road: {curves: [[length_m, curvature_1_per_m], ...], guardrails: true,
+           tree_line: true, overpasses: [s_m, ...]}
+    ego: {speed: 22.4, lane: middle, start_s: 0.0, jitter: 1.0}
+    workzone: {taper_s: 600, length: 500, advance: 450, speed_limit: 45,
+               lane_closed: left|right|null, taper_length: 150, drum_spacing: 15,
+               lane_shifts: [{at: 200, direction: left|right|unknown, offset: 1.85}],
+               other_signs: 1, work_vehicles: 1}
+    signs: [{class: stop, s: 300, side: right|left|side_road, d: null, speed_value: null,
+             fade: null, tilt_deg: null}]
+    distractors: {vehicles: 4, orange_vehicles: 1, yellow_vehicles: 1, cones: 2, drums: 1,
+                  general_signs: 3, mile_markers: true}
+
+Positions are arc lengths ``s`` (m) along the route; the ego starts at ``ego.start_s`` and
+drives at constant speed, so an event at ``s`` happens at ``t = (s - start_s) / speed``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import zlib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import yaml
+
+from workzone_ros.core import signs as catalogue
+from workzone_ros.interfaces import GtEvent
+from workzone_ros.sim.world import (
+    CAMERA_IN_BASE, LANE_CENTERS, LANE_WIDTH, LEFT_SHOULDER, LIDAR_IN_BASE, RIGHT_SHOULDER, ROAD_HALF_WIDTH,
+    SIGN_BOTTOM_HEIGHT, SIGN_LATERAL, Box, Cone, Cylinder, Pose, Quad, Road, Scene, SignPanel,
+)
+
+__all__ = [
+    'ScenarioError', 'FPS', 'WEATHERS', 'LaneShift', 'WorkzoneSpec', 'SignSpec', 'RoadSpec',
+    'EgoSpec', 'DistractorSpec', 'ScenarioSpec', 'EgoTrajectory', 'LaneVehicle',
+    'scenario_dir', 'list_scenarios', 'load_scenario', 'parse_scenario', 'random_scenario',
+    'build_scene', 'lateral_offset',
+]
+
+FPS = 15.0
+WEATHERS = ('winter_overcast', 'spring_sunny', 'spring_rain', 'dusk')
+LANES = ('left', 'middle', 'right')
+SIDES = ('right', 'left', 'side_road')
+SHIFT_DIRECTIONS = ('left', 'right', 'unknown')
+DEFAULT_SPEED = 22.4            # m/s = 50 mph
+ADVANCE_DEFAULT = 450.0         # W20-1 distance before the taper (m)
+BEGIN_SIGN_LEAD = 40.0          # R22-1 this far before the taper
+END_SIGN_LAG = 60.0             # G20-2 this far after the activity area
+SHIFT_SIGN_LEAD = 120.0         # W1-4 this far before the shift starts
+SHIFT_LENGTH = 80.0             # length of a lane-shift transition
+MIN_SIGN_GAP = 30.0             # right-shoulder signs at least this far apart
+SIDE_ROAD_LATERAL = SIGN_LATERAL - 11.0
+LEFT_SIGN_LATERAL = ROAD_HALF_WIDTH + 1.5 + 1.0
+
+
+class ScenarioError(ValueError):
+    """A scenario that cannot be loaded or built; the message is one line naming the key."""
+
+
+# --- spec dataclasses -----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LaneShift:
+    """A lane shift: a W1-4(L/R) sign, then all lanes move sideways by ``offset`` metres.
+
+    ``at`` is measured from the taper start; ``direction`` is what the sign says
+    (``unknown`` = the W1-4 sign without direction); ``move`` is where the lanes go.
+    """
+
+    at: float
+    direction: str
+    offset: float = LANE_WIDTH / 2
+    move: Optional[str] = None
+
+
+@dataclass(frozen=True)
+class WorkzoneSpec:
+    """One work zone (see the module docstring for the keys)."""
+
+    taper_s: float
+    length: float = 500.0
+    advance: float = ADVANCE_DEFAULT
+    speed_limit: Optional[int] = None
+    lane_closed: Optional[str] = None
+    taper_length: float = 150.0
+    drum_spacing: float = 15.0
+    lane_shifts: tuple[LaneShift, ...] = ()
+    other_signs: int = 0
+    work_vehicles: int = 1
+
+    @property
+    def end_s(self) -> float:
+        """Arc length of the end of the activity area."""
+        return self.taper_s + self.length
+
+
+@dataclass(frozen=True)
+class SignSpec:
+    """An explicitly placed sign."""
+
+    class_key: str
+    s: float
+    side: str = 'right'
+    d: Optional[float] = None
+    speed_value: Optional[int] = None
+    fade: Optional[float] = None
+    tilt_deg: Optional[float] = None
+
+
+@dataclass(frozen=True)
+class RoadSpec:
+    """Road shape and roadside dressing."""
+
+    curves: tuple[tuple[float, float], ...] = ()
+    guardrails: bool = True
+    tree_line: bool = True
+    overpasses: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class EgoSpec:
+    """Ego lane, speed and motion jitter."""
+
+    speed: float = DEFAULT_SPEED
+    lane: str = 'middle'
+    start_s: float = 0.0
+    jitter: float = 1.0
+
+
+@dataclass(frozen=True)
+class DistractorSpec:
+    """How many hard negatives to scatter along the route (placed by the seed)."""
+
+    vehicles: int = 3
+    orange_vehicles: int = 1
+    yellow_vehicles: int = 1
+    cones: int = 2
+    drums: int = 1
+    general_signs: int = 2
+    mile_markers: bool = True
+
+
+@dataclass(frozen=True)
+class ScenarioSpec:
+    """A validated scenario."""
+
+    name: str
+    description: str = ''
+    duration: float = 40.0
+    weather: str = 'spring_sunny'
+    ground_cover: str = 'grass'
+    road: RoadSpec = field(default_factory=RoadSpec)
+    ego: EgoSpec = field(default_factory=EgoSpec)
+    workzone: Optional[WorkzoneSpec] = None
+    signs: tuple[SignSpec, ...] = ()
+    distractors: DistractorSpec = field(default_factory=DistractorSpec)
+    source: str = ''
+
+    @property
+    def frames(self) -> int:
+        """Camera frames at 15 fps."""
+        return int(round(self.duration * FPS))
+
+    def with_overrides(self, duration: Optional[float] = None,
+                       speed: Optional[float] = None) -> 'ScenarioSpec':
+        """A copy with a shorter/longer duration or another ego speed."""
+        out = self
+        if duration is not None:
+            if not duration > 0:
+                raise ScenarioError(f'duration must be > 0, got {duration}')
+            out = replace(out, duration=float(duration))
+        if speed is not None:
+            if not 0 < speed <= 60:
+                raise ScenarioError(f'ego speed must be in (0, 60] m/s, got {speed}')
+            out = replace(out, ego=replace(out.ego, speed=float(speed)))
+        return out
+
+
+# --- loading --------------------------------------------------------------------------------
+
+def _err(where: str, msg: str) -> ScenarioError:
+    return ScenarioError(f'{where}: {msg}')
+
+
+def _check_keys(d: Any, allowed: tuple[str, ...], where: str) -> dict:
+    if d is None:
+        return {}
+    if not isinstance(d, dict):
+        raise _err(where, f'must be a mapping, got {type(d).__name__}')
+    unknown = [k for k in d if k not in allowed]
+    if unknown:
+        raise _err(where, f'unknown key {unknown[0]!r}; allowed: {", ".join(allowed)}')
+    return d
+
+
+def _num(d: dict, key: str, where: str, default, lo=None, hi=None, integer=False,
+         allow_none=False):
+    v = d.get(key, default)
+    if v is None:
+        if allow_none or default is None:
+            return None
+        raise _err(where, f'{key} must be a number, got null')
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _err(where, f'{key} must be a number, got {v!r}')
+    if integer and int(v) != v:
+        raise _err(where, f'{key} must be an integer, got {v!r}')
+    if not math.isfinite(v) or (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise _err(where, f'{key} must be in [{lo}, {hi}], got {v!r}')
+    return int(v) if integer else float(v)
+
+
+def _choice(d: dict, key: str, where: str, default, choices, allow_none=False):
+    v = d.get(key, default)
+    if v is None and allow_none:
+        return None
+    if v not in choices:
+        raise _err(where, f'{key} must be one of {", ".join(map(str, choices))}, got {v!r}')
+    return v
+
+
+def _bool(d: dict, key: str, where: str, default: bool) -> bool:
+    v = d.get(key, default)
+    if not isinstance(v, bool):
+        raise _err(where, f'{key} must be true or false, got {v!r}')
+    return v
+
+
+def _sign_class(key: Any, where: str) -> str:
+    if key == 'background' or not isinstance(key, str):
+        raise _err(where, f'unknown sign class {key!r}')
+    try:
+        catalogue.get(key)
+    except catalogue.UnknownSignError:
+        raise _err(where, f'unknown sign class {key!r}; known: '
+                   f'{", ".join(k for k in catalogue.BY_KEY if k != "background")}') from None
+    return key
+
+
+def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> ScenarioSpec:
+    """Validate a scenario mapping (as loaded from YAML).
+
+    Args:
+        data: the mapping.
+        name: name used when the mapping has no ``name``.
+        source: where it came from (for messages).
+
+    Returns:
+        The validated spec.
+
+    Raises:
+        ScenarioError: unknown keys, unknown sign classes, bad values (one line).
+    """
+    top = _check_keys(data, ('name', 'description', 'duration', 'frames', 'weather',
+                             'ground_cover', 'road', 'ego', 'workzone', 'signs', 'distractors'),
+                      f'scenario {name}')
+    name = str(top.get('name', name))
+    w = f'scenario {name}'
+    if 'duration' in top and 'frames' in top:
+        raise _err(w, 'give duration or frames, not both')
+    if 'frames' in top:
+        duration = _num(top, 'frames', w, None, lo=1, hi=10 ** 6, integer=True) / FPS
+    else:
+        duration = _num(top, 'duration', w, 40.0, lo=0.1, hi=3600.0)
+    weather = _choice(top, 'weather', w, 'spring_sunny', WEATHERS)
+    cover = _choice(top, 'ground_cover', w, 'snow' if weather.startswith('winter') else 'grass',
+                    ('grass', 'snow'))
+
+    rd = _check_keys(top.get('road'), ('curves', 'guardrails', 'tree_line', 'overpasses'),
+                     f'{w}: road')
+    curves = []
+    for i, seg in enumerate(rd.get('curves') or []):
+        if (not isinstance(seg, (list, tuple)) or len(seg) != 2
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                           for x in seg)):
+            raise _err(f'{w}: road.curves[{i}]', f'must be [length_m, curvature], got {seg!r}')
+        if not 0 < seg[0] <= 20000 or abs(seg[1]) > 0.005:
+            raise _err(f'{w}: road.curves[{i}]', 'length must be in (0, 20000] m and '
+                       f'|curvature| <= 0.005 1/m, got {seg!r}')
+        curves.append((float(seg[0]), float(seg[1])))
+    overpasses = rd.get('overpasses') or []
+    if not isinstance(overpasses, list) or not all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0
+            for x in overpasses):
+        raise _err(f'{w}: road', f'overpasses must be a list of arc lengths, got {overpasses!r}')
+    road = RoadSpec(tuple(curves), _bool(rd, 'guardrails', f'{w}: road', True),
+                    _bool(rd, 'tree_line', f'{w}: road', True),
+                    tuple(float(x) for x in overpasses))
+
+    eg = _check_keys(top.get('ego'), ('speed', 'lane', 'start_s', 'jitter'), f'{w}: ego')
+    ego = EgoSpec(_num(eg, 'speed', f'{w}: ego', DEFAULT_SPEED, lo=1.0, hi=60.0),
+                  _choice(eg, 'lane', f'{w}: ego', 'middle', LANES),
+                  _num(eg, 'start_s', f'{w}: ego', 0.0, lo=0.0, hi=1e5),
+                  _num(eg, 'jitter', f'{w}: ego', 1.0, lo=0.0, hi=5.0))
+
+    wz = None
+    if top.get('workzone') is not None:
+        ww = f'{w}: workzone'
+        z = _check_keys(top['workzone'], ('taper_s', 'length', 'advance', 'speed_limit',
+                                          'lane_closed', 'taper_length', 'drum_spacing',
+                                          'lane_shifts', 'other_signs', 'work_vehicles'), ww)
+        if 'taper_s' not in z:
+            raise _err(ww, 'taper_s (arc length of the taper start) is required')
+        shifts = []
+        raw_shifts = z.get('lane_shifts') or []
+        if not isinstance(raw_shifts, list):
+            raise _err(ww, f'lane_shifts must be a list, got {raw_shifts!r}')
+        for i, sh in enumerate(raw_shifts):
+            sw = f'{ww}.lane_shifts[{i}]'
+            sh = _check_keys(sh, ('at', 'direction', 'offset', 'move'), sw)
+            if 'at' not in sh:
+                raise _err(sw, 'at (metres after the taper start) is required')
+            shifts.append(LaneShift(_num(sh, 'at', sw, None, lo=-300.0, hi=1e4),
+                                    _choice(sh, 'direction', sw, 'unknown', SHIFT_DIRECTIONS),
+                                    _num(sh, 'offset', sw, LANE_WIDTH / 2, lo=0.3, hi=4.0),
+                                    _choice(sh, 'move', sw, None, ('left', 'right'),
+                                            allow_none=True)))
+        speed_limit = z.get('speed_limit')
+        if speed_limit is not None:
+            speed_limit = _num(z, 'speed_limit', ww, None, lo=5, hi=85, integer=True)
+            if speed_limit % 5:
+                raise _err(ww, f'speed_limit must be a multiple of 5 mph, got {speed_limit}')
+        wz = WorkzoneSpec(
+            taper_s=_num(z, 'taper_s', ww, None, lo=0.0, hi=1e5),
+            length=_num(z, 'length', ww, 500.0, lo=50.0, hi=2e4),
+            advance=_num(z, 'advance', ww, ADVANCE_DEFAULT, lo=100.0, hi=2000.0),
+            speed_limit=speed_limit,
+            lane_closed=_choice(z, 'lane_closed', ww, None, ('left', 'right'), allow_none=True),
+            taper_length=_num(z, 'taper_length', ww, 150.0, lo=20.0, hi=400.0),
+            drum_spacing=_num(z, 'drum_spacing', ww, 15.0, lo=12.0, hi=20.0),
+            lane_shifts=tuple(sorted(shifts, key=lambda x: x.at)),
+            other_signs=_num(z, 'other_signs', ww, 0, lo=0, hi=20, integer=True),
+            work_vehicles=_num(z, 'work_vehicles', ww, 1, lo=0, hi=10, integer=True))
+        if wz.taper_length > wz.length:
+            raise _err(ww, f'taper_length {wz.taper_length} exceeds length {wz.length}')
+        for sh in wz.lane_shifts:
+            if sh.at + SHIFT_LENGTH > wz.length:
+                raise _err(ww, f'lane shift at {sh.at} m ends after the activity area '
+                           f'({wz.length} m)')
+
+    raw_signs = top.get('signs') or []
+    if not isinstance(raw_signs, list):
+        raise _err(w, f'signs must be a list, got {raw_signs!r}')
+    sign_specs = []
+    for i, sg in enumerate(raw_signs):
+        sw = f'{w}: signs[{i}]'
+        sg = _check_keys(sg, ('class', 's', 'side', 'd', 'speed_value', 'fade', 'tilt_deg'), sw)
+        if 'class' not in sg or 's' not in sg:
+            raise _err(sw, 'class and s are required')
+        sign_specs.append(SignSpec(
+            _sign_class(sg['class'], sw), _num(sg, 's', sw, None, lo=0.0, hi=1e5),
+            _choice(sg, 'side', sw, 'right', SIDES), _num(sg, 'd', sw, None, lo=-60, hi=60),
+            _num(sg, 'speed_value', sw, None, lo=5, hi=85, integer=True),
+            _num(sg, 'fade', sw, None, lo=0.0, hi=1.0),
+            _num(sg, 'tilt_deg', sw, None, lo=-15.0, hi=15.0)))
+
+    ds = _check_keys(top.get('distractors'), ('vehicles', 'orange_vehicles', 'yellow_vehicles',
+                                             'cones', 'drums', 'general_signs',
+                                             'mile_markers'), f'{w}: distractors')
+    dw = f'{w}: distractors'
+    distractors = DistractorSpec(
+        *(_num(ds, k, dw, getattr(DistractorSpec, k), lo=0, hi=200, integer=True)
+          for k in ('vehicles', 'orange_vehicles', 'yellow_vehicles', 'cones', 'drums',
+                    'general_signs')),
+        _bool(ds, 'mile_markers', dw, True))
+    desc = top.get('description', '')
+    if not isinstance(desc, str):
+        raise _err(w, f'description must be a string, got {desc!r}')
+    return ScenarioSpec(name, ' '.join(desc.split()), float(duration), weather, cover, road,
+                        ego, wz, tuple(sign_specs), distractors, source)
+
+
+def scenario_dir() -> Path:
+    """The scenario library: config/scenarios in the source tree or the installed share/."""
+    here = Path(__file__).resolve().parents[2] / 'config' / 'scenarios'
+    if here.is_dir():
+        return here
+    return Path(sys.prefix) / 'share' / 'workzone_ros' / 'config' / 'scenarios'
+
+
+def list_scenarios() -> dict[str, str]:
+    """Library scenario names -> descriptions (sorted by name; ``random`` included)."""
+    out = {}
+    for p in sorted(scenario_dir().glob('*.yaml')):
+        try:
+            out[p.stem] = load_scenario(p.stem).description
+        except ScenarioError as exc:
+            out[p.stem] = f'(invalid: {exc})'
+    out['random'] = 'a random scenario drawn from the same rules (use --seed N)'
+    return dict(sorted(out.items()))
+
+
+def load_scenario(name_or_path: str, seed: int = 0) -> ScenarioSpec:
+    """Load a library scenario by name, ``random`` (drawn from ``seed``) or a YAML path.
+
+    Raises:
+        ScenarioError: unknown scenario, unreadable or invalid YAML (one line).
+    """
+    if name_or_path == 'random':
+        return random_scenario(seed)
+    path = Path(name_or_path)
+    if path.suffix not in ('.yaml', '.yml'):
+        path = scenario_dir() / f'{name_or_path}.yaml'
+        if not path.is_file():
+            known = ', '.join(sorted(p.stem for p in scenario_dir().glob('*.yaml')))
+            raise ScenarioError(f'unknown scenario {name_or_path!r}; known: {known}, random '
+                                f'(or a path to a .yaml file)')
+    if not path.is_file():
+        raise ScenarioError(f'scenario file {path} not found')
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise ScenarioError(f'cannot read scenario {path}: {" ".join(str(exc).split())}') \
+            from None
+    return parse_scenario(data, name=path.stem, source=str(path))
+
+
+def random_scenario(seed: int) -> ScenarioSpec:
+    """A random scenario with the same layout rules: events, weather, road, distractors."""
+    rng = np.random.default_rng([seed, 0x5eed])
+    duration = float(rng.uniform(45.0, 90.0))
+    speed = float(rng.choice([20.1, 22.4, 24.6, 26.8]))
+    route = duration * speed
+    advance = ADVANCE_DEFAULT
+    w20_1 = float(rng.uniform(40.0, max(60.0, route * 0.15)))
+    taper = w20_1 + advance
+    length = float(max(200.0, min(route - taper - 120.0, rng.uniform(300.0, 900.0))))
+    closed = rng.choice(['left', 'right', None, None]) if rng.random() < 0.7 else None
+    shifts = []
+    n_shift = int(rng.integers(0, 3))
+    for i in range(n_shift):
+        at = float((i + 1) * length / (n_shift + 1)) - SHIFT_LENGTH / 2
+        shifts.append({'at': round(at, 1), 'direction': str(rng.choice(SHIFT_DIRECTIONS))})
+    curves = []
+    total = 0.0
+    while total < route + 800:
+        seg = float(rng.uniform(200.0, 900.0))
+        curves.append([round(seg, 1), float(rng.choice([0.0, 0.0, 1 / 1500, -1 / 1500,
+                                                          1 / 900, -1 / 900]))])
+        total += seg
+    data = {
+        'name': f'random_{seed}',
+        'description': f'random scenario drawn from seed {seed}',
+        'duration': round(duration, 3),
+        'weather': str(rng.choice(WEATHERS)),
+        'road': {'curves': curves,
+                 'overpasses': [round(float(rng.uniform(100, route)), 1)]
+                 if rng.random() < 0.5 else []},
+        'ego': {'speed': speed, 'lane': str(rng.choice(LANES))},
+        'workzone': {'taper_s': round(taper, 1), 'length': round(length, 1),
+                     'speed_limit': int(rng.choice([35, 40, 45, 50, 55]))
+                     if rng.random() < 0.7 else None,
+                     'lane_closed': None if closed is None else str(closed),
+                     'taper_length': float(min(150.0, length / 3)),
+                     'drum_spacing': float(rng.uniform(12.0, 20.0)),
+                     'lane_shifts': shifts, 'other_signs': int(rng.integers(0, 3))},
+        'distractors': {'vehicles': int(rng.integers(1, 6)),
+                        'orange_vehicles': int(rng.integers(0, 3)),
+                        'yellow_vehicles': int(rng.integers(0, 3)),
+                        'cones': int(rng.integers(0, 4)), 'drums': int(rng.integers(0, 3)),
+                        'general_signs': int(rng.integers(1, 6))},
+    }
+    return parse_scenario(data, name=data['name'], source=f'random:{seed}')
+
+
+# --- lateral profiles -----------------------------------------------------------------------
+
+def _smooth(x: np.ndarray) -> np.ndarray:
+    """Quintic smoothstep (C2) of x clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (10.0 + x * (-15.0 + 6.0 * x))
+
+
+def _shift_moves(wz: Optional[WorkzoneSpec]) -> list[tuple[float, float]]:
+    """(start_s, signed lateral move) of each lane shift; lanes stay within +-1 lane."""
+    if wz is None:
+        return []
+    out, offset = [], 0.0
+    for sh in wz.lane_shifts:
+        move = sh.move or (sh.direction if sh.direction != 'unknown' else
+                           ('right' if offset > 0 else 'left'))
+        delta = sh.offset if move == 'left' else -sh.offset
+        if abs(offset + delta) > LANE_WIDTH + 1e-6:
+            delta = -delta
+        offset += delta
+        out.append((wz.taper_s + sh.at, delta))
+    return out
+
+
+def lateral_offset(wz: Optional[WorkzoneSpec], s: np.ndarray) -> np.ndarray:
+    """Lateral offset of all lanes (m, left positive) at arc lengths ``s`` from lane shifts."""
+    s = np.asarray(s, dtype=float)
+    out = np.zeros_like(s)
+    for s0, delta in _shift_moves(wz):
+        out += delta * _smooth((s - s0) / SHIFT_LENGTH)
+    return out
+
+
+def _merge_target(lane: str, closed: Optional[str]) -> Optional[str]:
+    if closed is None or lane != closed:
+        return None
+    return 'middle'
+
+
+def lane_profile(wz: Optional[WorkzoneSpec], lane: str, s: np.ndarray) -> np.ndarray:
+    """Lateral position (m) of a vehicle keeping ``lane``: shifts plus a merge off a closed
+    lane (done 300-150 m before the taper)."""
+    d = LANE_CENTERS[lane] + lateral_offset(wz, s)
+    target = _merge_target(lane, wz.lane_closed if wz else None)
+    if target is not None:
+        s0 = wz.taper_s - 300.0
+        d = d + (LANE_CENTERS[target] - LANE_CENTERS[lane]) * _smooth((s - s0) / 150.0)
+    return d
+
+
+# --- ego ------------------------------------------------------------------------------------
+
+class EgoTrajectory:
+    """The ego vehicle: constant speed along the route, lateral profile, pitch/roll jitter.
+
+    Args:
+        road: the road.
+        speed: m/s.
+        start_s: arc length at t = 0.
+        s_grid: arc-length samples of the lateral profile.
+        d_grid: lateral offsets (left positive) at ``s_grid``.
+        jitter: scale of the pitch / roll oscillation (1.0 = about 0.25 / 0.2 degrees).
+        seed: phases of the oscillation.
+    """
+
+    def __init__(self, road: Road, speed: float, start_s: float, s_grid: np.ndarray,
+                 d_grid: np.ndarray, jitter: float = 1.0, seed: int = 0):
+        self.road = road
+        self.speed = float(speed)
+        self.start_s = float(start_s)
+        self._s = np.asarray(s_grid, dtype=float)
+        self._d = np.asarray(d_grid, dtype=float)
+        self._dd = np.gradient(self._d, self._s)
+        rng = np.random.default_rng([seed, 0xe90])
+        self._freq = np.array([0.9, 1.7, 2.9])
+        self._pitch = jitter * np.array([0.0030, 0.0012, 0.0006])
+        self._roll = jitter * np.array([0.0025, 0.0010, 0.0005])
+        self._phase = rng.uniform(0, 2 * np.pi, size=(2, 3))
+
+    def s(self, t):
+        """Arc length at time ``t`` (s)."""
+        return self.start_s + self.speed * np.asarray(t, dtype=float)
+
+    def t_at(self, s):
+        """Time at which the ego reaches arc length ``s``."""
+        return (np.asarray(s, dtype=float) - self.start_s) / self.speed
+
+    def d(self, t):
+        """Lateral offset at time ``t``."""
+        return np.interp(self.s(t), self._s, self._d)
+
+    def base_pose(self, t: float) -> Pose:
+        """base_link pose in the world (= odom) frame at time ``t``."""
+        s = float(self.s(t))
+        d = float(np.interp(s, self._s, self._d))
+        x, y, h = self.road.pose_at(s, d)
+        yaw = float(h) + math.atan(float(np.interp(s, self._s, self._dd)))
+        w = 2 * np.pi * self._freq * t
+        pitch = float(np.sum(self._pitch * np.sin(w + self._phase[0])))
+        roll = float(np.sum(self._roll * np.sin(w + self._phase[1])))
+        return Pose(np.array([float(x), float(y), 0.0]), yaw, pitch, roll)
+
+    def _mounted(self, t: float, offset: np.ndarray) -> Pose:
+        b = self.base_pose(t)
+        return Pose(b.to_world(offset), b.yaw, b.pitch, b.roll)
+
+    def lidar_pose(self, t: float) -> Pose:
+        """LiDAR pose (base_link axes) at time ``t``."""
+        return self._mounted(t, LIDAR_IN_BASE)
+
+    def camera_pose(self, t: float) -> Pose:
+        """Camera mount pose with base_link axes (the optical axes are BASE_TO_CAMERA_ROT)."""
+        return self._mounted(t, CAMERA_IN_BASE)
+
+    def velocity(self, t: float, dt: float = 1e-3) -> np.ndarray:
+        """World-frame linear velocity (3,) of base_link at time ``t``."""
+        return (self.base_pose(t + dt).position - self.base_pose(t - dt).position) / (2 * dt)
+
+    def twist(self, t: float, dt: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+        """Body-frame (linear, angular) velocity of base_link at time ``t``."""
+        p0, p1 = self.base_pose(t - dt), self.base_pose(t + dt)
+        b = self.base_pose(t)
+        lin = b.R.T @ ((p1.position - p0.position) / (2 * dt))
+        dR = p0.R.T @ p1.R                       # body rotation over 2 dt
+        ang = np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2
+        return lin, ang / (2 * dt)
+
+
+class LaneVehicle(Box):
+    """A vehicle that follows a lane of the road (merges and shifts included).
+
+    The base :class:`Box` moves in a straight line; this subclass keeps the road's curvature:
+    :meth:`at` returns a plain :class:`Box` at the lane position of time ``t``.
+    """
+
+    def __init__(self, *args, road: Road, s0: float, s_grid: np.ndarray, d_grid: np.ndarray,
+                 **kwargs):
+        super().__init__(*args, **kwargs)
+        self.road = road
+        self.s0 = float(s0)
+        self.s_grid = s_grid
+        self.d_grid = d_grid
+
+    def at(self, t: float) -> Box:
+        """The vehicle at time ``t`` as a plain Box."""
+        s = self.s0 + self.speed * t
+        d = float(np.interp(s, self.s_grid, self.d_grid))
+        x, y, h = self.road.pose_at(s, d)
+        return Box(self.object_id, self.kind, np.array([float(x), float(y), 0.0]), self.length,
+                   self.width, self.height, float(h), self.material, self.speed, self.plate,
+                   self.rear_material)
+
+
+# --- scene building -------------------------------------------------------------------------
+
+@dataclass
+class _Placed:
+    class_key: str
+    s: float
+    d: float
+    role: str = ''                      # 'advance', 'begin', 'end', 'shift', ...
+    speed_value: Optional[int] = None
+    fade: Optional[float] = None
+    tilt_deg: Optional[float] = None
+    event: Optional[tuple[str, Any]] = None
+
+
+class _Builder:
+    def __init__(self, spec: ScenarioSpec, seed: int):
+        self.spec = spec
+        self.seed = int(seed)
+        self.rng = np.random.default_rng([self.seed, zlib.crc32(spec.name.encode())])
+        self.ego_end_s = spec.ego.start_s + spec.ego.speed * spec.duration
+        need = self.ego_end_s + 700.0
+        wz = spec.workzone
+        if wz is not None:
+            need = max(need, wz.end_s + END_SIGN_LAG + 200.0)
+        need = max(need, max((sg.s for sg in spec.signs), default=0.0) + 100.0)
+        curves = list(spec.road.curves)
+        have = sum(L for L, _ in curves)
+        if have < need:
+            curves.append((need - have, 0.0))
+        self.road = Road(curves)
+        self.objects: list = []
+        self.signs: list[SignPanel] = []
+        self._next_id = 1
+
+    def new_id(self) -> int:
+        self._next_id += 1
+        return self._next_id - 1
+
+    # signs ------------------------------------------------------------------------------
+    def plan_signs(self) -> list[_Placed]:
+        spec, wz, rng = self.spec, self.spec.workzone, self.rng
+        right: list[_Placed] = []
+        other: list[_Placed] = []
+        if wz is not None:
+            t = wz.taper_s
+            right.append(_Placed('road_work_ahead', t - wz.advance, SIGN_LATERAL, 'advance',
+                                 event=('zone_approaching', None)))
+            seq: list[_Placed] = []
+            if wz.lane_closed:
+                side = wz.lane_closed
+                seq.append(_Placed(f'{side}_lane_closed_ahead', 0, SIGN_LATERAL, 'advance',
+                                   event=('lane_closed', side)))
+                seq.append(_Placed(f'{side}_lane_ends', 0, SIGN_LATERAL, 'advance',
+                                   event=('lane_closed', side)))
+            if wz.speed_limit is not None:
+                seq.append(_Placed('work_zone_speed_limit', 0, SIGN_LATERAL, 'advance',
+                                   speed_value=wz.speed_limit,
+                                   event=('speed_limit', wz.speed_limit)))
+            first = t - wz.advance
+            last = t - BEGIN_SIGN_LEAD - MIN_SIGN_GAP
+            for i, p in enumerate(seq):
+                p.s = first + (i + 1) * (last - first) / (len(seq) + 1) \
+                    + float(rng.uniform(-8, 8))
+            right += seq
+            for sh in wz.lane_shifts:
+                key = {'left': 'lane_shift_left', 'right': 'lane_shift_right',
+                       'unknown': 'lane_shift'}[sh.direction]
+                right.append(_Placed(key, t + sh.at - SHIFT_SIGN_LEAD, SIGN_LATERAL, 'shift',
+                                     event=('lane_shift', sh.direction)))
+            right.append(_Placed('work_zone_begin', t - BEGIN_SIGN_LEAD, SIGN_LATERAL, 'begin',
+                                 event=('zone_begin', None)))
+            for _ in range(wz.other_signs):
+                right.append(_Placed('other_workzone', float(rng.uniform(
+                    t + 20.0, wz.end_s - 20.0)), SIGN_LATERAL, 'inside'))
+            right.append(_Placed('end_road_work', wz.end_s + END_SIGN_LAG, SIGN_LATERAL, 'end',
+                                 event=('zone_end', None)))
+            # speed limit resumes after the zone (a general white sign)
+            right.append(_Placed('speed_limit', wz.end_s + END_SIGN_LAG + 150.0, SIGN_LATERAL,
+                                 'general', speed_value=65))
+        for sg in spec.signs:
+            d = sg.d if sg.d is not None else {'right': SIGN_LATERAL,
+                                                'left': LEFT_SIGN_LATERAL,
+                                                'side_road': SIDE_ROAD_LATERAL}[sg.side]
+            p = _Placed(sg.class_key, sg.s, d, 'explicit', sg.speed_value, sg.fade, sg.tilt_deg)
+            (right if sg.side == 'right' and sg.d is None else other).append(p)
+        # random general signs (hard negatives) and mile markers, outside the sign sequence
+        gen_keys = ('warning_diamond', 'speed_limit', 'guide', 'stop', 'yield', 'do_not_enter')
+        lo, hi = spec.ego.start_s + 60.0, self.ego_end_s + 100.0
+        for _ in range(spec.distractors.general_signs):
+            key = str(rng.choice(gen_keys))
+            s = float(rng.uniform(lo, hi))
+            if key in ('stop', 'yield', 'do_not_enter'):
+                other.append(_Placed(key, s, SIDE_ROAD_LATERAL + float(rng.uniform(-3, 2)),
+                                     'general'))
+            else:
+                right.append(_Placed(key, s, SIGN_LATERAL, 'general',
+                                     speed_value=int(rng.choice([55, 60, 65, 70]))
+                                     if key == 'speed_limit' else None))
+        if spec.distractors.mile_markers:
+            step = 1609.344 / 2
+            s = step * math.ceil((spec.ego.start_s + 50.0) / step)
+            while s < hi:
+                other.append(_Placed('mile_marker', s, SIGN_LATERAL + 1.0, 'general'))
+                s += step
+        # keep right-shoulder signs apart; work-zone signs keep their order, others yield
+        right.sort(key=lambda p: (p.s, p.role == 'general'))
+        fixed = [p for p in right if p.role != 'general']
+        for a, b in zip(fixed, fixed[1:]):
+            if b.s - a.s < MIN_SIGN_GAP:
+                b.s = a.s + MIN_SIGN_GAP
+        kept = list(fixed)
+        for p in (p for p in right if p.role == 'general'):
+            if all(abs(p.s - q.s) >= MIN_SIGN_GAP for q in kept):
+                kept.append(p)
+        return sorted(kept + other, key=lambda p: (p.s, p.d))
+
+    def add_sign(self, p: _Placed) -> SignPanel:
+        c = catalogue.get(p.class_key)
+        rng = self.rng
+        if c.shape == 'diamond':
+            w = h = c.width_m * math.sqrt(2.0)
+        else:
+            w, h = c.width_m, c.height_m
+        x, y, heading = self.road.pose_at(p.s, p.d)
+        jitter = math.radians(float(rng.uniform(-4.0, 4.0)))
+        if p.d < SIGN_LATERAL - 3:                        # side road: turned a bit more
+            jitter += math.radians(float(rng.uniform(-15.0, 15.0)))
+        yaw = float(heading) + math.pi + jitter
+        tilt = math.radians(p.tilt_deg) if p.tilt_deg is not None else (
+            math.radians(float(rng.uniform(-3.0, 3.0))) if rng.random() < 0.25 else 0.0)
+        fade = p.fade if p.fade is not None else (
+            float(rng.uniform(0.1, 0.45)) if rng.random() < 0.2 else 0.0)
+        center = np.array([float(x), float(y), SIGN_BOTTOM_HEIGHT + h / 2])
+        speed_value = p.speed_value
+        if speed_value is None and p.class_key == 'work_zone_speed_limit':
+            speed_value = 45
+        if speed_value is None and p.class_key == 'speed_limit':
+            speed_value = 65
+        panel = SignPanel(self.new_id(), p.class_key, center, yaw, w, h, tilt, fade,
+                          speed_value)
+        self.signs.append(panel)
+        # posts behind the face; guide signs stand on two
+        back = -panel.normal * 0.06
+        offsets = [-w * 0.33, w * 0.33] if w > 1.5 else [0.0]
+        right = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
+        for o in offsets:
+            base = center + back + right * o
+            base[2] = 0.0
+            self.objects.append(Cylinder(self.new_id(), 'post', base, 0.05 if w <= 1.5 else 0.08,
+                                         SIGN_BOTTOM_HEIGHT + h * 0.85, 'post'))
+        return panel
+
+    # objects -----------------------------------------------------------------------------
+    def world(self, s: float, d: float, z: float = 0.0) -> np.ndarray:
+        x, y, _ = self.road.pose_at(s, d)
+        return np.array([float(x), float(y), z])
+
+    def drum(self, s: float, d: float) -> None:
+        self.objects.append(Cylinder(
+            self.new_id(), 'drum', self.world(s, d), 0.29, 0.95, 'drum_orange',
+            [(0.18, 0.30, 'drum_band'), (0.42, 0.54, 'drum_band'), (0.66, 0.78, 'drum_band')]))
+
+    def cone(self, s: float, d: float) -> None:
+        self.objects.append(Cone(self.new_id(), 'cone', self.world(s, d), 0.18, 0.71,
+                                 'cone_orange', [(0.40, 0.52, 'drum_band')]))
+
+    def vehicle(self, kind: str, material: str, lane: str, s0: float, speed: float,
+                rear: Optional[str] = None) -> None:
+        length, width, height = {'car': (4.6, 1.85, 1.5), 'van': (5.5, 2.0, 2.3),
+                                 'truck': (8.5, 2.5, 3.2)}[kind]
+        grid = self.s_grid
+        d_grid = lane_profile(self.spec.workzone, lane, grid) if lane in LANES \
+            else np.full_like(grid, float(lane))
+        x, y, h = self.road.pose_at(s0, float(np.interp(s0, grid, d_grid)))
+        v = LaneVehicle(self.new_id(), 'truck' if kind == 'truck' else 'vehicle',
+                        np.array([float(x), float(y), 0.0]), length, width, height, float(h),
+                        material, speed, True, rear, road=self.road, s0=s0, s_grid=grid,
+                        d_grid=d_grid)
+        self.objects.append(v)
+
+    def build_workzone(self) -> None:
+        wz, rng = self.spec.workzone, self.rng
+        if wz is None:
+            return
+        t = wz.taper_s
+        taper_sp, tangent_sp = wz.drum_spacing * 0.8, wz.drum_spacing * 1.2
+        off = lambda s: float(lateral_offset(wz, np.array([s]))[0])  # noqa: E731
+        edge = ROAD_HALF_WIDTH
+        if wz.lane_closed:
+            sign = -1.0 if wz.lane_closed == 'right' else 1.0
+            d_start, d_line = sign * (edge - 0.3), sign * (LANE_WIDTH / 2 + 0.35)
+        else:                                              # shoulder closure
+            sign = -1.0
+            d_start, d_line = -(edge + RIGHT_SHOULDER - 0.4), -(edge + 0.45)
+        s = t
+        while s < t + wz.taper_length:                     # merging / shoulder taper
+            f = (s - t) / wz.taper_length
+            self.drum(s, d_start + (d_line - d_start) * f + off(s))
+            s += taper_sp
+        down = min(40.0, wz.length * 0.1)
+        while s < wz.end_s - down:                         # tangent along the activity area
+            self.drum(s, d_line + float(rng.uniform(-0.08, 0.08)) + off(s))
+            s += tangent_sp
+        while s <= wz.end_s:                               # downstream taper
+            f = (s - (wz.end_s - down)) / max(down, 1.0)
+            self.drum(s, d_line + (d_start - d_line) * f + off(s))
+            s += taper_sp
+        # work vehicles (orange trucks, static) and cone clusters in the closed area
+        work_d = (sign * LANE_WIDTH if wz.lane_closed else -(edge + RIGHT_SHOULDER / 2))
+        for i in range(wz.work_vehicles):
+            s0 = t + wz.taper_length + (i + 0.5) * (wz.length - wz.taper_length) \
+                / max(wz.work_vehicles, 1)
+            self.vehicle('truck', 'vehicle_orange', str(work_d + off(s0)), s0, 0.0,
+                         'vehicle_orange')
+            for k in range(3):
+                self.cone(s0 - 12.0 - 3.0 * k, work_d + off(s0) + float(rng.uniform(-0.8, 0.8)))
+
+    def build_distractors(self) -> None:
+        spec, rng = self.spec, self.rng
+        ds, wz = spec.distractors, spec.workzone
+        v_ego, s_ego, dur = spec.ego.speed, spec.ego.start_s, spec.duration
+        closed = wz.lane_closed if wz else None
+        ego_lanes = {spec.ego.lane, _merge_target(spec.ego.lane, closed) or spec.ego.lane}
+        other = [ln for ln in LANES if ln not in ego_lanes and ln != closed]
+        same = [ln for ln in ego_lanes if ln != closed]
+
+        def place(kind: str, material: str, rear: Optional[str]) -> None:
+            if other and (not same or rng.random() < 0.7):
+                lane = str(rng.choice(other))
+                dv = float(rng.uniform(2.0, 7.0)) * (1 if rng.random() < 0.3 else -1)
+                tm = float(rng.uniform(3.0, max(4.0, dur - 3.0)))  # alongside the ego at tm
+                s0 = s_ego - dv * tm
+            else:                                          # ego's lane: faster, ahead
+                lane = str(rng.choice(same))
+                dv = float(rng.uniform(0.5, 3.0))
+                s0 = s_ego + float(rng.uniform(25.0, 120.0))
+            self.vehicle(kind, material, lane, max(s0, 1.0), v_ego + dv, rear)
+
+        for _ in range(ds.vehicles):
+            place(str(rng.choice(['car', 'car', 'van', 'truck'])), 'vehicle_paint', None)
+        for _ in range(ds.orange_vehicles):
+            place(str(rng.choice(['truck', 'van'])), 'vehicle_orange', 'vehicle_orange')
+        for _ in range(ds.yellow_vehicles):
+            place(str(rng.choice(['car', 'van', 'truck'])), 'vehicle_yellow', 'vehicle_yellow')
+        lo, hi = s_ego + 40.0, self.ego_end_s + 100.0
+        for _ in range(ds.cones):                          # cone clusters on the shoulder
+            s0 = float(rng.uniform(lo, hi))
+            for k in range(int(rng.integers(2, 5))):
+                self.cone(s0 + 2.5 * k, -(ROAD_HALF_WIDTH + float(rng.uniform(0.8, 2.5))))
+        for _ in range(ds.drums):                          # stray drums on the shoulder
+            self.drum(float(rng.uniform(lo, hi)),
+                      -(ROAD_HALF_WIDTH + float(rng.uniform(1.0, 2.6))))
+
+    def build_roadside(self) -> None:
+        spec, rng, road = self.spec, self.rng, self.road
+        lo, hi = max(0.0, spec.ego.start_s - 50.0), min(road.length, self.ego_end_s + 600.0)
+        if spec.road.tree_line:
+            for side in (1.0, -1.0):
+                s = lo
+                while s < hi:
+                    seg = float(rng.uniform(25.0, 45.0))
+                    if rng.random() < 0.85:
+                        d = side * float(rng.uniform(26.0, 34.0))
+                        top = float(rng.uniform(7.0, 14.0))
+                        a, b = self.world(s, d), self.world(s + seg, d)
+                        corners = np.array([a + [0, 0, top], b + [0, 0, top], b, a]) if \
+                            side < 0 else np.array([b + [0, 0, top], a + [0, 0, top], a, b])
+                        self.objects.append(Quad(self.new_id(), 'tree_line', corners, 'tree'))
+                    s += seg
+            for _ in range(int((hi - lo) / 60.0)):           # single conifers nearer the road
+                side = 1.0 if rng.random() < 0.4 else -1.0
+                d = side * float(rng.uniform(14.0, 24.0))
+                self.objects.append(Cone(self.new_id(), 'tree',
+                                         self.world(float(rng.uniform(lo, hi)), d),
+                                         float(rng.uniform(1.5, 2.8)),
+                                         float(rng.uniform(6.0, 11.0)), 'tree'))
+        if spec.road.guardrails:
+            s = lo + float(rng.uniform(50.0, 300.0))
+            while s < hi:
+                run = float(rng.uniform(120.0, 400.0))
+                d = -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 0.4)
+                for a in np.arange(s, min(s + run, hi), 20.0):
+                    p, q = self.world(float(a), d), self.world(float(a) + 20.0, d)
+                    self.objects.append(Quad(self.new_id(), 'guardrail', np.array(
+                        [q + [0, 0, 0.8], p + [0, 0, 0.8], p + [0, 0, 0.45], q + [0, 0, 0.45]]),
+                        'guardrail'))
+                s += run + float(rng.uniform(300.0, 900.0))
+        for so in spec.road.overpasses:                 # same geometry the camera draws
+            for s1, d0, d1, z0, z1 in (
+                    (so - 6.0, -45.0, 45.0, 5.4, 7.2),
+                    (so - 5.5, -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 1.5),
+                     -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 0.5), 0.0, 5.4),
+                    (so - 5.5, ROAD_HALF_WIDTH + LEFT_SHOULDER + 0.5,
+                     ROAD_HALF_WIDTH + LEFT_SHOULDER + 1.5, 0.0, 5.4)):
+                a, b = self.world(s1, d1), self.world(s1, d0)
+                self.objects.append(Quad(self.new_id(), 'overpass', np.array(
+                    [a + [0, 0, z1], b + [0, 0, z1], b + [0, 0, z0], a + [0, 0, z0]]),
+                    'concrete'))
+
+    def build(self) -> tuple[Scene, EgoTrajectory, list[GtEvent]]:
+        spec = self.spec
+        self.s_grid = np.arange(0.0, self.road.length + 1.0, 1.0)
+        ego_d = lane_profile(spec.workzone, spec.ego.lane, self.s_grid)
+        ego = EgoTrajectory(self.road, spec.ego.speed, spec.ego.start_s, self.s_grid, ego_d,
+                            spec.ego.jitter, self.seed)
+        events = []
+        for p in self.plan_signs():
+            panel = self.add_sign(p)
+            if p.event is not None:
+                kind, value = p.event
+                events.append(GtEvent(kind=kind, t=round(float(ego.t_at(p.s)), 6),
+                                      x_m=round(p.s, 3), value=value,
+                                      sign_id=panel.object_id))
+        self.build_workzone()
+        self.build_distractors()
+        self.build_roadside()
+        scene = Scene(spec.name, self.seed, self.road, self.signs, self.objects, spec.weather,
+                      spec.ground_cover, list(spec.road.overpasses))
+        return scene, ego, sorted(events, key=lambda e: (e.x_m, e.kind))
+
+
+def build_scene(spec: ScenarioSpec, seed: int = 0
+                ) -> tuple[Scene, EgoTrajectory, list[GtEvent]]:
+    """Lay out the world of ``spec``.
+
+    Args:
+        spec: a validated scenario.
+        seed: placement jitter, fades, distractor positions and ego jitter phases.
+
+    Returns:
+        ``(scene, ego, events)``: the world, the ego trajectory and the ground-truth events
+        (zone approaching / begin / end, speed limit, lane shift, lane closed; ``t`` is the
+        time the ego passes the sign, ``x_m`` its arc length), sorted along the route.
+
+    Raises:
+        ScenarioError: a layout that does not fit (e.g. a sign before the road start).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ScenarioError(f'seed must be a non-negative integer, got {seed!r}')
+    if spec.workzone is not None and spec.workzone.taper_s - spec.workzone.advance < 0:
+        raise ScenarioError(f'scenario {spec.name}: workzone.taper_s {spec.workzone.taper_s} '
+                            f'leaves no room for the W20-1 sign {spec.workzone.advance} m '
+                            'before it')
+    return _Builder(spec, int(seed)).build()

@@ -1,0 +1,395 @@
+"""Procedural sign art for the synthetic camera: no downloaded images.
+
+Every catalogue class (core/signs.py) is drawn with OpenCV primitives into a BGRA image of the
+face's bounding rectangle; alpha is 0 outside the shape (diamond, octagon, triangle,
+rectangle, square).  Legends and symbols are exaggerated (thick strokes, few large words) so a
+person can tell every class apart at 64 px, and mirrored variants (``*_left`` / ``*_right``)
+are exact mirror images of each other.  Faces are drawn 2x supersampled and cached per
+(key, size, speed value, variant): they are static.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from workzone_ros.core import signs
+
+__all__ = [
+    'ORANGE', 'YELLOW', 'RED', 'GREEN', 'WHITE', 'BLACK', 'OTHER_VARIANTS', 'MIRROR_PAIRS',
+    'face_aspect', 'face_size', 'sign_face', 'outline', 'drum_texture',
+]
+
+# Sheeting colours (BGR).  MUTCD fluorescent orange, yellow, red, green, white, black.
+ORANGE = (0, 110, 245)
+YELLOW = (10, 205, 250)
+RED = (40, 35, 195)
+GREEN = (60, 110, 0)
+WHITE = (238, 240, 240)
+BLACK = (22, 22, 22)
+
+#: Variants of ``other_workzone`` (W20-7 flagger, W20-4 one lane road, W21-5 shoulder work).
+OTHER_VARIANTS = ('flagger', 'one_lane', 'shoulder_work')
+#: Class pairs whose faces are mirror images (left, right).
+MIRROR_PAIRS = (('lane_shift_left', 'lane_shift_right'), ('left_lane_ends', 'right_lane_ends'))
+
+_SS = 2   # supersampling factor
+_FONT = cv2.FONT_HERSHEY_DUPLEX
+_FONT_BOLD = cv2.FONT_HERSHEY_TRIPLEX
+
+
+def face_aspect(class_key: str) -> float:
+    """Width / height of the face's bounding rectangle for ``class_key``."""
+    c = signs.get(class_key)
+    if c.shape == 'diamond' or c.width_m <= 0:
+        return 1.0
+    return c.width_m / c.height_m
+
+
+def face_size(class_key: str, size_px: int) -> tuple[int, int]:
+    """(width, height) in pixels of the art for ``class_key``: the longer side is ``size_px``."""
+    a = face_aspect(class_key)
+    if a >= 1.0:
+        return int(size_px), max(2, int(round(size_px / a)))
+    return max(2, int(round(size_px * a))), int(size_px)
+
+
+def outline(shape: str, w: float, h: float) -> np.ndarray:
+    """Outline polygon (N, 2) of ``shape`` inside a ``w`` x ``h`` rectangle (pixel units).
+
+    Args:
+        shape: catalogue shape (``diamond``, ``octagon``, ``triangle``, ``rectangle``,
+            ``square``).
+        w: rectangle width.
+        h: rectangle height.
+
+    Returns:
+        Float polygon vertices in drawing order.
+    """
+    if shape == 'diamond':
+        return np.array([[w / 2, 0], [w, h / 2], [w / 2, h], [0, h / 2]], float)
+    if shape == 'octagon':
+        a, b = w * (1 - 1 / np.sqrt(2)) / 2, h * (1 - 1 / np.sqrt(2)) / 2
+        return np.array([[a, 0], [w - a, 0], [w, b], [w, h - b], [w - a, h], [a, h],
+                         [0, h - b], [0, b]], float)
+    if shape == 'triangle':       # inverted (yield)
+        return np.array([[0, 0], [w, 0], [w / 2, h]], float)
+    return np.array([[0, 0], [w, 0], [w, h], [0, h]], float)
+
+
+def _poly(img: np.ndarray, pts, color, thickness: int = -1) -> None:
+    p = np.round(np.asarray(pts, float) * 16).astype(np.int32)
+    if thickness < 0:
+        cv2.fillPoly(img, [p], color, cv2.LINE_AA, shift=4)
+    else:
+        cv2.polylines(img, [p], True, color, thickness, cv2.LINE_AA, shift=4)
+
+
+def _inset(poly: np.ndarray, frac: float, w: float, h: float) -> np.ndarray:
+    """Shrink ``poly`` towards the rectangle centre by ``frac`` of the smaller side."""
+    c = np.array([w / 2, h / 2])
+    m = min(w, h)
+    scale = np.array([(w - 2 * frac * m) / w, (h - 2 * frac * m) / h])
+    return c + (poly - c) * scale
+
+
+def _text(img: np.ndarray, text: str, center: tuple[float, float], box: tuple[float, float],
+          color, weight: float = 0.16, font: int = _FONT) -> None:
+    """Draw ``text`` centred at ``center``, as large as fits ``box`` (w, h), thick strokes.
+
+    ``weight`` is the stroke thickness as a fraction of the text height.
+    """
+    bw, bh = box
+    (tw, th), _ = cv2.getTextSize(text, font, 1.0, 1)
+    scale = min(bw / tw, bh / th)
+    thick = max(1, int(round(weight * th * scale)))
+    (tw, th), _ = cv2.getTextSize(text, font, scale, thick)
+    scale *= min(bw / tw, bh / th, 1.0)
+    (tw, th), _ = cv2.getTextSize(text, font, scale, thick)
+    org = (int(round(center[0] - tw / 2)), int(round(center[1] + th / 2)))
+    cv2.putText(img, text, org, font, scale, color, thick, cv2.LINE_AA)
+
+
+def _lines(img, lines, cx, top, bottom, widths, color, weight=0.17, font=_FONT,
+           heights=None) -> None:
+    """Stack text lines between ``top`` and ``bottom`` (relative heights optional)."""
+    n = len(lines)
+    heights = heights or [1.0] * n
+    total = float(sum(heights))
+    gap = 0.22
+    unit = (bottom - top) / (total + gap * (n - 1))
+    y = top
+    for text, w, hh in zip(lines, widths, heights):
+        _text(img, text, (cx, y + unit * hh / 2), (w, unit * hh), color, weight, font)
+        y += unit * (hh + gap)
+
+
+def _arrow_path(img, pts, color, stroke: float, head: float) -> None:
+    """Thick poly-line along ``pts`` (N, 2) ending in a filled arrow head."""
+    pts = np.asarray(pts, float)
+    d = pts[-1] - pts[-2]
+    d /= np.linalg.norm(d)
+    n = np.array([-d[1], d[0]])
+    base = pts[-1] - d * head * 0.9
+    body = np.vstack([pts[:-1], base])
+    p = np.round(body * 16).astype(np.int32)
+    cv2.polylines(img, [p], False, color, int(stroke), cv2.LINE_AA, shift=4)
+    tip = pts[-1]
+    _poly(img, [tip, base + n * head * 0.75, base - n * head * 0.75], color)
+
+
+def _smooth_shift(x0: float, x1: float, y0: float, y1: float, n: int = 24) -> np.ndarray:
+    """Cosine S-curve from (x0, y0) to (x1, y1) (y decreasing upwards in the image)."""
+    u = np.linspace(0.0, 1.0, n)
+    x = x0 + (x1 - x0) * (1 - np.cos(np.pi * u)) / 2
+    y = y0 + (y1 - y0) * u
+    return np.column_stack([x, y])
+
+
+# ------------------------------------------------------------------ symbols (unit = size S)
+def _sym_reverse_curve(img, S: float, direction: int, color) -> None:
+    """W1-4L/R: an arrow that shifts one lane to the left (-1) or right (+1)."""
+    st = 0.085 * S
+    x0, x1 = 0.5 - 0.13 * direction, 0.5 + 0.13 * direction
+    pts = np.vstack([[[x0, 0.80]], _smooth_shift(x0, x1, 0.64, 0.36), [[x1, 0.20]]]) * S
+    _arrow_path(img, pts, color, st, 0.13 * S)
+
+
+def _sym_double_reverse(img, S: float, color) -> None:
+    """W1-4 (lane shift, direction unknown): an arrow that shifts out and back (zig-zag)."""
+    st = 0.075 * S
+    a = np.vstack([[[0.44, 0.82]], _smooth_shift(0.44, 0.60, 0.72, 0.52, 14),
+                   _smooth_shift(0.60, 0.44, 0.50, 0.32, 14), [[0.44, 0.18]]])
+    _arrow_path(img, a * S, color, st, 0.12 * S)
+    # Second, parallel curve line (two lanes shifting together) to set it apart from L/R.
+    b = np.vstack([[[0.30, 0.80]], _smooth_shift(0.30, 0.46, 0.72, 0.52, 14),
+                   _smooth_shift(0.46, 0.30, 0.50, 0.32, 14), [[0.30, 0.22]]]) * S
+    b[:, 0] += 0.28 * S
+    cv2.polylines(img, [np.round(b * 16).astype(np.int32)], False, color, int(0.05 * S),
+                  cv2.LINE_AA, shift=4)
+
+
+def _sym_lane_ends(img, S: float, side: int, color) -> None:
+    """W4-2L (side=-1: left lane ends, merge right) / W4-2R (side=+1), mirror images."""
+    st = 0.075 * S
+
+    def mx(x: float) -> float:
+        return x if side < 0 else 1.0 - x
+
+    straight = np.array([[mx(0.64), 0.80], [mx(0.64), 0.20]]) * S
+    ending = np.array([[mx(0.30), 0.80], [mx(0.30), 0.56], [mx(0.52), 0.34],
+                       [mx(0.52), 0.20]]) * S
+    for line in (straight, ending):
+        cv2.polylines(img, [np.round(line * 16).astype(np.int32)], False, color, int(st),
+                      cv2.LINE_AA, shift=4)
+    # Broken lane line between the two lanes, ending where the lane ends.
+    for y0, y1 in ((0.80, 0.71), (0.65, 0.56)):
+        seg = np.array([[mx(0.47), y0], [mx(0.47), y1]]) * S
+        cv2.polylines(img, [np.round(seg * 16).astype(np.int32)], False, color,
+                      int(0.05 * S), cv2.LINE_AA, shift=4)
+
+
+def _sym_curve(img, S: float, color) -> None:
+    """W1-2 curve to the right (yellow general warning)."""
+    u = np.linspace(0, 1, 20)
+    x = 0.40 + 0.18 * (1 - np.cos(u * np.pi / 2))
+    y = 0.80 - 0.50 * np.sin(u * np.pi / 2)
+    pts = np.column_stack([x, y])
+    pts = np.vstack([pts, [[0.62, 0.24]]]) * S
+    _arrow_path(img, pts, color, 0.09 * S, 0.14 * S)
+
+
+def _sym_flagger(img, S: float, color) -> None:
+    """W20-7 flagger symbol: a person holding a flag on a staff (thick strokes)."""
+    def L(p, q, t):
+        cv2.line(img, tuple(int(v * S * 16) for v in p), tuple(int(v * S * 16) for v in q),
+                 color, max(1, int(t * S)), cv2.LINE_AA, shift=4)
+    cv2.circle(img, (int(0.46 * S * 16), int(0.27 * S * 16)), int(0.055 * S * 16), color, -1,
+               cv2.LINE_AA, shift=4)
+    L((0.46, 0.36), (0.46, 0.58), 0.09)          # body
+    L((0.46, 0.58), (0.38, 0.80), 0.07)          # legs
+    L((0.46, 0.58), (0.54, 0.80), 0.07)
+    L((0.46, 0.40), (0.64, 0.48), 0.055)         # arm to the staff
+    L((0.64, 0.30), (0.64, 0.74), 0.03)          # staff
+    _poly(img, np.array([[0.64, 0.30], [0.78, 0.34], [0.64, 0.42]]) * S, color)   # flag
+
+
+# ------------------------------------------------------------------ faces
+def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
+    img = np.zeros((H, W, 3), np.uint8)
+    mask = np.zeros((H, W), np.uint8)
+    c = signs.get(key)
+    shape = c.shape
+    poly = outline(shape, W, H)
+    _poly(mask, poly, 255)
+    S = float(min(W, H))
+    cx = W / 2
+
+    if shape == 'diamond':
+        bg = YELLOW if key == 'warning_diamond' else ORANGE
+        _poly(img, poly, bg)
+        _poly(img, _inset(poly, 0.035, W, H), BLACK, max(2, int(0.03 * S)))
+        if key == 'road_work_ahead':
+            _lines(img, ['ROAD', 'WORK', 'AHEAD'], cx, 0.28 * H, 0.72 * H,
+                   [0.40 * W, 0.54 * W, 0.42 * W], BLACK, 0.2, _FONT_BOLD)
+        elif key in ('left_lane_closed_ahead', 'right_lane_closed_ahead'):
+            first = 'LEFT' if key.startswith('left') else 'RIGHT'
+            _lines(img, [first, 'LANE', 'CLOSED', 'AHEAD'], cx, 0.20 * H, 0.78 * H,
+                   [0.40 * W, 0.50 * W, 0.56 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD,
+                   heights=[1.5, 1.0, 1.0, 0.9])
+        elif key == 'lane_shift_left':
+            _sym_reverse_curve(img, S, -1, BLACK)
+        elif key == 'lane_shift_right':
+            _sym_reverse_curve(img, S, +1, BLACK)
+        elif key == 'lane_shift':
+            _sym_double_reverse(img, S, BLACK)
+        elif key == 'left_lane_ends':
+            _sym_lane_ends(img, S, -1, BLACK)
+        elif key == 'right_lane_ends':
+            _sym_lane_ends(img, S, +1, BLACK)
+        elif key == 'warning_diamond':
+            _sym_curve(img, S, BLACK)
+        elif key == 'other_workzone':
+            if variant == 'one_lane':
+                _lines(img, ['ONE', 'LANE', 'ROAD', 'AHEAD'], cx, 0.22 * H, 0.78 * H,
+                       [0.30 * W, 0.46 * W, 0.46 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD)
+            elif variant == 'shoulder_work':
+                _lines(img, ['SHOULDER', 'WORK'], cx, 0.36 * H, 0.64 * H,
+                       [0.66 * W, 0.46 * W], BLACK, 0.2, _FONT_BOLD)
+            else:
+                _sym_flagger(img, S, BLACK)
+    elif shape == 'octagon':      # stop
+        _poly(img, poly, WHITE)
+        _poly(img, _inset(poly, 0.045, W, H), RED)
+        _text(img, 'STOP', (cx, H / 2), (0.80 * W, 0.36 * H), WHITE, 0.2, _FONT_BOLD)
+    elif shape == 'triangle':     # yield
+        _poly(img, poly, RED)
+        inner = np.array([[0.25 * W, 0.13 * H], [0.75 * W, 0.13 * H], [0.5 * W, 0.70 * H]])
+        _poly(img, inner, WHITE)
+        _text(img, 'YIELD', (cx, 0.29 * H), (0.34 * W, 0.13 * H), RED, 0.2, _FONT_BOLD)
+    elif key == 'do_not_enter':
+        _poly(img, poly, WHITE)
+        r = 0.44 * S
+        cv2.circle(img, (int(cx * 16), int(H / 2 * 16)), int(r * 16), RED, -1, cv2.LINE_AA,
+                   shift=4)
+        cv2.rectangle(img, (int(cx - 0.34 * S), int(H / 2 - 0.075 * S)),
+                      (int(cx + 0.34 * S), int(H / 2 + 0.075 * S)), WHITE, -1, cv2.LINE_AA)
+        _text(img, 'DO NOT', (cx, H / 2 - 0.22 * S), (0.44 * S, 0.11 * S), WHITE, 0.2)
+        _text(img, 'ENTER', (cx, H / 2 + 0.22 * S), (0.40 * S, 0.11 * S), WHITE, 0.2)
+    elif key == 'work_zone_begin':
+        _poly(img, poly, WHITE)
+        cv2.rectangle(img, (0, 0), (W, int(H / 3)), ORANGE, -1)
+        b = max(2, int(0.03 * S))
+        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        cv2.line(img, (0, int(H / 3)), (W, int(H / 3)), BLACK, b)
+        _lines(img, ['WORK', 'ZONE'], cx, 0.05 * H, 0.29 * H, [0.6 * W, 0.6 * W], BLACK,
+               0.2, _FONT_BOLD)
+        _text(img, 'BEGINS', (cx, 0.66 * H), (0.84 * W, 0.26 * H), BLACK, 0.2, _FONT_BOLD)
+    elif key == 'work_zone_speed_limit':
+        _poly(img, poly, WHITE)
+        top = int(0.25 * H)
+        cv2.rectangle(img, (0, 0), (W, top), ORANGE, -1)
+        b = max(2, int(0.03 * S))
+        cv2.rectangle(img, (b, b), (W - 1 - b, top - b), BLACK, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, top + b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        _lines(img, ['WORK', 'ZONE'], cx, 0.035 * H, 0.215 * H, [0.6 * W, 0.6 * W], BLACK,
+               0.2, _FONT_BOLD)
+        _lines(img, ['SPEED', 'LIMIT'], cx, 0.31 * H, 0.53 * H, [0.74 * W, 0.66 * W], BLACK,
+               0.18)
+        _text(img, str(speed), (cx, 0.75 * H), (0.80 * W, 0.30 * H), BLACK, 0.17, _FONT)
+    elif key == 'end_road_work':
+        _poly(img, poly, ORANGE)
+        b = max(2, int(0.035 * S))
+        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        _lines(img, ['END', 'ROAD WORK'], cx, 0.17 * H, 0.83 * H, [0.36 * W, 0.84 * W],
+               BLACK, 0.2, _FONT_BOLD)
+    elif key == 'speed_limit':
+        _poly(img, poly, WHITE)
+        b = max(2, int(0.03 * S))
+        cv2.rectangle(img, (2 * b, 2 * b), (W - 1 - 2 * b, H - 1 - 2 * b), BLACK, b,
+                      cv2.LINE_AA)
+        _lines(img, ['SPEED', 'LIMIT'], cx, 0.12 * H, 0.42 * H, [0.76 * W, 0.70 * W], BLACK,
+               0.18)
+        _text(img, str(speed), (cx, 0.68 * H), (0.76 * W, 0.36 * H), BLACK, 0.17, _FONT)
+    elif key == 'guide':
+        _poly(img, poly, GREEN)
+        b = max(2, int(0.035 * S))
+        cv2.rectangle(img, (2 * b, 2 * b), (W - 1 - 2 * b, H - 1 - 2 * b), WHITE, b,
+                      cv2.LINE_AA)
+        _lines(img, ['EXIT 12', 'HARRISBURG'], cx, 0.2 * H, 0.62 * H, [0.40 * W, 0.84 * W],
+               WHITE, 0.18)
+        _arrow_path(img, np.array([[0.5 * W, 0.92 * H], [0.5 * W, 0.70 * H]]), WHITE,
+                    0.07 * H, 0.12 * H)
+    elif key == 'mile_marker':
+        _poly(img, poly, GREEN)
+        b = max(2, int(0.05 * W))
+        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), WHITE, b, cv2.LINE_AA)
+        _text(img, 'MILE', (cx, 0.17 * H), (0.76 * W, 0.12 * H), WHITE, 0.22)
+        digits = str(speed)
+        n = len(digits)
+        top, bottom = 0.30 * H, 0.92 * H
+        step = (bottom - top) / n
+        for i, ch in enumerate(digits):
+            _text(img, ch, (cx, top + step * (i + 0.5)), (0.62 * W, 0.78 * step), WHITE, 0.2)
+    else:
+        raise signs.UnknownSignError(f'no art for sign class {key!r}')
+    img[mask == 0] = 0
+    return np.dstack([img, mask])
+
+
+@lru_cache(maxsize=512)
+def _cached(key: str, size_px: int, speed: int, variant: str) -> np.ndarray:
+    W, H = face_size(key, size_px)
+    big = _draw(key, W * _SS, H * _SS, speed, variant)
+    face = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)
+    face.flags.writeable = False
+    return face
+
+
+def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None,
+              variant: str | None = None) -> np.ndarray:
+    """Procedural art of one catalogue class.
+
+    Args:
+        class_key: catalogue key (``road_work_ahead``, ``stop``, ...; not ``background``).
+        size_px: pixels of the longer side of the face's bounding rectangle.
+        speed_value: number on speed-limit faces (default 45 for the work-zone limit, 65 for
+            the general limit) or the mile of a mile marker (default 123).
+        variant: ``other_workzone`` only: one of :data:`OTHER_VARIANTS` (default flagger).
+
+    Returns:
+        Read-only BGRA uint8 image (H, W, 4) of the bounding rectangle; alpha is 0 outside
+        the sign shape.  Cached: the same arguments return the same array.
+
+    Raises:
+        UnknownSignError: ``class_key`` is not a drawable catalogue class.
+    """
+    if class_key == 'background':
+        raise signs.UnknownSignError('background has no sign art')
+    signs.get(class_key)
+    if speed_value is None:
+        speed_value = {'work_zone_speed_limit': 45, 'speed_limit': 65,
+                       'mile_marker': 123}.get(class_key, 0)
+    if class_key != 'other_workzone':
+        variant = ''
+    elif variant is None:
+        variant = OTHER_VARIANTS[0]
+    elif variant not in OTHER_VARIANTS:
+        raise ValueError(f'unknown other_workzone variant {variant!r}; known: {OTHER_VARIANTS}')
+    return _cached(class_key, int(max(8, size_px)), int(speed_value), variant)
+
+
+@lru_cache(maxsize=4)
+def drum_texture(width_px: int = 64, height_px: int = 96) -> np.ndarray:
+    """BGR texture of a channelizing drum unrolled: orange with two white retro bands.
+
+    Returns:
+        Read-only uint8 image (height_px, width_px, 3).
+    """
+    tex = np.empty((height_px, width_px, 3), np.uint8)
+    tex[:] = ORANGE
+    for z0, z1 in ((0.18, 0.30), (0.48, 0.60)):
+        tex[int(z0 * height_px):int(z1 * height_px)] = WHITE
+    tex.flags.writeable = False
+    return tex

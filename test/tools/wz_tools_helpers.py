@@ -116,3 +116,95 @@ def run_cli(*args: str, timeout: float = 60.0, **kwargs) -> subprocess.Completed
     return subprocess.run([sys.executable, '-m', 'workzone_ros.cli', *args], cwd=REPO,
                           env=cli_env(), capture_output=True, text=True, timeout=timeout,
                           **kwargs)
+
+
+def write_launch_bag(path: Path, frames: int = 12) -> Path:
+    """Images at 10 Hz with ``/groundtruth/signs`` per frame (a sign in 2 of every 3)."""
+    from workzone_ros.interfaces import Box, GtSign, GtSigns, Header, Time, encode
+    ts = bagio.typestore()
+    String = ts.types['std_msgs/msg/String']
+    Image = ts.types['sensor_msgs/msg/Image']
+    RHeader = ts.types['std_msgs/msg/Header']
+    RTime = ts.types['builtin_interfaces/msg/Time']
+    sign = GtSign(sign_id=1, class_key='road_work_ahead', code='W20-1', category='workzone',
+                  box=Box(x=1.0, y=1.0, w=5.0, h=5.0), distance_m=30.0, visible_fraction=1.0)
+    with bagio.BagWriter(path) as bag:
+        bag.add_topic('/camera/image_raw', 'sensor_msgs/msg/Image', qos='sensor')
+        bag.add_topic('/groundtruth/signs', 'std_msgs/msg/String')
+        for i in range(frames):
+            t = T0 + i * 100_000_000
+            img = Image(header=RHeader(stamp=RTime(sec=t // 10**9, nanosec=t % 10**9),
+                                       frame_id='camera'),
+                        height=2, width=3, encoding='bgr8', is_bigendian=0, step=9,
+                        data=np.zeros(18, np.uint8))
+            bag.write('/camera/image_raw', t, img)
+            gt = GtSigns(header=Header(stamp=Time.from_ns(t), frame_id='camera'),
+                         signs=[sign] if i % 3 else [])
+            bag.write('/groundtruth/signs', t, String(data=encode(gt)))
+    return path
+
+
+class LineReader:
+    """Collects a subprocess's stdout lines in a thread; wait for patterns with a deadline."""
+
+    def __init__(self, proc: subprocess.Popen) -> None:
+        import threading
+        self.proc = proc
+        self.lines: list[str] = []
+        self._cond = threading.Condition()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        for line in self.proc.stdout:
+            with self._cond:
+                self.lines.append(line.rstrip('\n'))
+                self._cond.notify_all()
+        with self._cond:
+            self._cond.notify_all()
+
+    def wait_for(self, predicate, timeout: float):
+        """The first line for which ``predicate(line)`` is true, or None at the deadline."""
+        deadline = time.monotonic() + timeout
+        seen = 0
+        with self._cond:
+            while True:
+                for line in self.lines[seen:]:
+                    if predicate(line):
+                        return line
+                seen = len(self.lines)
+                left = deadline - time.monotonic()
+                if left <= 0 or (self.proc.poll() is not None and not self._thread.is_alive()):
+                    return None
+                self._cond.wait(min(left, 0.1))
+
+    def text(self) -> str:
+        """Everything read so far."""
+        with self._cond:
+            return '\n'.join(self.lines)
+
+
+def start_cli(*args: str) -> subprocess.Popen:
+    """Start ``workzone-ros ARGS`` with merged, line-buffered text output."""
+    return subprocess.Popen([sys.executable, '-m', 'workzone_ros.cli', *args], cwd=REPO,
+                            env=cli_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, bufsize=1)
+
+
+def pid_alive(pid: int) -> bool:
+    """Whether ``pid`` exists and is not a zombie."""
+    try:
+        with open(f'/proc/{pid}/stat') as fh:
+            return fh.read().rsplit(')', 1)[1].split()[0] != 'Z'
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return False
+
+
+def wait_gone(pids, timeout: float) -> bool:
+    """True once none of ``pids`` is alive (zombies count as gone), False at the deadline."""
+    deadline = time.monotonic() + timeout
+    while any(pid_alive(p) for p in pids):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True

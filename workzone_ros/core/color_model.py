@@ -274,6 +274,8 @@ class ColorModel:
         v_min: per-colour minimum HSV value (darker pixels have no reliable hue).
         prior: the spatial prior of the orange work-zone signs.
         metadata: training metadata (JSON-serialisable).
+        extras: further numeric arrays saved with the model (``rgb_lp_thresholds``: the
+            seed 002 thresholds chosen by the trainer).
     """
 
     classes: tuple[str, ...]
@@ -281,6 +283,7 @@ class ColorModel:
     v_min: tuple[int, ...]
     prior: SpatialPrior
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    extras: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.luts.shape != (len(self.classes), H_BINS, S_BINS):
@@ -314,7 +317,8 @@ class ColorModel:
 
     def with_prior(self, prior: SpatialPrior) -> 'ColorModel':
         """A copy with another prior (e.g. uniform)."""
-        return ColorModel(self.classes, self.luts, self.v_min, prior, dict(self.metadata))
+        return ColorModel(self.classes, self.luts, self.v_min, prior, dict(self.metadata),
+                          dict(self.extras))
 
 
 def default_model(orange_lut: Optional[np.ndarray] = None, orange_v_min: int = 60,
@@ -346,7 +350,8 @@ def save_model(model: ColorModel, path: str | os.PathLike) -> None:
         prior_image_size=np.array(model.prior.image_size, np.int64),
         prior_roi=np.array(model.prior.roi, np.int64),
         prior_floor=np.array(model.prior.floor, np.float64),
-        metadata=np.array(json.dumps(dict(model.metadata), sort_keys=True)))
+        metadata=np.array(json.dumps(dict(model.metadata), sort_keys=True)),
+        **{f'extra_{k}': np.asarray(v, np.float64) for k, v in model.extras.items()})
     os.replace(tmp, path)
 
 
@@ -381,6 +386,7 @@ def load_model(path: str | os.PathLike) -> ColorModel:
             if missing:
                 raise ModelError(f'{path!r} lacks {", ".join(missing)}')
             data = {k: z[k] for k in _KEYS}
+            extras = {k[len('extra_'):]: z[k] for k in z.files if k.startswith('extra_')}
     except ModelError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError) as exc:
@@ -394,6 +400,6 @@ def load_model(path: str | os.PathLike) -> ColorModel:
         return ColorModel(tuple(str(c) for c in data['classes']),
                           data['luts'].astype(np.float32),
                           tuple(int(v) for v in data['v_min']), prior,
-                          json.loads(str(data['metadata'])))
+                          json.loads(str(data['metadata'])), extras)
     except (ValueError, TypeError) as exc:
         raise ModelError(f'colour model {path!r} is malformed: {exc}') from None

@@ -87,6 +87,8 @@ class DetectorConfig:
         ext_max_ratio: the extension adds at most this many times the orange height.
         white_s_max, white_v_rel: a pixel is white if S <= white_s_max and V >= white_v_rel x
             the orange blob's median V.
+        ext_min_dark: smallest share of dark (legend, border) pixels in the white part; the
+            white part must also end (a bottom edge) within ``ext_max_ratio``.
         roi_prior, roi_threshold, roi_margin: LiDAR ROIs: prior and posterior threshold
             inside them, and the fraction of their size added around them.
         lidar_confidence: noisy-OR weight of LiDAR support.
@@ -114,9 +116,10 @@ class DetectorConfig:
     nms_contain: float = 0.7
     extension: bool = True
     ext_min_aspect: float = 1.5
-    ext_max_ratio: float = 3.0
-    white_s_max: int = 70
+    ext_max_ratio: float = 3.5
+    white_s_max: int = 45
     white_v_rel: float = 0.8
+    ext_min_dark: float = 0.03
     roi_prior: float = 1.0
     roi_threshold: float = 0.3
     roi_margin: float = 0.25
@@ -474,7 +477,7 @@ class ColorDetector:
                 prob = np.take(self._lut_u8[color], idx)
                 mask = cv2.compare(prob, thr, cv2.CMP_GE)
                 if self._vmin[color] > 0:
-                    mask &= cv2.compare(v, self._vmin[color], cv2.CMP_GE)
+                    mask &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
         elif cfg.method == 'hsv':
             for color in self.colors:
@@ -514,13 +517,15 @@ class ColorDetector:
             if min(fw, fh) / 2.0 < cfg.min_radius_px or max(fw, fh) / 2.0 > cfg.max_radius_px:
                 continue
             comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
-            c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes)
+            c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes,
+                              area / float(w * h))
             if c is not None:
                 out.append(c)
         return out
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
-                 thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
+                 thr_base: np.ndarray, lboxes: list,
+                 blob_fill: float = 1.0) -> Optional[Candidate]:
         """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
         H, W = bgr.shape[:2]
@@ -569,7 +574,8 @@ class ColorDetector:
             return None
         pts = cv2.findNonZero(pix.astype(np.uint8))
         hull_fill = float(cv2.contourArea(cv2.convexHull(pts))) / (bw * bh)
-        fill = area / (bw * bh)
+        # seed 004 compares the (dilated) blob's area with its box's
+        fill = blob_fill if cfg.method == 'hsv' else area / (bw * bh)
         aspect = bw / bh
         if color == 'orange' and cfg.method == 'learned':
             if hull_fill < cfg.min_hull_fill or max(aspect, 1 / aspect) > cfg.max_aspect:
@@ -615,18 +621,24 @@ class ColorDetector:
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
-        if run >= 0.3 * cand.h:
-            cand.h = float(run + cand.h)
-            cand.extended = True
+        if run < 0.3 * cand.h or y_top + run >= y_max - 1:
+            return              # too short, or no bottom edge found (sky, a white wall)
+        # a sign's white part carries a black legend and border; sky and walls do not
+        dark = strip[:run, :, 2] < cfg.white_v_rel * 0.5 * v_ref
+        if dark.mean() < cfg.ext_min_dark:
+            return
+        cand.h = float(run + cand.h)
+        cand.extended = True
 
     # -- seed 002 MSER path --
     def _mser_blobs(self, count: np.ndarray, bgr: np.ndarray, off: tuple[int, int],
                     s: int) -> list[Candidate]:
         cfg = self.config
         img = (np.minimum(count, 5) * 50).astype(np.uint8)
-        mser = cv2.MSER_create(delta=cfg.mser_delta,
-                               min_area=max(4, int(cfg.min_area_px / (s * s))),
-                               max_area=int(img.size * 0.25))
+        # min_diversity=0: OpenCV 5.0.0 rejects every stable grey-level region otherwise
+        # (opencv/opencv#29652, fixed by #29653); 0 restores the 4.x behaviour.
+        mser = cv2.MSER_create(cfg.mser_delta, max(4, int(cfg.min_area_px / (s * s))),
+                               max(5, int(img.size * 0.25)), 0.25, 0.0)
         # MSER finds dark-on-bright regions; the passing pixels are bright
         _, bboxes = mser.detectRegions(255 - img)
         out = []

@@ -75,6 +75,7 @@ class ApproximateTimeSync:
         self._cand_end = 0
         self._out: list = []
         self.dropped_count = [0] * self.n
+        self.out_of_order = [0] * self.n
 
     # -- public -------------------------------------------------------------------------
     def add(self, topic: int, stamp_ns: int, msg: Any = None) -> list:
@@ -110,9 +111,10 @@ class ApproximateTimeSync:
 
     # -- the algorithm (names follow approximate_time.h) ---------------------------------
     def _check_inter_message_bound(self, i: int) -> None:
+        # approximate_time.h only warns about out-of-order stamps; count them.
         q = self._deques[i]
         if len(q) >= 2 and q[-1][0] < q[-2][0]:
-            raise SyncError(f'topic {i}: stamps go backwards ({q[-2][0]} then {q[-1][0]})')
+            self.out_of_order[i] += 1
 
     def _recover(self, i: int) -> None:
         q, v = self._deques[i], self._past[i]
@@ -161,9 +163,12 @@ class ApproximateTimeSync:
 
     def _candidate_bounds(self) -> tuple[int, int, int, int]:
         """(start_index, start_time, end_index, end_time) over the deque fronts."""
-        times = [q[0][0] for q in self._deques]
-        si = min(range(self.n), key=lambda i: times[i])
-        ei = max(range(self.n), key=lambda i: times[i])
+        return self._bounds([q[0][0] for q in self._deques])
+
+    def _bounds(self, times: list[int]) -> tuple[int, int, int, int]:
+        # Ties as getCandidateBoundary: the start is the lowest index, the end the highest.
+        si = min(range(self.n), key=lambda i: (times[i], i))
+        ei = max(range(self.n), key=lambda i: (times[i], i))
         return si, times[si], ei, times[ei]
 
     def _virtual_time(self, i: int) -> int:
@@ -175,10 +180,7 @@ class ApproximateTimeSync:
         return q[0][0]
 
     def _virtual_bounds(self) -> tuple[int, int, int, int]:
-        times = [self._virtual_time(i) for i in range(self.n)]
-        si = min(range(self.n), key=lambda i: times[i])
-        ei = max(range(self.n), key=lambda i: times[i])
-        return si, times[si], ei, times[ei]
+        return self._bounds([self._virtual_time(i) for i in range(self.n)])
 
     def _worse(self, end_time: int, start_time: int) -> bool:
         """(end - cand_end) * (1 + age_penalty) >= (start - cand_start)."""

@@ -111,7 +111,7 @@ class TrackerConfig:
     max_iterations: int = 10
     shift_threshold_px: float = 0.3
     max_samples: int = 900
-    search_margin: float = 1.0
+    search_margin: float = 0.6
     use_velocity: bool = True
     min_similarity: float = 0.75
     max_lost_frames: int = 2
@@ -128,7 +128,7 @@ class TrackerConfig:
     duplicate_iou: float = 0.6
     background_weighting: bool = True
     surround_weight: float = 0.5
-    surround_size: float = 1.3
+    surround_size: float = 1.2
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -145,11 +145,15 @@ class TrackerConfig:
 
 # --- histograms ---------------------------------------------------------------------------
 
-def _luts(nh: int, ns: int) -> tuple[np.ndarray, np.ndarray]:
-    h = np.arange(256)
-    hue = (np.minimum(h, 179) * nh // 180) * ns           # OpenCV 8-bit hue is 0..179
-    sat = h * ns // 256
-    return hue.astype(np.uint16), sat.astype(np.uint16)
+def _luts(nh: int, ns: int) -> np.ndarray:
+    """(1, 256, 3) uint8 look-up table: hue -> hue bin, saturation -> saturation bin."""
+    if nh > 256 or ns > 256:
+        raise TrackingError('at most 256 hue and saturation bins')
+    v = np.arange(256)
+    lut = np.zeros((1, 256, 3), np.uint8)
+    lut[0, :, 0] = np.minimum(v, 179) * nh // 180        # OpenCV 8-bit hue is 0..179
+    lut[0, :, 1] = v * ns // 256
+    return lut
 
 
 def bhattacharyya(p: np.ndarray, q: np.ndarray) -> float:
@@ -182,7 +186,7 @@ class SearchWindow:
     __slots__ = ('x0', 'y0', 'stride', 'xs', 'ys', 'hsv', 'bins', 'nx', 'ny')
 
     def __init__(self, frame: np.ndarray, x0: int, y0: int, x1: int, y1: int, stride: int,
-                 luts: tuple[np.ndarray, np.ndarray]) -> None:
+                 luts: np.ndarray) -> None:
         h, w = frame.shape[:2]
         x0, y0 = max(0, int(x0)), max(0, int(y0))
         x1, y1 = min(w, int(x1)), min(h, int(y1))
@@ -193,22 +197,29 @@ class SearchWindow:
             sub = np.ascontiguousarray(frame[y0:y1:self.stride, x0:x1:self.stride])
             self.hsv = cv2.cvtColor(sub, cv2.COLOR_BGR2HSV)
         self.ny, self.nx = self.hsv.shape[:2]
-        self.xs = x0 + self.stride * np.arange(self.nx, dtype=np.float64)
-        self.ys = y0 + self.stride * np.arange(self.ny, dtype=np.float64)
-        self.bins = (luts[0][self.hsv[..., 0]] + luts[1][self.hsv[..., 1]]).astype(np.intp)
+        # Pixel centres in continuous image coordinates (pixel j covers [j, j + 1)).
+        self.xs = x0 + 0.5 + self.stride * np.arange(self.nx, dtype=np.float64)
+        self.ys = y0 + 0.5 + self.stride * np.arange(self.ny, dtype=np.float64)
+        if self.hsv.size:
+            hb, sb, _ = cv2.split(cv2.LUT(self.hsv, luts))
+            ns = int(luts[0, 255, 1]) + 1
+            self.bins = cv2.addWeighted(hb, ns, sb, 1, 0, dtype=cv2.CV_16U)
+        else:
+            self.bins = np.zeros((0, 0), np.uint16)
 
     def span(self, zx: float, zy: float, ax: float, ay: float) -> tuple[int, int, int, int]:
         """Grid index ranges ``(kx0, kx1, ky0, ky1)`` of the box centred at z, half-size a."""
         s = self.stride
-        kx0 = max(0, math.ceil((zx - ax - self.x0) / s))
-        kx1 = min(self.nx, math.floor((zx + ax - self.x0) / s) + 1)
-        ky0 = max(0, math.ceil((zy - ay - self.y0) / s))
-        ky1 = min(self.ny, math.floor((zy + ay - self.y0) / s) + 1)
+        kx0 = max(0, math.ceil((zx - ax - self.x0 - 0.5) / s))
+        kx1 = min(self.nx, math.floor((zx + ax - self.x0 - 0.5) / s) + 1)
+        ky0 = max(0, math.ceil((zy - ay - self.y0 - 0.5) / s))
+        ky1 = min(self.ny, math.floor((zy + ay - self.y0 - 0.5) / s) + 1)
         return kx0, kx1, ky0, ky1
 
 
 def _stride(ax: float, ay: float, max_samples: int) -> int:
-    return max(1, int(math.sqrt(4.0 * ax * ay / max_samples)))
+    """Grid spacing so that a box of half-size (ax, ay) holds at most ``max_samples``."""
+    return max(1, math.ceil(math.sqrt(4.0 * ax * ay / max_samples)))
 
 
 def _kernel(win: SearchWindow, mask: np.ndarray, zx: float, zy: float, ax: float,
@@ -226,11 +237,11 @@ def _kernel(win: SearchWindow, mask: np.ndarray, zx: float, zy: float, ax: float
     px = (xs - zx) / ax
     py = (ys - zy) / ay
     g = mask.shape[0]
-    ix = np.clip(((px + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
-    iy = np.clip(((py + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
-    k = 1.0 - (py * py)[:, None] - (px * px)[None, :]       # Epanechnikov profile 1 - |p|^2
+    ix = np.minimum(((px + 1.0) * (g / 2)).astype(np.intp), g - 1)   # px is in [-1, 1]
+    iy = np.minimum(((py + 1.0) * (g / 2)).astype(np.intp), g - 1)
+    k = (1.0 - py * py)[:, None] - (px * px)[None, :]       # Epanechnikov profile 1 - |p|^2
     np.maximum(k, 0.0, out=k)
-    k *= mask[iy[:, None], ix[None, :]]
+    k *= mask.take(iy, axis=0).take(ix, axis=1)
     return win.bins[ky0:ky1, kx0:kx1], k, xs, ys
 
 
@@ -246,9 +257,11 @@ def _surround(win: SearchWindow, mask: np.ndarray, zx: float, zy: float, ax: flo
     g = mask.shape[0]
     inx = np.abs(px) < 1.0
     iny = np.abs(py) < 1.0
-    ix = np.clip(((px + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
-    iy = np.clip(((py + 1.0) * (g / 2)).astype(np.intp), 0, g - 1)
-    shape = (mask[iy[:, None], ix[None, :]] > 0) & iny[:, None] & inx[None, :]
+    ix = np.minimum(np.maximum(((px + 1.0) * (g / 2)).astype(np.intp), 0), g - 1)
+    iy = np.minimum(np.maximum(((py + 1.0) * (g / 2)).astype(np.intp), 0), g - 1)
+    shape = mask.take(iy, axis=0).take(ix, axis=1) > 0
+    shape &= iny[:, None]
+    shape &= inx[None, :]
     ring = win.bins[ky0:ky1, kx0:kx1][~shape]
     if ring.size < 4:
         return None
@@ -341,7 +354,7 @@ class TargetModel:
 
 
 def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
-                 luts: Optional[tuple[np.ndarray, np.ndarray]] = None) -> Optional[TargetModel]:
+                 luts: Optional[np.ndarray] = None) -> Optional[TargetModel]:
     """Target model of a detection box (seed 001, eq. 1) with its anchor and shape mask.
 
     Args:
@@ -353,7 +366,7 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     Returns:
         The model, or None when the box is (almost) outside the image.
     """
-    luts = luts or _luts(cfg.hue_bins, cfg.sat_bins)
+    luts = _luts(cfg.hue_bins, cfg.sat_bins) if luts is None else luts
     H, W = frame.shape[:2]
     x, y, w, h = (float(v) for v in box)
     xi0, yi0 = max(0, int(math.floor(x))), max(0, int(math.floor(y)))
@@ -447,6 +460,7 @@ def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: fl
         bx, by = ax * scale, ay * scale
         cx, cy = start
         rho = 0.0
+        converged = False
         for _ in range(cfg.max_iterations):
             kern = _kernel(win, mask, cx, cy, bx, by)
             if kern is None:
@@ -456,9 +470,9 @@ def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: fl
             if p is None:
                 break
             rho = bhattacharyya(p, q)
-            with np.errstate(divide='ignore', invalid='ignore'):
-                ratio = np.where(p > 0, np.sqrt(qw / p), 0.0)
-            wts = ratio[bins] * (k > 0)                     # eq. 3: w_i * mask on the support
+            ratio = np.sqrt(qw / np.maximum(p, 1e-12))
+            wts = ratio.take(bins)
+            wts *= k > 0                                    # eq. 3: w_i * mask on the support
             total = wts.sum()
             if total <= 0:
                 break
@@ -467,13 +481,15 @@ def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: fl
             moved2 = (nx - cx) ** 2 + (ny - cy) ** 2
             cx, cy = nx, ny
             if moved2 < eps2:
+                converged = True      # rho of the last evaluation stands (moved < threshold)
                 break
-        kern = _kernel(win, mask, cx, cy, bx, by)
-        if kern is not None:
-            p = _histogram(kern[0], kern[1], nb)
-            rho = bhattacharyya(p, q) if p is not None else 0.0
-        else:
-            rho = 0.0
+        if not converged:
+            kern = _kernel(win, mask, cx, cy, bx, by)
+            if kern is not None:
+                p = _histogram(kern[0], kern[1], nb)
+                rho = bhattacharyya(p, q) if p is not None else 0.0
+            else:
+                rho = 0.0
         score = rho
         if cfg.surround_weight > 0 and rho > 0:
             ring = _surround(win, mask, cx, cy, bx, by, cfg.surround_size, nb)
@@ -515,8 +531,8 @@ def camshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: flo
     _, (x, y, w, h) = cv2.CamShift(bp, (gx0, gy0, gw, gh), crit)
     if w <= 0 or h <= 0:
         return zx, zy, ax, ay, 0.0
-    cx = win.x0 + s * (x + w / 2.0) - s / 2.0
-    cy = win.y0 + s * (y + h / 2.0) - s / 2.0
+    cx = win.x0 + s * (x + w / 2.0)
+    cy = win.y0 + s * (y + h / 2.0)
     bx, by = s * w / 2.0, s * h / 2.0
     kern = _kernel(win, target.mask, cx, cy, bx, by)
     rho = 0.0
@@ -703,11 +719,16 @@ class MultiTracker:
             tr.coast += 1
             if tr.coast > cfg.max_coast_frames:
                 continue
-            ok_rho = tr.pred_rho >= cfg.min_similarity
-            if not ok_rho:
+            if tr.pred_rho < cfg.min_similarity:
+                # Lost (occluded?): not published; the box coasts on the velocity and the
+                # next frame searches there again, until max_lost_frames.
                 tr.lost += 1
                 if tr.lost <= cfg.max_lost_frames:
-                    survivors.append(tr)      # hold the box; search again next frame
+                    vx, vy = tr.velocity
+                    a, b = tr.anchor, tr.box
+                    tr.anchor = (a[0] + vx, a[1] + vy, a[2], a[3])
+                    tr.box = (b[0] + vx, b[1] + vy, b[2], b[3])
+                    survivors.append(tr)
                 continue
             pb = tr.pred_box
             if not self._inside(pb, W, H) or pb[2] > cfg.max_box_fraction * W \

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -44,6 +45,8 @@ WEATHER_PRESETS = ('winter_overcast', 'spring_sunny', 'spring_rain', 'dusk')
 NEAR_M = 0.3                 # near clipping plane (camera z, metres)
 FAR_M = 1500.0               # ground beyond this is horizon haze
 _ART_SIZES = (32, 48, 64, 96, 128, 192, 256, 384)
+_TREE_RIGHT = -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 22.0)    # tree-line lateral offsets (m)
+_TREE_LEFT = ROAD_HALF_WIDTH + LEFT_SHOULDER + 18.0
 
 
 class RenderError(ValueError):
@@ -160,8 +163,48 @@ def _clip_near(pc: np.ndarray) -> np.ndarray:
     return np.array(out)
 
 
+def _periodic_noise(rng: np.random.Generator, n: int, sigma: float) -> np.ndarray:
+    """Tileable smooth noise (n x n, unit variance) for world-anchored textures."""
+    a = rng.standard_normal((n, n)).astype(np.float32)
+    big = cv2.GaussianBlur(np.tile(a, (3, 3)), (0, 0), sigma)[n:2 * n, n:2 * n]
+    return big / (big.std() + 1e-6)
+
+
+def _bounds(objs: list) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding-sphere centres (N, 3) and radii (N,) of world objects."""
+    ref = np.zeros((len(objs), 3))
+    rad = np.zeros(len(objs))
+    for i, o in enumerate(objs):
+        if isinstance(o, SignPanel):
+            ref[i] = o.center
+            rad[i] = 0.5 * math.hypot(o.width, o.height)
+        elif isinstance(o, Quad):
+            c = np.asarray(o.corners, float)
+            ref[i] = c.mean(0)
+            rad[i] = np.linalg.norm(c - ref[i], axis=1).max()
+        elif isinstance(o, Box):
+            ref[i] = np.asarray(o.center, float) + [0, 0, o.height / 2]
+            rad[i] = 0.5 * math.sqrt(o.length ** 2 + o.width ** 2 + o.height ** 2)
+        else:
+            ref[i] = np.asarray(o.base, float) + [0, 0, o.height / 2]
+            rad[i] = math.hypot(o.radius, o.height / 2)
+    return ref, rad
+
+
+def _sample(tex: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear, wrapping lookup of a float texture at (u, v) texel coordinates (1-D arrays)."""
+    n = u.size
+    cols = 512
+    rows = -(-n // cols)
+    pad = rows * cols - n
+    mu = np.pad(u.astype(np.float32), (0, pad)).reshape(rows, cols)
+    mv = np.pad(v.astype(np.float32), (0, pad)).reshape(rows, cols)
+    out = cv2.remap(tex, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_WRAP)
+    return out.ravel()[:n]
+
+
 def _undistort_normalized(xd: np.ndarray, yd: np.ndarray, D: np.ndarray,
-                          iterations: int = 30) -> tuple[np.ndarray, np.ndarray]:
+                          iterations: int = 12) -> tuple[np.ndarray, np.ndarray]:
     """Invert the plumb_bob model by fixed-point iteration (exact to ~1e-12 for mild lenses)."""
     k1, k2, p1, p2, k3 = (list(D) + [0.0] * 5)[:5]
     x, y = xd.copy(), yd.copy()
@@ -173,6 +216,27 @@ def _undistort_normalized(xd: np.ndarray, yd: np.ndarray, D: np.ndarray,
         x = (xd - dx) / radial
         y = (yd - dy) / radial
     return x, y
+
+
+@lru_cache(maxsize=8)
+def _lens_maps(cam: CameraModel):
+    """Margins of the undistorted canvas and the remap tables distorted <- canvas (static)."""
+    W, H = cam.width, cam.height
+    uu, vv = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    xn, yn = _undistort_normalized((uu - cam.cx) / cam.fx, (vv - cam.cy) / cam.fy, cam.D)
+    ux = xn * cam.fx + cam.cx
+    uy = yn * cam.fy + cam.cy
+    mx = int(math.ceil(max(-ux.min(), ux.max() - (W - 1), 0))) + 3
+    my = int(math.ceil(max(-uy.min(), uy.max() - (H - 1), 0))) + 3
+    mx += mx % 2
+    my += my % 2
+    fx_, fy_ = (ux + mx).astype(np.float32), (uy + my).astype(np.float32)
+    map1, map2 = cv2.convertMaps(fx_, fy_, cv2.CV_16SC2)
+    # Labels: nearest canvas pixel (rounded, not floored as the fixed-point map would be).
+    nn = np.stack([np.round(fx_), np.round(fy_)], -1).astype(np.int16)
+    for a in (map1, map2, nn):
+        a.flags.writeable = False
+    return (mx, my), map1, map2, nn
 
 
 class CameraRenderer:
@@ -198,26 +262,30 @@ class CameraRenderer:
         self._init_lens()
         self._init_background()
         self._init_effects()
+        self._init_objects()
 
     # ------------------------------------------------------------------ static set-up
     def _init_lens(self) -> None:
         cam = self.camera
-        W, H = cam.width, cam.height
-        uu, vv = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-        xn, yn = _undistort_normalized((uu - cam.cx) / cam.fx, (vv - cam.cy) / cam.fy, cam.D)
-        ux = xn * cam.fx + cam.cx
-        uy = yn * cam.fy + cam.cy
-        mx = int(math.ceil(max(-ux.min(), ux.max() - (W - 1), 0))) + 3
-        my = int(math.ceil(max(-uy.min(), uy.max() - (H - 1), 0))) + 3
-        mx += mx % 2
-        my += my % 2
-        self.margin = (mx, my)
-        self.canvas_size = (W + 2 * mx, H + 2 * my)
+        self.margin, self._map1, self._map2, self._nn_map = _lens_maps(cam)
+        mx, my = self.margin
+        self.canvas_size = (cam.width + 2 * mx, cam.height + 2 * my)
         self.Kc = cam.K.copy()
         self.Kc[0, 2] += mx
         self.Kc[1, 2] += my
-        self._map1, self._map2 = cv2.convertMaps((ux + mx).astype(np.float32),
-                                                 (uy + my).astype(np.float32), cv2.CV_16SC2)
+        self._f2 = np.array([self.Kc[0, 0], self.Kc[1, 1]])
+        self._c2 = np.array([self.Kc[0, 2], self.Kc[1, 2]])
+        self._hor = np.array(self.weather.sky_horizon, float) * self.weather.light
+
+    def _init_objects(self) -> None:
+        """Bounding spheres of everything that does not move, for per-frame view culling."""
+        sc = self.scene
+        self._static = list(sc.signs) + [o for o in sc.objects
+                                         if not (isinstance(o, Box) and o.speed)]
+        self._static_ref, self._static_rad = _bounds(self._static)
+        cam = self.camera
+        self._tan = (1.25 * max(cam.cx, cam.width - cam.cx) / cam.fx,
+                     1.25 * max(cam.cy, cam.height - cam.cy) / cam.fy)
 
     def _init_background(self) -> None:
         Wc, Hc = self.canvas_size
@@ -230,21 +298,22 @@ class CameraRenderer:
         Ki = np.linalg.inv(self.Kc)
         rays = np.stack([uu, vv, np.ones_like(uu)], -1).reshape(-1, 3) @ Ki.T
         self._rays = (rays / np.linalg.norm(rays, axis=1, keepdims=True)).astype(np.float32)
+        # Quarter-res grid aligned with cv2.resize x2 of the half-res one: centre 4j + 1.5.
+        uq, vq = np.meshgrid(np.arange(w2 // 2) * 4 + 1.5, np.arange(h2 // 2) * 4 + 1.5)
+        rq = np.stack([uq, vq, np.ones_like(uq)], -1).reshape(-1, 3) @ Ki.T
+        self._rays_q = (rq / np.linalg.norm(rq, axis=1, keepdims=True)).astype(np.float32)
         self._fpix = float(self.Kc[0, 0]) / 2.0       # focal length of the half-res grid
+        self._straight = bool(np.all(np.abs(np.diff(self.scene.road.heading)) < 1e-12))
         rng = np.random.default_rng(list(self._base_seed) + [11])
-        tex = cv2.GaussianBlur(rng.standard_normal((256, 256)).astype(np.float32), (0, 0), 1.2)
-        tex /= tex.std() + 1e-6
-        self._tex = tex
-        patches = cv2.GaussianBlur(rng.standard_normal((256, 256)).astype(np.float32),
-                                   (0, 0), 9.0)
-        self._patch = patches / (patches.std() + 1e-6)
+        # 256 texels over 64 m (fine grain) and 32 m x 16 m cells of large patches.
+        self._tex = _periodic_noise(rng, 256, 0.8)
+        self._patch = _periodic_noise(rng, 64, 2.0)
 
     def _init_effects(self) -> None:
         W, H = self.camera.width, self.camera.height
         rng = np.random.default_rng(list(self._base_seed) + [23])
         pad = 32
-        self._noise = [(rng.standard_normal((H + pad, W + pad, 3)) * s).astype(np.int16)
-                       for s in (2.0, 4.0, 7.0, 11.0)]
+        self._noise: dict[int, np.ndarray] = {}          # filled lazily per sigma level
         self._noise_sigmas = np.array([2.0, 4.0, 7.0, 11.0])
         self._rain = None
         if self.weather.rain:
@@ -267,6 +336,15 @@ class CameraRenderer:
         gx, gy = np.meshgrid(g, g)
         self._glare = np.exp(-(gx ** 2 + gy ** 2) * 5.0)[..., None].astype(np.float32)
 
+    def _noise_bank(self, level: int) -> np.ndarray:
+        """Precomputed int16 Gaussian noise of one sigma level (its own seed: order-free)."""
+        if level not in self._noise:
+            W, H = self.camera.width, self.camera.height
+            rng = np.random.default_rng(list(self._base_seed) + [29, level])
+            bank = rng.standard_normal((H + 32, W + 32, 3), dtype=np.float32)
+            self._noise[level] = (bank * self._noise_sigmas[level]).astype(np.int16)
+        return self._noise[level]
+
     # ------------------------------------------------------------------ helpers
     def _camera_pose(self, base_pose: Pose) -> tuple[np.ndarray, np.ndarray]:
         """World position of the camera and the world -> camera rotation."""
@@ -277,29 +355,26 @@ class CameraRenderer:
 
     def _proj(self, pc: np.ndarray) -> np.ndarray:
         """Project (N, 3) camera points (z > 0) onto the undistorted canvas."""
-        K = self.Kc
-        z = pc[:, 2]
-        return np.stack([K[0, 0] * pc[:, 0] / z + K[0, 2], K[1, 1] * pc[:, 1] / z + K[1, 2]],
-                        -1)
+        return pc[:, :2] / pc[:, 2:3] * self._f2 + self._c2
 
     def _haze(self, bgr, dist: float, light: float | None = None) -> tuple:
         w = self.weather
         f = 1.0 - math.exp(-max(dist, 0.0) / w.haze_m)
         li = w.light if light is None else light
-        return tuple(float(c * li * (1 - f) + h * w.light * f)
-                     for c, h in zip(bgr, w.sky_horizon))
+        c = np.asarray(bgr, float) * (li * (1 - f)) + self._hor * f
+        return (float(c[0]), float(c[1]), float(c[2]))
 
     # ------------------------------------------------------------------ background
     def _frenet(self, px: np.ndarray, py: np.ndarray, s0: float) -> tuple:
         road = self.scene.road
         x0, y0, h0 = road.pose_at(s0)
         s = s0 + (px - x0) * math.cos(h0) + (py - y0) * math.sin(h0)
-        for _ in range(2):
+        if not self._straight:
             xs, ys, hs = road.pose_at(s)
             s = s + (px - xs) * np.cos(hs) + (py - ys) * np.sin(hs)
         xs, ys, hs = road.pose_at(s)
         d = -(px - xs) * np.sin(hs) + (py - ys) * np.cos(hs)
-        return s, d
+        return s.astype(np.float32), d.astype(np.float32)
 
     def _background(self, cam_pos: np.ndarray, R_cw: np.ndarray, s_cam: float,
                     rng: np.random.Generator) -> np.ndarray:
@@ -317,9 +392,16 @@ class CameraRenderer:
         # Ground.
         g = ~sky
         t = np.minimum(-cam_pos[2] / dz[g], FAR_M)
-        px = cam_pos[0] + t * dirs[g, 0]
-        py = cam_pos[1] + t * dirs[g, 1]
-        s, d = self._frenet(px, py, s_cam)
+        # Frenet coordinates are smooth over the image: computed on a quarter-res grid and
+        # upsampled (exact range t stays per pixel for the line footprint and haze).
+        dq = self._rays_q @ R_cw.astype(np.float32)
+        tq = np.where(dq[:, 2] < -1e-6, np.minimum(-cam_pos[2] / np.minimum(dq[:, 2], -1e-6),
+                                                   FAR_M), FAR_M)
+        sq, dd = self._frenet(cam_pos[0] + tq * dq[:, 0], cam_pos[1] + tq * dq[:, 1], s_cam)
+        wq, hq = w2 // 2, h2 // 2
+        s = cv2.resize((sq - s_cam).reshape(hq, wq), (w2, h2),
+                       interpolation=cv2.INTER_LINEAR).ravel()[g] + np.float32(s_cam)
+        d = cv2.resize(dd.reshape(hq, wq), (w2, h2), interpolation=cv2.INTER_LINEAR).ravel()[g]
         img[g] = self._ground_colour(s, d, t, rng)
         return img.reshape(h2, w2, 3)
 
@@ -331,83 +413,87 @@ class CameraRenderer:
         asph = np.array(M['asphalt'].bgr, np.float32) * w.asphalt_gain
         shld = np.array(M['shoulder'].bgr, np.float32) * w.asphalt_gain
         pal = np.stack([asph, shld, np.array(M[cover].bgr, np.float32),
-                        np.array(M['tree'].bgr, np.float32) * 0.8])
-        tree_r = -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 16.0)
-        tree_l = ROAD_HALF_WIDTH + LEFT_SHOULDER + 14.0
-        idx = np.full(s.shape, 2, np.int8)
+                        np.array(M['tree'].bgr, np.float32) * 0.6]) * w.light
+        idx = np.full(s.shape, 2, np.uint8)
         idx[(d > -(ROAD_HALF_WIDTH + RIGHT_SHOULDER)) & (d < ROAD_HALF_WIDTH + LEFT_SHOULDER)] = 1
         idx[np.abs(d) <= ROAD_HALF_WIDTH] = 0
-        idx[(d < tree_r) | (d > tree_l)] = 3
-        col = pal[idx]
-        ti = (s * 4.0).astype(np.int64) & 255
-        tj = (d * 4.0).astype(np.int64) & 255
-        tex = self._tex[ti, tj]
-        pi = (s * 0.25).astype(np.int64) & 255
-        pj = (d * 0.5).astype(np.int64) & 255
-        patch = self._patch[pi, pj]
-        amp = np.array([0.05, 0.06, 0.10 if cover == 'grass' else 0.03, 0.15], np.float32)[idx]
-        col *= (1.0 + amp * tex + 0.5 * amp * patch)[:, None]
+        idx[(d < _TREE_RIGHT) | (d > _TREE_LEFT)] = 3
+        # World-anchored textures, bilinear (fine grain and large patches).
+        tex = _sample(self._tex, np.mod(d * 4.0, 256.0), np.mod(s * 4.0, 256.0))
+        patch = _sample(self._patch, np.mod(d * 0.5, 64.0), np.mod(s * 0.25, 64.0))
+        amp = np.array([0.035, 0.05, 0.09 if cover == 'grass' else 0.03, 0.12], np.float32)[idx]
+        # Far away the texture averages out within a pixel.
+        fade = np.exp(-rng_m * (1.0 / 60.0))
+        col = pal[idx] * (1.0 + amp * (tex * fade + 0.8 * patch))[:, None]
         if cover == 'snow':
-            # Snow drifting onto the shoulders (patchy), the lanes stay clear and wet-grey.
-            onto = (idx == 1) & (patch > 0.2)
-            col[onto] = col[onto] * 0.3 + np.array(M['snow'].bgr, np.float32) * 0.7
-        # Lane lines: anti-aliased by the pixel footprint (lateral metres per pixel).
-        foot = np.maximum(rng_m / self._fpix, 0.02)
-        paint = np.array(M['lane_paint'].bgr, np.float32) * (0.9 if w.snow else 1.0)
-        yellow = np.array(M['lane_paint_yellow'].bgr, np.float32)
-        dashed = np.mod(s, 12.0) < 3.0
-        for centre, halfw, c, mask in ((-ROAD_HALF_WIDTH + 0.15, 0.08, paint, None),
-                                       (ROAD_HALF_WIDTH - 0.15, 0.08, yellow, None),
-                                       (-1.85, 0.065, paint, dashed), (1.85, 0.065, paint, dashed)):
-            cov = np.clip((halfw - np.abs(d - centre)) / foot + 0.5, 0.0, 1.0)
-            if mask is not None:
-                cov = cov * mask
-            cov = cov[:, None]
-            col = col * (1.0 - cov) + c * cov
+            # Snow drifting onto the shoulders (patchy); the lanes stay clear.
+            onto = (idx == 1) & (patch > 0.0)
+            snow = np.array(M['snow'].bgr, np.float32) * w.light
+            col[onto] = col[onto] * 0.35 + snow * 0.65
+        # Lane lines, anti-aliased by the pixel footprint (lateral metres per pixel).
+        inv_foot = 1.0 / np.maximum(rng_m / self._fpix, 0.02)
+        dashed = (np.mod(s, 12.0) < 3.0).astype(np.float32)
+        ad = np.abs(d)
+        edge = np.clip((0.08 - np.abs(ad - (ROAD_HALF_WIDTH - 0.15))) * inv_foot + 0.5, 0, 1)
+        lane = np.clip((0.065 - np.abs(ad - 1.85)) * inv_foot + 0.5, 0, 1) * dashed
+        cov = np.maximum(edge, lane)
+        on = cov > 0
+        paint = np.where((d[on] > 3.0)[:, None],
+                         np.array(M['lane_paint_yellow'].bgr, np.float32),
+                         np.array(M['lane_paint'].bgr, np.float32)) * (w.light * 0.95)
+        c = cov[on][:, None]
+        col[on] = col[on] * (1.0 - c) + paint * c
         for so in self.scene.overpasses:
-            sh = np.abs(s - so) < 7.0
-            col[sh] *= w.shadow
-        col *= w.light
-        hor = np.array(w.sky_horizon, np.float32) * w.light
+            col[np.abs(s - so) < 7.0] *= w.shadow
+        hor = self._hor.astype(np.float32)
         if w.wet > 0:
-            road = (idx <= 1)[:, None]
-            refl = w.wet * (1.0 - np.exp(-rng_m / 35.0))[:, None]
-            col = np.where(road, col * (1 - refl) + hor * refl, col)
+            road = idx <= 1
+            refl = (w.wet * (1.0 - np.exp(-rng_m[road] / 35.0)))[:, None]
+            col[road] = col[road] * (1 - refl) + hor * refl
         f = (1.0 - np.exp(-rng_m / w.haze_m))[:, None]
-        return col * (1 - f) + hor * f
+        return col + (hor - col) * f
 
     # ------------------------------------------------------------------ scene objects
     def _tree_walls(self, canvas, label, cam_pos, R_cw, s_cam) -> None:
-        """Tree lines on both sides: quads from the ground to a bumpy canopy top."""
+        """Tree lines on both sides: a bumpy canopy wall from the ground, far chunks first."""
         road = self.scene.road
-        step = 4.0
-        k = np.arange(math.floor((s_cam - 30) / step), math.ceil((s_cam + 700) / step) + 1)
-        s = k * step
+        near = np.arange(math.floor(s_cam / 3.0) * 3.0, s_cam + 120.0, 3.0)
+        far = np.arange(math.ceil((s_cam + 120.0) / 12.0) * 12.0, s_cam + 800.0, 12.0)
+        s = np.concatenate([near, far])
         s = s[(s >= 0) & (s <= road.length)]
         if len(s) < 2:
             return
-        k = np.round(s / step).astype(np.int64)
+        k = np.round(s / 3.0).astype(np.int64)
         tc = np.array(MATERIALS['tree'].bgr, float)
-        for side, dl in ((-1, -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 16.0)),
-                         (1, ROAD_HALF_WIDTH + LEFT_SHOULDER + 14.0)):
-            x, y, _ = road.pose_at(s, dl)
-            h = 8.0 + 6.0 * _hash01(k, 3 + side)
-            bot = np.stack([x, y, np.zeros_like(x)], -1)
-            top = np.stack([x, y, h], -1)
-            pb = (bot - cam_pos) @ R_cw.T
-            pt = (top - cam_pos) @ R_cw.T
-            dist = np.linalg.norm(bot - cam_pos, axis=1)
-            shade = 0.75 + 0.4 * _hash01(k, 9 + side)
-            for i in range(len(s) - 1, 0, -1):
-                quad = np.array([pb[i - 1], pb[i], pt[i], pt[i - 1]])
-                q = _clip_near(quad)
-                if len(q) < 3:
+        for side, dl in ((-1, _TREE_RIGHT), (1, _TREE_LEFT)):
+            x, y, _ = road.pose_at(s, dl + 3.0 * side * _hash01(k // 8, 17 + side))
+            # Canopy: rounded crowns (|sin|) of random heights.
+            h = 9.0 + 5.0 * _hash01(k // 4, 3 + side) + 2.5 * np.abs(np.sin(s * 0.9 + side))
+            pts = np.concatenate([np.stack([x, y, np.zeros_like(x)], -1),
+                                  np.stack([x, y, h], -1)])
+            pc = (pts - cam_pos) @ R_cw.T
+            n = len(s)
+            ok = (pc[:n, 2] > 1.0) & (pc[n:, 2] > 1.0)
+            if ok.sum() < 2:
+                continue
+            pc[:, 2] = np.maximum(pc[:, 2], 1.0)
+            uv = np.clip(np.round(self._proj(pc) * 16), -2 ** 22, 2 ** 22).astype(np.int32)
+            bot, top = uv[:n], uv[n:]
+            idx = np.nonzero(ok)[0]
+            dist = np.hypot(x - cam_pos[0], y - cam_pos[1])
+            chunks = np.array_split(idx, max(1, len(idx) // 6))
+            for ch in chunks[::-1]:
+                if len(ch) == 0:
                     continue
-                uv = self._proj(q)
-                col = self._haze(tc * shade[i], dist[i])
-                cv2.fillConvexPoly(canvas, np.round(uv * 16).astype(np.int32), col,
-                                   cv2.LINE_AA, 4)
-                cv2.fillConvexPoly(label, np.round(uv * 16).astype(np.int32), 0, cv2.LINE_8, 4)
+                j = np.arange(ch[0], min(ch[-1] + 2, idx[-1] + 1))
+                j = j[ok[j]]
+                if len(j) < 2:
+                    continue
+                poly = np.concatenate([bot[j], top[j][::-1]])
+                shade = 0.8 + 0.35 * float(_hash01(np.array([k[j[0]] // 6]), 9 + side)[0])
+                col = self._haze(tc * shade, float(dist[j].mean()))
+                cv2.fillPoly(canvas, [poly], col, cv2.LINE_AA, 4)
+                cv2.fillPoly(label, [poly], 0, cv2.LINE_8, 4)
 
     def _overpass_quads(self, s_cam: float) -> list[Quad]:
         road = self.scene.road
@@ -416,7 +502,7 @@ class CameraRenderer:
             if not (-20.0 < so - s_cam < 600.0):
                 continue
             for k, (s1, d0, d1, z0, z1) in enumerate((
-                    (so - 6.0, -45.0, 45.0, 5.4, 7.2),
+                    (so - 6.0, -60.0, 60.0, 5.4, 7.2),
                     (so - 5.5, -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 1.5),
                      -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 0.5), 0.0, 5.4),
                     (so - 5.5, ROAD_HALF_WIDTH + LEFT_SHOULDER + 0.5,
@@ -437,13 +523,16 @@ class CameraRenderer:
         return True
 
     def _draw_quad(self, canvas, label, q: Quad, cam_pos, R_cw, dist, lab: int) -> None:
-        pc = (np.asarray(q.corners, float) - cam_pos) @ R_cw.T
-        n = np.cross(q.corners[1] - q.corners[0], q.corners[2] - q.corners[0])
-        facing = np.dot(n, cam_pos - q.corners[0])
-        shade = 0.95 if facing >= 0 else 0.8
+        c = np.asarray(q.corners, float)
+        pc = (c - cam_pos) @ R_cw.T
+        # Facing test without np.cross: in camera coordinates the projected winding tells.
+        a, b = pc[1] - pc[0], pc[2] - pc[0]
+        nz = (a[1] * b[2] - a[2] * b[1]) * pc[0, 0] + (a[2] * b[0] - a[0] * b[2]) * pc[0, 1] + \
+            (a[0] * b[1] - a[1] * b[0]) * pc[0, 2]
+        shade = 0.95 if nz <= 0 else 0.8
         col = self._haze(np.array(MATERIALS[q.material].bgr, float) * shade, dist)
         self._fill(canvas, label, pc, col, lab)
-        if q.kind == 'guardrail':
+        if q.kind == 'guardrail' and dist < 80.0:
             # Darker lower edge and a mid-height groove of the W-beam.
             c = np.asarray(q.corners, float)
             for a, b, f in ((0.0, 0.25, 0.7), (0.45, 0.55, 0.8)):
@@ -677,7 +766,7 @@ class CameraRenderer:
         img = self._grade(img, frame, rng)
         # Sensor noise (more when under-exposed), from precomputed banks at random offsets.
         sigma = w.noise * (1.0 + 0.8 * max(0.0, 1.0 - self._exposure(frame)))
-        bank = self._noise[int(np.argmin(np.abs(self._noise_sigmas - sigma)))]
+        bank = self._noise_bank(int(np.argmin(np.abs(self._noise_sigmas - sigma))))
         ox, oy = int(rng.integers(0, 32)), int(rng.integers(0, 32))
         img = cv2.add(img, bank[oy:oy + H, ox:ox + W], dtype=cv2.CV_8U)
         if rng.random() < 0.3:
@@ -711,35 +800,39 @@ class CameraRenderer:
         label = np.zeros((Hc, Wc), np.uint16)
         self._tree_walls(canvas, label, cam_pos, R_cw, s_cam)
 
-        # Painter's list: (distance, order, kind, object, label index).
+        # Painter's list: (sort key, distance, kind, object, label index) of what is in view.
         items = []
         entries: list[tuple[str, object, float]] = []
-        for sp in self.scene.signs:
-            dist = float(np.linalg.norm(np.asarray(sp.center, float) - cam_pos))
-            if dist > 900.0:
+        moving = [o for o in self.scene.objects_at(t) if isinstance(o, Box) and o.speed]
+        cands = [(self._static, self._static_ref, self._static_rad)]
+        dyn = moving + self._overpass_quads(s_cam)
+        if dyn:
+            ref, rad = _bounds(dyn)
+            cands.append((dyn, ref, rad))
+        for objs, ref, rad in cands:
+            if not objs:
                 continue
-            entries.append(('sign', sp, dist))
-            items.append((dist, 'sign', sp, len(entries)))
-        objects = list(self.scene.objects_at(t)) + self._overpass_quads(s_cam)
-        for o in objects:
-            if isinstance(o, Quad):
-                ref = np.asarray(o.corners, float).mean(0)
-            elif isinstance(o, Box):
-                ref = np.asarray(o.center, float) + [0, 0, o.height / 2]
-            else:
-                ref = np.asarray(o.base, float) + [0, 0, min(o.height / 2, 1.0)]
-            dist = float(np.linalg.norm(ref - cam_pos))
-            if dist > 900.0:
-                continue
-            lab = 0
-            if is_distractor(o):
-                entries.append(('obj', o, dist))
-                lab = len(entries)
-            key = dist + (0.5 if isinstance(o, Cylinder) and 'post' in (o.kind + o.material)
-                          else 0.0)
-            items.append((key, 'obj', o, lab))
+            pc = (ref - cam_pos) @ R_cw.T
+            dist_all = np.linalg.norm(ref - cam_pos, axis=1)
+            z = pc[:, 2]
+            keep = (z > NEAR_M - rad) & (dist_all < 900.0 + rad) & \
+                (np.abs(pc[:, 0]) < z * self._tan[0] + rad) & \
+                (np.abs(pc[:, 1]) < z * self._tan[1] + rad)
+            for i in np.nonzero(keep)[0]:
+                o = objs[i]
+                dist = float(dist_all[i])
+                lab = 0
+                if isinstance(o, SignPanel):
+                    entries.append(('sign', o, dist))
+                    items.append((dist, dist, 'sign', o, len(entries)))
+                    continue
+                if is_distractor(o):
+                    entries.append(('obj', o, dist))
+                    lab = len(entries)
+                post = isinstance(o, Cylinder) and 'post' in (o.kind + o.material)
+                items.append((dist + (0.5 if post else 0.0), dist, 'obj', o, lab))
         items.sort(key=lambda it: -it[0])
-        for dist, what, o, lab in items:
+        for _, dist, what, o, lab in items:
             if what == 'sign':
                 self._draw_sign(canvas, label, o, cam_pos, R_cw, dist, lab)
             elif isinstance(o, Quad):
@@ -752,7 +845,7 @@ class CameraRenderer:
         # Lens distortion.
         img = cv2.remap(canvas, self._map1, self._map2, cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_REPLICATE)
-        lab_img = cv2.remap(label, self._map1, self._map2, cv2.INTER_NEAREST,
+        lab_img = cv2.remap(label, self._nn_map, None, cv2.INTER_NEAREST,
                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
         sign_hits, obj_hits, lut = self._ground_truth(entries, lab_img, cam_pos, R_cw)
         out_label = lut[lab_img]
@@ -775,18 +868,27 @@ class CameraRenderer:
         return tuple(pts.reshape(2))
 
     def _ground_truth(self, entries, lab_img, cam_pos, R_cw):
-        """Boxes and visible fractions from the distorted label image."""
-        W, H = self.camera.width, self.camera.height
-        lut = np.full(len(entries) + 1, -1, np.int32)
-        present = np.bincount(lab_img.ravel(), minlength=len(entries) + 1)
+        """Boxes and visible fractions from the distorted label image (one pass)."""
+        n = len(entries) + 1
+        lut = np.full(n, -1, np.int32)
+        ys, xs = np.nonzero(lab_img)
+        vals = lab_img[ys, xs]
+        present = np.bincount(vals, minlength=n)
+        big = np.iinfo(np.int64).max
+        x0 = np.full(n, big)
+        y0 = np.full(n, big)
+        x1 = np.full(n, -1)
+        y1 = np.full(n, -1)
+        np.minimum.at(x0, vals, xs)
+        np.minimum.at(y0, vals, ys)
+        np.maximum.at(x1, vals, xs)
+        np.maximum.at(y1, vals, ys)
         sign_hits: list[SignHit] = []
         obj_hits: list[ObjectHit] = []
         for i, (what, o, dist) in enumerate(entries, start=1):
             if present[i] == 0:
                 continue
-            ys, xs = np.nonzero(lab_img == i) if present[i] > 0 else ((), ())
-            box = (int(xs.min()), int(ys.min()), int(xs.max() - xs.min() + 1),
-                   int(ys.max() - ys.min() + 1))
+            box = (int(x0[i]), int(y0[i]), int(x1[i] - x0[i] + 1), int(y1[i] - y0[i] + 1))
             if what == 'sign':
                 lut[i] = o.object_id
                 area = self._face_area(o, cam_pos, R_cw)

@@ -26,12 +26,22 @@ Conventions (the scenario builder, the bag writer and the ground truth rely on t
   ``s mod 12 < 3``, i.e. 3 m dash / 9 m gap) and solid edge lines centred at d = +/-5.55 (white
   right, yellow left), shoulders, then the scene's ground cover (grass or snow).
 - **Intensity** (0-255, float32).  Retroreflective materials (sign sheeting, drum bands,
-  plates, tail reflectors) return ``255 * reflectivity * (0.85 + 0.15 cos i)`` with a mild range
-  loss, about 200-240.  Others return ``255 * reflectivity * (0.2 + 0.8 cos i)`` with a
-  ``1 / (1 + (r / 80)^2)`` range loss (road ~5, lane paint ~30, grass ~10, drum body ~60).
-  Multiplicative 5 % and additive 1.0 Gaussian noise.
+  plates, tail reflectors) return ``255 * reflectivity * (0.85 + 0.15 cos i)`` times a mild
+  range loss ``1 - 0.25 (r / max_range)^2``: about 200-245 (hard negatives included); a faded
+  sign loses up to 30 %.  Others return ``255 * reflectivity * (0.2 + 0.8 cos i)`` times
+  ``1 / (1 + (r / 80)^2)`` (asphalt ~5, lane paint ~30, grass ~10, guardrail ~70, orange drum
+  body ~60).  ``i`` is the incidence angle.  Gaussian noise: 5 % multiplicative plus 1.0.
+- **Vehicles** (boxes with ``plate``) carry a 0.31 x 0.15 m plate, laterally centred on the
+  rear face, 0.45-0.60 m high, and two 0.12 x 0.10 m tail reflectors 0.2 m in from the sides,
+  0.85-0.95 m high; the rear face uses ``rear_material`` when set.
 - **Randomness** (range noise, dropouts, intensity noise) comes from a generator seeded with
   ``(seed, scan_index)``: the same inputs give identical arrays.
+
+The caster caches per-model ray tables and an object table per road, whose rows are reused
+for the same object instances (identity): a scene rebuilt per scan with a few objects
+replaced costs only those rows.  Do not mutate objects in place between calls; replace them.
+Only ``Box.speed`` motion is modelled, as in :meth:`Scene.objects_at` (the writer replaces
+lane-following vehicles by straight movers per scan).
 
 Speed: objects are culled before intersection.  Each object's azimuth interval (columns) and
 elevation interval (beams) as seen from the sensor over the whole spin are computed for all
@@ -40,7 +50,6 @@ objects at once, and only the rays in that window are tested, vectorised.
 from __future__ import annotations
 
 import functools
-import weakref
 from dataclasses import dataclass
 from typing import Callable
 
@@ -142,7 +151,7 @@ _RETRO = np.array([MATERIALS[n].retroreflective for n in _MAT_NAMES])
 
 _PAINT_HALF_WIDTH = 0.075        # 6 in (0.15 m) lines
 _DASH_LINE_D = 1.5 * 3.7 - 3.7   # 1.85 m: lane boundaries between the three lanes
-_DASH_PERIOD, _DASH_LENGTH = 12.0, 3.0
+_DASH_PERIOD, _DASH_LENGTH = 12.0, 3.0     # the dash is a quarter of the period
 
 _SHAPES = {'diamond', 'rectangle', 'square', 'octagon', 'triangle', 'circle'}
 
@@ -224,6 +233,7 @@ def _ray_table(model: LidarModel) -> _Rays:
 
 
 _SIGN, _CYL, _CONE, _BOX, _QUAD = range(5)
+_FADE_LOSS = 0.3         # a fully faded sign (fade = 1) keeps 70 % of its retroreflection
 
 
 @dataclass
@@ -241,6 +251,8 @@ class _Table:
     centre: np.ndarray     # (n, 3) bounding-sphere centre at t = 0
     radius: np.ndarray
     extra: list            # per object: precomputed intersection data
+    face_gain: np.ndarray  # (n,) intensity factor of sign faces (worn sheeting when faded)
+    road: Road
     road_cos: np.ndarray
     road_sin: np.ndarray
 
@@ -249,97 +261,116 @@ def _square(cx: float, cy: float, r: float) -> np.ndarray:
     return np.array([[cx - r, cy - r], [cx + r, cy - r], [cx + r, cy + r], [cx - r, cy + r]])
 
 
-def _build_table(scene: Scene) -> _Table:
+def _fill_row(t: _Table, i: int, o) -> tuple:
+    """Write object ``o``'s culling data into row ``i`` of ``t``; return its intersection data."""
+    t.ids[i] = -1 if str(getattr(o, 'kind', '')).startswith('tree') else int(o.object_id)
+    t.vel[i] = 0.0
+    t.face_gain[i] = 1.0
+    hull, foot = t.hull[i], t.foot[i]
+    if isinstance(o, SignPanel):
+        t.kinds[i] = _SIGN
+        cr = o.corners()
+        hull[:4], hull[4:] = cr, cr
+        foot[:] = cr[:, :2]
+        right = np.array([-np.sin(o.yaw), np.cos(o.yaw), 0.0])
+        up = np.array([0.0, 0.0, 1.0])
+        c, s_ = np.cos(o.tilt), np.sin(o.tilt)
+        r2, u2 = c * right + s_ * up, -s_ * right + c * up     # as SignPanel.corners()
+        t.face_gain[i] = 1.0 - _FADE_LOSS * float(o.fade)
+        return (np.asarray(o.center, float), o.normal, r2, u2, _sign_shape(o),
+                _mat_index(o.material), _mat_index('sign_back'), o.width / 2, o.height / 2)
+    if isinstance(o, (Cylinder, Cone)):
+        t.kinds[i] = _CYL if isinstance(o, Cylinder) else _CONE
+        b = np.asarray(o.base, float)
+        sq = _square(b[0], b[1], o.radius)
+        hull[:4, :2], hull[4:, :2] = sq, sq
+        hull[:4, 2], hull[4:, 2] = b[2], b[2] + o.height
+        foot[:] = sq
+        bands = [(float(z0), float(z1), _mat_index(m)) for z0, z1, m in o.bands]
+        return (b, float(o.radius), float(o.height), _mat_index(o.material), bands)
+    if isinstance(o, Box):
+        t.kinds[i] = _BOX
+        fwd = np.array([np.cos(o.yaw), np.sin(o.yaw), 0.0])
+        left = np.array([-np.sin(o.yaw), np.cos(o.yaw), 0.0])
+        c0 = np.asarray(o.center, float)
+        k = 0
+        for sz in (0.0, o.height):
+            for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                hull[k] = c0 + sx * o.length / 2 * fwd + sy * o.width / 2 * left
+                hull[k, 2] = c0[2] + sz
+                k += 1
+        foot[:] = hull[:4, :2]
+        t.vel[i] = fwd * o.speed
+        rear = o.rear_material or o.material
+        return (c0, fwd, left, np.array([o.length / 2, o.width / 2, o.height]),
+                _mat_index(o.material), _mat_index(rear), bool(o.plate))
+    if isinstance(o, Quad):
+        t.kinds[i] = _QUAD
+        cr = np.asarray(o.corners, float)
+        hull[:4], hull[4:] = cr, cr
+        foot[:] = cr[:, :2]
+        nrm = np.cross(cr[2] - cr[0], cr[3] - cr[1])     # diagonals: robust for quads
+        nrm = nrm / max(np.linalg.norm(nrm), 1e-12)
+        e1 = cr[1] - cr[0] - np.dot(cr[1] - cr[0], nrm) * nrm
+        e1 = e1 / max(np.linalg.norm(e1), 1e-12)
+        e2 = np.cross(nrm, e1)
+        poly = np.stack([(cr - cr[0]) @ e1, (cr - cr[0]) @ e2], axis=1)
+        nxt = np.roll(poly, -1, axis=0)
+        if np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1]) < 0:
+            poly = poly[::-1].copy()
+        edges = np.roll(poly, -1, axis=0) - poly
+        return (cr[0], nrm, e1, e2, poly, edges, _mat_index(o.material))
+    raise LidarError(f'cannot ray-cast object of type {type(o).__name__} '
+                     f'(id {getattr(o, "object_id", "?")})')
+
+
+def _build_table(scene: Scene, prev: _Table | None = None) -> _Table:
+    """Build the object table, reusing the rows of ``prev`` whose object is the same one."""
     objs = list(scene.signs) + list(scene.objects)
     n = len(objs)
-    kinds = np.zeros(n, dtype=np.int8)
-    ids = np.zeros(n, dtype=np.int32)
-    hull = np.zeros((n, 8, 3))
-    vel = np.zeros((n, 3))
-    foot = np.zeros((n, 4, 2))
-    extra = []
-    for i, o in enumerate(objs):
-        ids[i] = -1 if str(getattr(o, 'kind', '')).startswith('tree') else int(o.object_id)
-        if isinstance(o, SignPanel):
-            kinds[i] = _SIGN
-            cr = o.corners()
-            hull[i] = np.concatenate([cr, cr])
-            foot[i] = cr[:, :2]
-            right = np.array([-np.sin(o.yaw), np.cos(o.yaw), 0.0])
-            up = np.array([0.0, 0.0, 1.0])
-            c, s_ = np.cos(o.tilt), np.sin(o.tilt)
-            r2, u2 = c * right + s_ * up, -s_ * right + c * up     # as SignPanel.corners()
-            extra.append((np.asarray(o.center, float), o.normal, r2, u2, _sign_shape(o),
-                          _mat_index(o.material), _mat_index('sign_back'), o.width / 2,
-                          o.height / 2))
-        elif isinstance(o, (Cylinder, Cone)):
-            kinds[i] = _CYL if isinstance(o, Cylinder) else _CONE
-            b = np.asarray(o.base, float)
-            sq = _square(b[0], b[1], o.radius)
-            hull[i, :4, :2] = sq
-            hull[i, 4:, :2] = sq
-            hull[i, :4, 2] = b[2]
-            hull[i, 4:, 2] = b[2] + o.height
-            foot[i] = sq
-            bands = [(float(z0), float(z1), _mat_index(m)) for z0, z1, m in o.bands]
-            extra.append((b, float(o.radius), float(o.height), _mat_index(o.material), bands))
-        elif isinstance(o, Box):
-            kinds[i] = _BOX
-            fwd = np.array([np.cos(o.yaw), np.sin(o.yaw), 0.0])
-            left = np.array([-np.sin(o.yaw), np.cos(o.yaw), 0.0])
-            c0 = np.asarray(o.center, float)
-            k = 0
-            for sz in (0.0, o.height):
-                for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-                    hull[i, k] = c0 + sx * o.length / 2 * fwd + sy * o.width / 2 * left
-                    hull[i, k, 2] = c0[2] + sz
-                    k += 1
-            foot[i] = hull[i, :4, :2]
-            vel[i] = fwd * o.speed
-            rear = o.rear_material or o.material
-            extra.append((c0, fwd, left, np.array([o.length / 2, o.width / 2, o.height]),
-                          _mat_index(o.material), _mat_index(rear), bool(o.plate)))
-        elif isinstance(o, Quad):
-            kinds[i] = _QUAD
-            cr = np.asarray(o.corners, float)
-            hull[i] = np.concatenate([cr, cr])
-            foot[i] = cr[:, :2]
-            nrm = np.cross(cr[2] - cr[0], cr[3] - cr[1])     # diagonals: robust for quads
-            nrm = nrm / max(np.linalg.norm(nrm), 1e-12)
-            e1 = cr[1] - cr[0] - np.dot(cr[1] - cr[0], nrm) * nrm
-            e1 = e1 / max(np.linalg.norm(e1), 1e-12)
-            e2 = np.cross(nrm, e1)
-            poly = np.stack([(cr - cr[0]) @ e1, (cr - cr[0]) @ e2], axis=1)
-            nxt = np.roll(poly, -1, axis=0)
-            if np.sum(poly[:, 0] * nxt[:, 1] - nxt[:, 0] * poly[:, 1]) < 0:
-                poly = poly[::-1].copy()
-            edges = np.roll(poly, -1, axis=0) - poly
-            extra.append((cr[0], nrm, e1, e2, poly, edges, _mat_index(o.material)))
-        else:
-            raise LidarError(f'cannot ray-cast object of type {type(o).__name__} '
-                             f'(id {getattr(o, "object_id", "?")})')
-    zmin, zmax = hull[..., 2].min(axis=1), hull[..., 2].max(axis=1)
-    centre = hull.mean(axis=1)
-    radius = np.linalg.norm(hull - centre[:, None, :], axis=2).max(axis=1) if n else np.zeros(0)
     road = scene.road
-    return _Table(objs, kinds, ids, hull, vel, foot, zmin, zmax, centre, radius, extra,
-                  np.cos(road.heading), np.sin(road.heading))
+    if prev is not None and len(prev.objs) == n and prev.road is road:
+        t = _Table(objs, prev.kinds.copy(), prev.ids.copy(), prev.hull.copy(), prev.vel.copy(),
+                   prev.foot.copy(), prev.zmin, prev.zmax, prev.centre, prev.radius,
+                   list(prev.extra), prev.face_gain.copy(), road, prev.road_cos, prev.road_sin)
+        rows = [i for i, (a, b) in enumerate(zip(objs, prev.objs)) if a is not b]
+    else:
+        t = _Table(objs, np.zeros(n, np.int8), np.zeros(n, np.int32), np.zeros((n, 8, 3)),
+                   np.zeros((n, 3)), np.zeros((n, 4, 2)), None, None, None, None, [None] * n,
+                   np.ones(n, np.float32), road, np.cos(road.heading), np.sin(road.heading))
+        rows = range(n)
+    for i in rows:
+        t.extra[i] = _fill_row(t, i, objs[i])
+    t.zmin, t.zmax = t.hull[..., 2].min(axis=1), t.hull[..., 2].max(axis=1)
+    t.centre = t.hull.mean(axis=1)
+    t.radius = np.linalg.norm(t.hull - t.centre[:, None, :], axis=2).max(axis=1)
+    return t
 
 
-_TABLES: dict[int, tuple] = {}
+#: Last object table per road (a strong reference: object identities stay valid).
+_TABLES: dict[int, _Table] = {}
+_MAX_TABLES = 4
 
 
 def _table_for(scene: Scene) -> _Table:
-    """The scene's object table, cached while the scene lives and its object lists keep size."""
-    key = id(scene)
-    hit = _TABLES.get(key)
-    sig = (len(scene.signs), len(scene.objects), id(scene.road))
-    if hit is not None and hit[0]() is scene and hit[1] == sig:
-        return hit[2]
-    table = _build_table(scene)
-    for k in [k for k, v in _TABLES.items() if v[0]() is None]:
-        del _TABLES[k]
-    _TABLES[key] = (weakref.ref(scene), sig, table)
+    """The scene's object table, cached per road.
+
+    A scene rebuilt for each scan with a few objects replaced (the writer swaps lane-following
+    vehicles for straight movers) only recomputes the replaced rows: rows are reused for the
+    *same* objects (identity), so objects must not be mutated in place between calls.
+    """
+    objs = list(scene.signs) + list(scene.objects)
+    prev = _TABLES.get(id(scene.road))
+    if prev is not None and prev.road is not scene.road:
+        prev = None
+    if prev is not None and len(prev.objs) == len(objs) and all(
+            a is b for a, b in zip(prev.objs, objs)):
+        return prev
+    table = _build_table(scene, prev)
+    _TABLES.pop(id(scene.road), None)
+    while len(_TABLES) >= _MAX_TABLES:
+        _TABLES.pop(next(iter(_TABLES)))
+    _TABLES[id(scene.road)] = table
     return table
 
 
@@ -603,9 +634,12 @@ def _ground_materials(scene: Scene, table: _Table, x: np.ndarray, y: np.ndarray,
     s, d = _frenet_local(scene.road, table.road_cos, table.road_sin, x, y, s0)
     lut = _lateral_lut(scene.ground_cover)
     nbin = lut.size // 2
-    i = np.clip(((d + _LUT_HALF) * (1.0 / _LUT_STEP)).astype(np.int64), 0, nbin - 1)
-    dash_on = np.mod(s, _DASH_PERIOD) < _DASH_LENGTH
-    return lut.take(2 * i + dash_on)
+    i = np.clip(((d + _LUT_HALF) * (2.0 / _LUT_STEP)).astype(np.int64), 0, 2 * nbin - 2)
+    i &= ~1
+    # Dash phase: paint where s mod 12 < 3, i.e. floor(s / 3) mod 4 == 0 (s offset to stay > 0).
+    quarter = ((s + 100 * _DASH_PERIOD) * (1.0 / _DASH_LENGTH)).astype(np.int64)
+    i += (quarter & 3) == 0
+    return lut.take(i)
 
 
 # --------------------------------------------------------------------------------------------
@@ -691,7 +725,8 @@ def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
             if not idx.size:
                 continue
             col_of = idx // nb
-            O_b, D_b, T_b = pos_c[col_of], D[idx], tc[col_of]
+            O_b, D_b = np.take(pos_c, col_of, axis=0), np.take(D, idx, axis=0)
+            T_b = tc.take(col_of)
             kind, ex = table.kinds[oi], table.extra[oi]
             if kind == _SIGN:
                 t, m, ci, fr = _hit_sign(ex, O_b, D_b, T_b)
@@ -725,8 +760,9 @@ def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
     if ground.any():
         gi = keep[ground]
         col_g = gi // nb
-        gx = pos_c[col_g, 0] + t_k[ground] * D[gi, 0]
-        gy = pos_c[col_g, 1] + t_k[ground] * D[gi, 1]
+        D_g, t_g = np.take(D, gi, axis=0), t_k[ground]
+        gx = pos_c[:, 0].take(col_g) + t_g * D_g[:, 0]
+        gy = pos_c[:, 1].take(col_g) + t_g * D_g[:, 1]
         road = scene.road
         s0 = float(road.s[np.argmin((road.x - pos_k[0, 0]) ** 2 + (road.y - pos_k[0, 1]) ** 2)])
         mat_k[ground] = _ground_materials(scene, table, gx, gy, s0)
@@ -744,6 +780,9 @@ def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
         frac = tk32[retro] * np.float32(1.0 / model.max_range)
         inten[retro] = 255.0 * refl[retro] * (0.85 + 0.15 * cos_k[retro]) * (
             1.0 - 0.25 * frac * frac)
+    faces = np.flatnonzero(front[keep])
+    if faces.size:
+        inten[faces] *= table.face_gain.take(code_k[faces])
     # 5 % multiplicative and 1.0 additive noise, drawn as one Gaussian.
     inten += np.sqrt((0.05 * inten) ** 2 + 1.0) * rng.standard_normal(n, dtype=np.float32)
     np.clip(inten, 0.0, 255.0, out=inten)
@@ -754,7 +793,7 @@ def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
     object_ids = np.where(code_k >= 0, ids_table[np.maximum(code_k, 0)] if ids_table.size
                           else -1, -1).astype(np.int32)
     sign_hits: dict[int, np.ndarray] = {}
-    face_pts = np.flatnonzero(front[keep] & (code_k >= 0))
+    face_pts = faces
     if face_pts.size:
         codes = code_k[face_pts]
         order = np.argsort(codes, kind='stable')

@@ -739,13 +739,14 @@ class _Builder:
             while s < hi:
                 other.append(_Placed('mile_marker', s, SIGN_LATERAL + 1.0, 'general'))
                 s += step
-        # keep right-shoulder signs apart; work-zone signs keep their order, others yield
+        # keep right-shoulder signs apart: work-zone signs keep their order and push each
+        # other along; explicitly placed signs stay where the file says; random ones yield
         right.sort(key=lambda p: (p.s, p.role == 'general'))
-        fixed = [p for p in right if p.role != 'general']
-        for a, b in zip(fixed, fixed[1:]):
+        zone = [p for p in right if p.role not in ('general', 'explicit')]
+        for a, b in zip(zone, zone[1:]):
             if b.s - a.s < MIN_SIGN_GAP:
                 b.s = a.s + MIN_SIGN_GAP
-        kept = list(fixed)
+        kept = zone + [p for p in right if p.role == 'explicit']
         for p in (p for p in right if p.role == 'general'):
             if all(abs(p.s - q.s) >= MIN_SIGN_GAP for q in kept):
                 kept.append(p)
@@ -861,17 +862,27 @@ class _Builder:
         other = [ln for ln in LANES if ln not in ego_lanes and ln != closed]
         same = [ln for ln in ego_lanes if ln != closed]
 
+        placed: list[tuple[str, float, float, float]] = []    # lane, s0, speed, length
+        times = np.linspace(0.0, dur, 60)
+        lengths = {'car': 4.6, 'van': 5.5, 'truck': 8.5}
+
         def place(kind: str, material: str, rear: Optional[str]) -> None:
-            if other and (not same or rng.random() < 0.7):
-                lane = str(rng.choice(other))
-                dv = float(rng.uniform(2.0, 7.0)) * (1 if rng.random() < 0.3 else -1)
-                tm = float(rng.uniform(3.0, max(4.0, dur - 3.0)))  # alongside the ego at tm
-                s0 = s_ego - dv * tm
-            else:                                          # ego's lane: faster, ahead
-                lane = str(rng.choice(same))
-                dv = float(rng.uniform(0.5, 3.0))
-                s0 = s_ego + float(rng.uniform(25.0, 120.0))
-            self.vehicle(kind, material, lane, max(s0, 1.0), v_ego + dv, rear)
+            for _ in range(20):                            # keep same-lane vehicles apart
+                if other and (not same or rng.random() < 0.7):
+                    lane = str(rng.choice(other))
+                    dv = float(rng.uniform(2.0, 7.0)) * (1 if rng.random() < 0.3 else -1)
+                    tm = float(rng.uniform(3.0, max(4.0, dur - 3.0)))  # alongside at tm
+                    s0 = max(s_ego - dv * tm, 1.0)
+                else:                                      # ego's lane: faster, ahead
+                    lane = str(rng.choice(same))
+                    dv = float(rng.uniform(0.5, 3.0))
+                    s0 = s_ego + float(rng.uniform(25.0, 120.0))
+                v, length = v_ego + dv, lengths[kind]
+                if all(ln != lane or np.abs((s0 + v * times) - (s1 + v1 * times)).min()
+                       > (length + l1) / 2 + 8.0 for ln, s1, v1, l1 in placed):
+                    placed.append((lane, s0, v, length))
+                    self.vehicle(kind, material, lane, s0, v, rear)
+                    return
 
         for _ in range(ds.vehicles):
             place(str(rng.choice(['car', 'car', 'van', 'truck'])), 'vehicle_paint', None)

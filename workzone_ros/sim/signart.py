@@ -237,7 +237,7 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
             first = 'LEFT' if key.startswith('left') else 'RIGHT'
             _lines(img, [first, 'LANE', 'CLOSED', 'AHEAD'], cx, 0.20 * H, 0.78 * H,
                    [0.40 * W, 0.50 * W, 0.56 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD,
-                   heights=[1.5, 1.0, 1.0, 0.9])
+                   heights=[1.9, 1.0, 1.0, 0.9])
         elif key == 'lane_shift_left':
             _sym_reverse_curve(img, S, -1, BLACK)
         elif key == 'lane_shift_right':
@@ -340,6 +340,11 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
 
 @lru_cache(maxsize=512)
 def _cached(key: str, size_px: int, speed: int, variant: str) -> np.ndarray:
+    mirror = {r: l for l, r in MIRROR_PAIRS}
+    if key in mirror:           # exact mirror image of the left variant
+        face = np.ascontiguousarray(_cached(mirror[key], size_px, speed, variant)[:, ::-1])
+        face.flags.writeable = False
+        return face
     W, H = face_size(key, size_px)
     big = _draw(key, W * _SS, H * _SS, speed, variant)
     face = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)

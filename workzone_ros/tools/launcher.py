@@ -633,6 +633,7 @@ class Launcher:
             self.log('launcher failure:\n' + traceback.format_exc().rstrip())
             self.exit_code = 1
         finally:
+            self._stop.set()  # ends the spin thread before the context goes
             if self._stop_reason:
                 self.log(f'stopping ({self._stop_reason})')
             if self._player is not None:

@@ -303,18 +303,24 @@ class BagPlayer:
             self.reader.close()
         return self.stats
 
-    def _drain(self, publishers, timeout: float = 2.0) -> None:
-        """Wait until reliable subscribers acknowledged everything (bounded)."""
+    def _drain(self, publishers, timeout: float = 1.0) -> None:
+        """Give reliable subscribers a moment to acknowledge the last messages (bounded).
+
+        ``wait_for_all_acked`` holds the GIL while it blocks, and acknowledgements often wait
+        for the writer's next heartbeat; so it is polled with a zero timeout, sleeping in
+        between, to keep the other threads of the process (executors) running.
+        """
         from rclpy.duration import Duration
+        zero = Duration(nanoseconds=0)
+        pending = list(publishers)
         deadline = time.monotonic() + timeout
-        for pub in publishers:
-            left = deadline - time.monotonic()
-            if left <= 0 or self._stop.is_set():
-                return
+        while pending and time.monotonic() < deadline and not self._stop.is_set():
             try:
-                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+                pending = [p for p in pending if not p.wait_for_all_acked(zero)]
             except Exception:  # noqa: BLE001 - best effort: some RMWs do not support it
                 return
+            if pending:
+                self._stop.wait(0.02)
 
     def _play_once(self, pubs, clock) -> None:
         stats = self.stats

@@ -1,0 +1,241 @@
+"""core.detection: a synthetic sign at a known box, the regulatory extension, LiDAR fusion,
+degenerate frames, and the seed 002 / seed 004 alternatives."""
+import cv2
+import numpy as np
+import pytest
+
+from workzone_ros.core import color_model as cm
+from workzone_ros.core import detection as dt
+from workzone_ros.interfaces import Box, Roi
+
+ORANGE = (0, 110, 245)
+WHITE = (238, 240, 240)
+BLACK = (22, 22, 22)
+
+
+def _background(seed=0, shape=(480, 640)):
+    rng = np.random.default_rng(seed)
+    img = np.empty((*shape, 3), np.uint8)
+    img[: shape[0] // 2] = (205, 175, 150)          # sky
+    img[shape[0] // 2:] = (85, 88, 84)              # asphalt
+    img[shape[0] // 2 - 30: shape[0] // 2] = (50, 105, 60)   # tree line
+    return cv2.add(img, rng.integers(0, 16, img.shape, dtype=np.uint8))
+
+
+def _diamond(img, cx, cy, r, color=ORANGE, mask=None):
+    pts = np.array([[cx, cy - r], [cx + r, cy], [cx, cy + r], [cx - r, cy]], np.int32)
+    cv2.fillConvexPoly(img, pts, color)
+    inner = np.array([[cx, cy - r + 4], [cx + r - 4, cy], [cx, cy + r - 4],
+                      [cx - r + 4, cy]], np.int32)
+    cv2.polylines(img, [inner], True, BLACK, max(1, r // 20))
+    cv2.putText(img, 'RW', (cx - r // 2, cy + r // 5), cv2.FONT_HERSHEY_DUPLEX, r / 45, BLACK,
+                max(1, r // 15))
+    if mask is not None:
+        cv2.fillConvexPoly(mask, pts, 1)
+    return (cx - r, cy - r, 2 * r + 1, 2 * r + 1)
+
+
+def _regulatory(img, x, y, w, h):
+    """R22-1 style: orange top third, white bottom with a black legend and border."""
+    cv2.rectangle(img, (x, y), (x + w - 1, y + h - 1), WHITE, -1)
+    cv2.rectangle(img, (x, y), (x + w - 1, y + h // 3), ORANGE, -1)
+    cv2.rectangle(img, (x + 2, y + 2), (x + w - 3, y + h - 3), BLACK, 2)
+    cv2.putText(img, 'BEGINS', (x + 6, y + int(0.7 * h)), cv2.FONT_HERSHEY_DUPLEX, w / 130,
+                BLACK, 2)
+    return (x, y, w, h)
+
+
+@pytest.fixture(scope='module')
+def model():
+    pos = np.zeros((cm.H_BINS, cm.S_BINS))
+    neg = np.zeros_like(pos)
+    rng = np.random.default_rng(1)
+    for k in range(8):
+        img = _background(k)
+        mask = np.zeros(img.shape[:2], np.uint8)
+        shade = rng.uniform(0.55, 1.0)
+        _diamond(img, int(rng.integers(100, 540)), int(rng.integers(60, 200)),
+                 int(rng.integers(10, 60)), tuple(c * shade for c in ORANGE), mask)
+        cv2.rectangle(img, (20, 400), (60, 460), (30, 70, 140), -1)       # brown box
+        cv2.circle(img, (600, 420), 20, (40, 35, 195), -1)                # red sign
+        cv2.circle(img, (540, 420), 20, (10, 205, 250), -1)               # yellow sign
+        p, n = cm.histogram_from_pixels(cv2.cvtColor(img, cv2.COLOR_BGR2HSV), mask, 50)
+        pos += p
+        neg += n
+    clf = cm.fit_boosted(pos, neg, n_estimators=20)
+    return cm.default_model(cm.boosted_lut(clf), 50)
+
+
+@pytest.fixture(scope='module')
+def detector(model):
+    return dt.ColorDetector(model, dt.DetectorConfig(use_prior=False))
+
+
+def _one(dets, gt, iou=0.8):
+    hits = [d for d in dets if d.box.iou(Box(*map(float, gt))) >= iou]
+    assert len(hits) == 1, (gt, dets)
+    return hits[0]
+
+
+@pytest.mark.parametrize('r', [10, 25, 70])
+def test_diamond_at_known_box(detector, r):
+    img = _background()
+    gt = _diamond(img, 420, 150, r)
+    dets = detector.detect(img)
+    d = _one(dets, gt, 0.85)
+    assert d.color == 'orange' and d.kind == 'warning' and d.sources == ['color']
+    assert 0.5 <= d.confidence <= 1.0
+    _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
+    assert precision > 0.9 and recall > 0.9
+    assert len(dets) == 1
+
+
+def test_every_sign_is_kept(detector):
+    img = _background()
+    gts = [_diamond(img, 150, 120, 20), _diamond(img, 420, 150, 30), _diamond(img, 560, 90, 15)]
+    dets = detector.detect(img)
+    assert len(dets) == 3
+    for gt in gts:
+        _one(dets, gt)
+
+
+def test_regulatory_two_color_extension(detector):
+    img = _background()
+    gt = _regulatory(img, 400, 80, 72, 90)
+    d = _one(detector.detect(img), gt, 0.8)
+    assert d.kind == 'regulatory' and d.box.h > 80
+    no_ext = detector.with_config(extension=False)
+    d0 = max(no_ext.detect(img), key=lambda d: d.box.area)
+    assert d0.box.h < 40 and d0.box.iou(Box(*map(float, gt))) < 0.5
+
+
+def test_orange_rectangle_without_white_is_not_extended(detector):
+    img = _background()
+    cv2.rectangle(img, (400, 150), (471, 185), ORANGE, -1)       # END ROAD WORK over trees
+    cv2.putText(img, 'END', (420, 175), cv2.FONT_HERSHEY_DUPLEX, 0.6, BLACK, 2)
+    d = _one(detector.detect(img), (400, 150, 72, 36), 0.8)
+    assert d.kind == 'regulatory' and d.box.h < 40
+
+
+@pytest.mark.parametrize('value', [0, 255])
+def test_black_and_overexposed_frames(detector, value):
+    img = np.full((480, 640, 3), value, np.uint8)
+    for method in ('learned', 'hsv'):
+        assert detector.with_config(method=method).detect(img) == []
+    assert detector.detect(img, [Roi(1, Box(100, 100, 40, 40), (120, 120), 30, 0.6,
+                                     (1, 0, 30))]) == []
+
+
+def test_tiny_and_odd_frames(detector):
+    assert detector.detect(np.zeros((1, 1, 3), np.uint8)) == []
+    assert detector.detect(np.zeros((31, 17, 3), np.uint8)) == []
+    with pytest.raises(ValueError):
+        detector.detect(np.zeros((10, 10), np.uint8))
+
+
+def test_red_and_yellow_general_signs(detector):
+    img = _background()
+    cv2.circle(img, (200, 120), 25, (40, 35, 195), -1)        # do-not-enter-like red disc
+    _diamond(img, 450, 140, 30, color=(10, 205, 250))          # yellow warning diamond
+    dets = detector.detect(img)
+    colors = sorted(d.color for d in dets)
+    assert colors == ['red', 'yellow'] and all(d.kind == 'general' for d in dets)
+
+
+def _roi(box, cid=7):
+    return Roi(cid, Box(*map(float, box)), (box[0] + box[2] / 2, box[1] + box[3] / 2), 40.0,
+               0.6, (0.0, 0.0, 40.0))
+
+
+def test_lidar_roi_raises_the_prior(model):
+    """A sign where the prior says signs never are is found once a LiDAR ROI points at it."""
+    prior = cm.fit_prior([(380, 60, 80, 80)] * 5, (640, 480), floor=0.2)
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5))
+    img = _background()
+    gt = _diamond(img, 120, 330, 25)
+    assert not [d for d in det.detect(img) if d.box.iou(Box(*map(float, gt))) > 0.3]
+    d = _one(det.detect(img, [_roi(gt)]), gt, 0.85)
+    assert d.sources == ['color', 'lidar'] and d.roi_id == 7
+
+
+def test_lidar_support_and_unsupported_blobs(detector):
+    img = _background()
+    a = _diamond(img, 150, 120, 20)
+    b = _diamond(img, 420, 150, 30)
+    plain = {d.box.x: d.confidence for d in detector.detect(img)}
+    dets = detector.detect(img, [_roi(b, 3), _roi((40, 300, 30, 30), 4)])
+    da, db = _one(dets, a), _one(dets, b)
+    assert da.sources == ['color'] and da.confidence == plain[da.box.x]
+    assert db.sources == ['color', 'lidar'] and db.roi_id == 3
+    assert db.confidence > plain[db.box.x]
+    assert len(dets) == 2                       # lidar-only reports are off by default
+    lo = detector.with_config(lidar_only=True).detect(img, [_roi((40, 300, 30, 30), 4)])
+    only = [d for d in lo if d.sources == ['lidar']]
+    assert len(only) == 1 and only[0].roi_id == 4 and only[0].color == 'white'
+
+
+def test_prior_suppresses_unlikely_locations(model):
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2)
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5))
+    img = _background()
+    sign = _diamond(img, 420, 140, 25)
+    cone = _diamond(img, 100, 430, 20)           # an orange thing low on the road
+    dets = det.detect(img)
+    _one(dets, sign)
+    assert not [d for d in dets if d.box.iou(Box(*map(float, cone))) > 0.3]
+
+
+def test_nms_keeps_separate_boxes():
+    c = [dt.Candidate(0, 0, 10, 10, 'orange', 0.9), dt.Candidate(1, 1, 8, 8, 'orange', 0.9),
+         dt.Candidate(50, 50, 10, 10, 'orange', 0.5)]
+    kept = dt.nms(c, 0.3, 0.7)
+    assert [(k.x, k.y) for k in kept] == [(0, 0), (50, 50)]
+
+
+def test_box_metrics_seed_000_definitions():
+    iou, p, r = dt.box_metrics(Box(0, 0, 10, 10), Box(0, 0, 10, 20))
+    assert iou == pytest.approx(0.5) and p == pytest.approx(1.0) and r == pytest.approx(0.5)
+
+
+def test_hsv_baseline_finds_square_signs_only(detector):
+    img = _background()
+    gt = _diamond(img, 420, 150, 30)
+    _regulatory(img, 150, 80, 72, 90)
+    hsv = detector.with_config(method='hsv', scale=1)
+    dets = hsv.detect(img)
+    _one(dets, gt, 0.7)
+    assert all(d.box.w / d.box.h < 1.7 for d in dets)          # seed 004 aspect filter
+
+
+def test_rgb_lp_thresholds_and_mser(model):
+    pos = np.zeros(32 ** 3)
+    neg = np.zeros(32 ** 3)
+    rng = np.random.default_rng(3)
+    for k in range(4):
+        img = _background(k)
+        mask = np.zeros(img.shape[:2], np.uint8)
+        _diamond(img, int(rng.integers(100, 540)), int(rng.integers(60, 200)), 30,
+                 tuple(c * rng.uniform(0.6, 1.0) for c in ORANGE), mask)
+        p, n = dt.rgb_histograms(img, mask)
+        pos += p
+        neg += n
+    lp = dt.fit_rgb_lp(pos, neg, w=4.0, max_thresholds=4, time_limit=20)
+    assert 1 <= len(lp.thresholds) <= 4
+    assert lp.metadata['fn_rate'] < 0.2 and lp.metadata['fp_rate'] < 0.2
+    det = dt.ColorDetector(model, dt.DetectorConfig(method='rgb_lp', use_prior=False, scale=1),
+                           rgb_lp=lp)
+    img = _background(9)
+    gt = _diamond(img, 420, 150, 30)
+    dets = det.detect(img)
+    assert max(d.box.iou(Box(*map(float, gt))) for d in dets) > 0.7
+    with pytest.raises(cm.ModelError):
+        dt.ColorDetector(model, dt.DetectorConfig(method='rgb_lp'))
+
+
+def test_config_validation():
+    with pytest.raises(ValueError):
+        dt.DetectorConfig(method='cnn')
+    with pytest.raises(ValueError):
+        dt.DetectorConfig(colors=('blue',))
+    with pytest.raises(ValueError):
+        dt.DetectorConfig(threshold=1.5)

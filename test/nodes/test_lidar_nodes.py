@@ -1,0 +1,195 @@
+"""Node tests for lidar_cluster and projector with real topics (private context, DDS).
+
+A hand-made cloud with one sign, CameraInfo and images go in on real topics; candidates and
+``Rois`` come out.  Also: bad input is dropped with a reason and the nodes keep running; a
+projector without CameraInfo says so instead of guessing.
+"""
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from std_msgs.msg import String
+
+from workzone_ros import interfaces
+from workzone_ros.core.pointcloud import make_points
+from workzone_ros.nodes.conversions import (
+    CameraInfoData, array_to_pointcloud2, numpy_to_camera_info, numpy_to_image,
+    pointcloud2_to_array,
+)
+from workzone_ros.nodes.lidar_cluster import LidarClusterNode
+from workzone_ros.nodes.projector import ProjectorNode
+from workzone_ros.sim.world import DEFAULT_CAMERA, LIDAR_TO_CAMERA
+
+NS = 'lidartest'
+FAST = dict(diagnostics_period_s=0.2, silent_input_warn_s=5.0)
+SIGN = (25.0, -7.0, 0.8)
+
+
+class Ros:
+    """A private context and executor with spin-until-condition."""
+
+    def __init__(self):
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def spin_until(self, condition, timeout=15.0, each=None):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if each is not None:
+                each()
+            self.executor.spin_once(timeout_sec=0.1)
+            if condition():
+                return True
+        return False
+
+    def close(self):
+        self.executor.shutdown()
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros():
+    r = Ros()
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+def _sign_cloud(with_intensity=True):
+    x, y0, z0 = SIGN
+    yy, zz = np.meshgrid(np.linspace(y0 - 0.6, y0 + 0.6, 16), np.linspace(z0 - 0.6, z0 + 0.6, 6))
+    rng = np.random.default_rng(0)
+    gx, gy = rng.uniform(3, 60, 3000), rng.uniform(-15, 15, 3000)
+    xs = np.concatenate([np.full(yy.size, x), gx]).astype(np.float32)
+    ys = np.concatenate([yy.ravel(), gy]).astype(np.float32)
+    zs = np.concatenate([zz.ravel(), np.full(gx.size, -1.95)]).astype(np.float32)
+    if not with_intensity:
+        return make_points(x=xs, y=ys, z=zs)
+    inten = np.concatenate([np.full(yy.size, 220.0), np.full(gx.size, 6.0)]).astype(np.float32)
+    return make_points(x=xs, y=ys, z=zs, intensity=inten)
+
+
+def _topics():
+    return dict(points=f'/{NS}/points', cands=f'/{NS}/candidates', image=f'/{NS}/image',
+                info=f'/{NS}/camera_info', rois=f'/{NS}/rois', odom=f'/{NS}/odom')
+
+
+def _nodes(ros, t, info=True):
+    ros.add(LidarClusterNode(context=ros.context, parameter_overrides=[
+        Parameter('points_topic', value=t['points']),
+        Parameter('candidates_topic', value=t['cands']),
+        Parameter('odom_topic', value=''),
+        Parameter('persistence_k', value=1),
+        Parameter('persistence_n', value=1)], **FAST))
+    proj = ros.add(ProjectorNode(context=ros.context, parameter_overrides=[
+        Parameter('candidates_topic', value=t['cands']),
+        Parameter('image_topic', value=t['image']),
+        Parameter('camera_info_topic', value=t['info']),
+        Parameter('rois_topic', value=t['rois']),
+        Parameter('odom_topic', value=''),
+        Parameter('lidar_to_camera', value=[float(v) for v in LIDAR_TO_CAMERA.ravel()])],
+        **FAST))
+    return proj
+
+
+def test_cloud_camera_info_image_in_candidates_and_rois_out(ros):
+    t = _topics()
+    _nodes(ros, t)
+    io = ros.add(rclpy.create_node('io', context=ros.context))
+    pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
+    pub_img = io.create_publisher(Image, t['image'], 10)
+    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    got_cands, got_rois = [], []
+    io.create_subscription(PointCloud2, t['cands'], got_cands.append, 10)
+    io.create_subscription(String, t['rois'], got_rois.append, 10)
+    cam = DEFAULT_CAMERA
+    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
+    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
+    cloud = _sign_cloud()
+    state = {'k': 0}
+
+    def each():
+        k = state['k']
+        state['k'] += 1
+        stamp = interfaces.Time.from_ns(1_700_000_000_000_000_000 + k * 100_000_000)
+        pub_info.publish(info)
+        pub_img.publish(numpy_to_image(frame, 'bgr8', stamp=stamp, frame_id='camera'))
+        pub_pts.publish(array_to_pointcloud2(cloud, stamp=stamp, frame_id='lidar'))
+
+    assert ros.spin_until(lambda: got_rois and got_cands, each=each), \
+        (len(got_cands), len(got_rois))
+    arr = pointcloud2_to_array(got_cands[0])
+    assert set(arr.dtype.names) == {'x', 'y', 'z', 'radius', 'intensity', 'count', 'id'}
+    assert len(arr) == 1 and arr['count'][0] == 96
+    assert (arr['x'][0], arr['y'][0], arr['z'][0]) == pytest.approx(SIGN, abs=0.05)
+    rois = interfaces.decode(got_rois[0].data, interfaces.Rois)
+    assert rois.lidar_stamp is not None
+    assert rois.header.stamp.to_ns() == rois.lidar_stamp.to_ns()   # exact-stamp pair here
+    assert len(rois.rois) == 1
+    roi = rois.rois[0]
+    # The sign centre by hand: camera frame = LIDAR_TO_CAMERA @ SIGN, pinhole + distortion.
+    from workzone_ros.core.projection import CameraModel, project_points
+    uv = project_points(np.array([SIGN]), LIDAR_TO_CAMERA,
+                        CameraModel(cam.width, cam.height, cam.K, cam.D)).uv[0]
+    assert roi.center == pytest.approx(tuple(uv), abs=0.5)
+    assert roi.box.x < uv[0] < roi.box.x + roi.box.w and roi.box.y < uv[1] < roi.box.y + roi.box.h
+
+
+def test_bad_inputs_are_dropped_with_a_reason_and_no_camera_info_is_reported(ros):
+    t = _topics()
+    cluster = ros.nodes[0] if ros.nodes else None
+    proj = _nodes(ros, t)
+    cluster = ros.nodes[0]
+    io = ros.add(rclpy.create_node('io2', context=ros.context))
+    pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
+    pub_img = io.create_publisher(Image, t['image'], 10)
+    frame = np.zeros((480, 640, 3), np.uint8)
+    bad = _sign_cloud(with_intensity=False)
+    good = _sign_cloud()
+    state = {'k': 0}
+
+    def each():
+        k = state['k']
+        state['k'] += 1
+        stamp = interfaces.Time.from_ns(1_700_000_000_000_000_000 + k * 100_000_000)
+        pub_pts.publish(array_to_pointcloud2(bad if k % 2 == 0 else good, stamp=stamp))
+        pub_img.publish(numpy_to_image(frame, 'bgr8', stamp=stamp))
+
+    points_topic = cluster.resolve_topic_name(t['points'])
+    image_topic = proj.resolve_topic_name(t['image'])
+
+    def dropped():
+        stats = cluster.topic_stats().get(points_topic)
+        pstats = proj.topic_stats().get(image_topic)
+        return stats is not None and stats.dropped > 0 and pstats is not None \
+            and pstats.dropped > 0
+
+    assert ros.spin_until(dropped, each=each)
+    assert 'intensity' in cluster.topic_stats()[points_topic].last_drop_reason
+    assert 'CameraInfo' in proj.topic_stats()[image_topic].last_drop_reason
+    status = proj.diagnostic_status()
+    assert 'no CameraInfo' in status.message and status.level != b'\x00'
+
+
+def test_bad_extrinsics_are_reported_not_guessed(ros):
+    t = _topics()
+    proj = ros.add(ProjectorNode(context=ros.context, parameter_overrides=[
+        Parameter('candidates_topic', value=t['cands']),
+        Parameter('lidar_to_camera', value=[1.0, 2.0, 3.0])], **FAST))
+    status = proj.diagnostic_status()
+    assert 'lidar_to_camera' in status.message

@@ -1,0 +1,166 @@
+"""Tests of the ``tracker`` node with real topics (private rclpy context, DDS isolation)."""
+from __future__ import annotations
+
+import time
+
+import cv2
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from workzone_ros.interfaces import (
+    Box, Detection, Detections, Header, Time, Tracks, decode, encode,
+)
+from workzone_ros.nodes.conversions import numpy_to_image, time_to_stamp
+from workzone_ros.nodes.tracker import TrackerNode
+
+W, H = 640, 480
+
+
+class Ros:
+    """A private context and executor with spin-until-condition."""
+
+    def __init__(self):
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def spin_until(self, condition, timeout=10.0):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.1)
+            if condition():
+                return True
+        return False
+
+    def close(self):
+        self.executor.shutdown()
+        for node in self.nodes:
+            node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros():
+    r = Ros()
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+def _background():
+    rng = np.random.default_rng(0)
+    small = rng.integers(60, 180, (H // 8, W // 8, 3)).astype(np.uint8)
+    bg = cv2.GaussianBlur(cv2.resize(small, (W, H)), (0, 0), 3)
+    hsv = cv2.cvtColor(bg, cv2.COLOR_BGR2HSV)
+    hsv[..., 1] //= 3
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+
+
+def _frame(bg, i):
+    """An orange diamond (black border, legend) moving right and growing; returns img, box."""
+    img = bg.copy()
+    cx, cy, size = 280 + 4 * i, 220 - i, 50 * 1.02 ** i
+    s = size / 2
+    pts = np.array([[cx, cy - s], [cx + s, cy], [cx, cy + s], [cx - s, cy]]) - 0.5
+    p = np.round(pts * 16).astype(np.int32)
+    cv2.fillConvexPoly(img, p, (0, 110, 245), cv2.LINE_AA, 4)
+    cv2.polylines(img, [p], True, (20, 20, 20), 2, cv2.LINE_AA, 4)
+    cv2.putText(img, 'WORK', (int(cx - s / 2), int(cy + 5)), cv2.FONT_HERSHEY_SIMPLEX,
+                size / 120, (20, 20, 20), 2, cv2.LINE_AA)
+    return img, (cx - s, cy - s, size, size)
+
+
+def _iou(b, g):
+    iw = min(b.x + b.w, g[0] + g[2]) - max(b.x, g[0])
+    ih = min(b.y + b.h, g[1] + g[3]) - max(b.y, g[1])
+    if iw <= 0 or ih <= 0:
+        return 0.0
+    return iw * ih / (b.w * b.h + g[2] * g[3] - iw * ih)
+
+
+def _run(ros, overrides, frames=12, detect=lambda i: i < 3, detections_first=False):
+    node = ros.add(TrackerNode(context=ros.context, parameter_overrides=overrides))
+    peer = ros.add(rclpy.create_node('tracker_test_peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, '/camera/image_raw',
+                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    det_pub = peer.create_publisher(String, '/workzone/detections', 10)
+    got: dict[int, Tracks] = {}
+    peer.create_subscription(String, '/workzone/tracks',
+                             lambda m: got.__setitem__(decode(m.data, Tracks).header.stamp
+                                                       .to_ns(), decode(m.data, Tracks)), 10)
+    assert ros.spin_until(lambda: img_pub.get_subscription_count() > 0
+                          and det_pub.get_subscription_count() > 0
+                          and node.count_publishers('/workzone/tracks') > 0)
+    assert ros.spin_until(lambda: node.count_subscribers('/workzone/tracks') > 0)
+    bg = _background()
+    gts = {}
+    for i in range(frames):
+        img, gt = _frame(bg, i)
+        t = Time(sec=100 + i // 15, nanosec=(i % 15) * 66_666_666)
+        gts[t.to_ns()] = (i, gt)
+        header = Header(stamp=t, frame_id='camera')
+        dets = Detections(header=header, detections=[
+            Detection(box=Box(x=gt[0], y=gt[1], w=gt[2], h=gt[3]), confidence=0.9)
+        ] if detect(i) else [])
+        image = numpy_to_image(img, 'bgr8', stamp=time_to_stamp(t), frame_id='camera')
+        pubs = [lambda: det_pub.publish(String(data=encode(dets))),
+                lambda: img_pub.publish(image)]
+        for p in (pubs if detections_first else pubs[::-1]):
+            p()
+        assert ros.spin_until(lambda: t.to_ns() in got), f'no tracks for frame {i}'
+    return node, got, gts
+
+
+def test_tracker_node_runs_on_detector_misses(ros):
+    node, got, gts = _run(ros, [])
+    assert len(got) == len(gts)
+    for ns, tracks in got.items():
+        i, gt = gts[ns]
+        assert tracks.header.frame_id == 'camera'
+        assert len(tracks.tracks) == 1, f'frame {i}'
+        tr = tracks.tracks[0]
+        assert tr.track_id == 1
+        assert tr.source == ('detection' if i < 3 else 'tracking')
+        assert tr.hits == min(i + 1, 3) and tr.age == i + 1
+        assert _iou(tr.box, gt) > 0.75, f'frame {i}: {tr.box} vs {gt}'
+        assert 0.75 <= tr.similarity <= 1.0
+
+
+def test_tracker_node_detection_only_and_detections_before_images(ros):
+    node, got, gts = _run(ros, [Parameter('mode', value='detection_only')],
+                          frames=8, detect=lambda i: i % 2 == 0, detections_first=True)
+    assert node.params.mode == 'detection_only'
+    for ns, tracks in got.items():
+        i, gt = gts[ns]
+        assert all(t.source == 'detection' for t in tracks.tracks)
+        assert len(tracks.tracks) == (1 if i % 2 == 0 else 0)
+        if tracks.tracks:
+            assert tracks.tracks[0].track_id == 1          # ids survive a missed frame
+
+
+def test_tracker_node_drops_malformed_detections(ros):
+    node = ros.add(TrackerNode(context=ros.context))
+    peer = ros.add(rclpy.create_node('tracker_bad_peer', context=ros.context))
+    pub = peer.create_publisher(String, '/workzone/detections', 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
+
+    def dropped():
+        return node.topic_stats()['/workzone/detections'].dropped
+
+    assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
+                                   dropped() >= 1)[1])
+    assert 'schema' in node.topic_stats()['/workzone/detections'].last_drop_reason

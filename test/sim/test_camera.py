@@ -1,0 +1,181 @@
+"""Tests for the synthetic camera renderer (sim/camera.py)."""
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult
+from workzone_ros.sim.sheet import ego_pose, make_sign
+from workzone_ros.sim.world import (
+    BASE_TO_CAMERA_ROT, CAMERA_IN_BASE, DEFAULT_CAMERA, LANE_CENTERS, Box, Cylinder, Road, Scene,
+)
+
+
+def _scene(signs, objects=(), weather='spring_sunny', road=None):
+    road = road or Road([(600.0, 0.0)])
+    return Scene('test', 3, road, list(signs), list(objects), weather)
+
+
+def _project(points_w, pose):
+    """World points -> distorted pixels with cv2.projectPoints (independent of the renderer)."""
+    cam = pose.to_world(CAMERA_IN_BASE)
+    R_cw = BASE_TO_CAMERA_ROT @ pose.R.T
+    rvec, _ = cv2.Rodrigues(R_cw)
+    tvec = -R_cw @ cam
+    uv, _ = cv2.projectPoints(np.asarray(points_w, float).reshape(-1, 1, 3), rvec, tvec,
+                              DEFAULT_CAMERA.K, DEFAULT_CAMERA.D)
+    return uv.reshape(-1, 2)
+
+
+def _box_of(uv):
+    """Pixel box (x, y, w, h) covered by a continuous outline (pixel centres at integers)."""
+    x0, y0 = np.ceil(uv.min(0) - 0.5)
+    x1, y1 = np.floor(uv.max(0) + 0.5) - 1 + 1
+    return np.array([x0, y0, x1 - x0, y1 - y0])
+
+
+@pytest.mark.parametrize('key,s_ego', [('speed_limit', 0.0), ('end_road_work', 5.0),
+                                       ('road_work_ahead', 8.0)])
+def test_corners_project_onto_ground_truth_box(key, s_ego):
+    road = Road([(600.0, 0.0)])
+    sign = make_sign(7, key, road, 40.0)
+    scene = _scene([sign], road=road)
+    pose = ego_pose(road, s_ego)
+    res = CameraRenderer(scene, seed=1).render(0.0, pose, 0)
+    assert isinstance(res, RenderResult)
+    hit = next(h for h in res.signs if h.sign_id == 7)
+    c = sign.corners()
+    if key == 'road_work_ahead':      # a diamond's extreme points are its edge midpoints
+        c = (c + np.roll(c, -1, axis=0)) / 2
+    uv = _project(c, pose)
+    want = np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+    x, y, w, h = hit.box
+    got = np.array([x - 0.5, y - 0.5, x + w - 0.5, y + h - 0.5])   # pixel edges
+    assert np.abs(got - want).max() <= 2.0, (got, want)
+    assert hit.visible_fraction > 0.9
+    assert hit.distance_m == pytest.approx(
+        np.linalg.norm(sign.center - pose.to_world(CAMERA_IN_BASE)), rel=1e-6)
+    lab = res.label
+    assert lab.shape == (480, 640) and lab.dtype == np.int32
+    ys, xs = np.nonzero(lab == 7)
+    assert xs.min() == x and ys.min() == y and xs.max() == x + w - 1 and ys.max() == y + h - 1
+    assert set(np.unique(lab)) <= {-1, 7}
+
+
+def test_pose_with_yaw_pitch_roll_still_matches():
+    road = Road([(200.0, 0.0), (400.0, 1 / 800.0)])
+    sign = make_sign(3, 'speed_limit', road, 230.0)
+    pose = ego_pose(road, 195.0)
+    pose.pitch, pose.roll = 0.01, -0.008
+    res = CameraRenderer(_scene([sign], road=road), seed=2).render(0.0, pose, 5)
+    hit = next(h for h in res.signs if h.sign_id == 3)
+    uv = _project(sign.corners(), pose)
+    x, y, w, h = hit.box
+    got = np.array([x - 0.5, y - 0.5, x + w - 0.5, y + h - 0.5])
+    want = np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+    assert np.abs(got - want).max() <= 2.0
+
+
+def test_vehicle_in_front_occludes_sign():
+    road = Road([(600.0, 0.0)])
+    sign = make_sign(1, 'work_zone_begin', road, 40.0)
+    pose = ego_pose(road, 0.0)
+    free = CameraRenderer(_scene([sign], road=road)).render(0.0, pose, 0)
+    h0 = free.signs[0]
+    # A tall truck in the right lane, 20 m ahead, covering the left part of the sign's view.
+    x, y, hd = road.pose_at(20.0, -2.66)
+    truck = Box(50, 'truck', np.array([float(x), float(y), 0.0]), 6.0, 2.5, 4.0, float(hd),
+                'vehicle_orange')
+    occ = CameraRenderer(_scene([sign], [truck], road=road)).render(0.0, pose, 0)
+    h1 = next(h for h in occ.signs if h.sign_id == 1)
+    assert h1.visible_fraction < h0.visible_fraction - 0.1
+    assert h1.box[2] < h0.box[2]                       # box covers only the visible part
+    assert h1.box[0] > h0.box[0]                       # the truck hides its left side
+    assert h1.box[0] + h1.box[2] == pytest.approx(h0.box[0] + h0.box[2], abs=1)
+    assert (occ.label == 1).sum() < (free.label == 1).sum()
+    assert any(d.object_id == 50 for d in occ.distractors)
+
+
+def test_image_border_clipping_lowers_visible_fraction():
+    road = Road([(600.0, 0.0)])
+    sign = make_sign(1, 'speed_limit', road, 18.0)      # close: leaves the image on the right
+    res = CameraRenderer(_scene([sign], road=road)).render(0.0, ego_pose(road, 0.0), 0)
+    hit = res.signs[0]
+    assert hit.box[0] + hit.box[2] == 640
+    assert 0.0 < hit.visible_fraction < 0.95
+
+
+def test_renders_are_deterministic():
+    road = Road([(600.0, 0.0)])
+    objs = []
+    sign = make_sign(1, 'lane_shift_left', road, 60.0, objects=objs, fade=0.4, tilt=0.05)
+    scene = _scene([sign], objs, 'spring_rain', road)
+    pose = ego_pose(road, 10.0)
+    a = CameraRenderer(scene, seed=4)
+    b = CameraRenderer(scene, seed=4)
+    r1 = a.render(1.0, pose, 17)
+    a.render(2.0, ego_pose(road, 30.0), 3)               # no state carried between frames
+    r2 = a.render(1.0, pose, 17)
+    r3 = b.render(1.0, pose, 17)
+    assert r1.image.tobytes() == r2.image.tobytes() == r3.image.tobytes()
+    assert r1.signs == r3.signs
+    r4 = CameraRenderer(scene, seed=5).render(1.0, pose, 17)
+    assert r4.image.tobytes() != r1.image.tobytes()      # the seed changes the appearance
+
+
+def test_objects_behind_camera_are_not_drawn():
+    road = Road([(600.0, 0.0)])
+    behind = make_sign(1, 'stop', road, 20.0, d=0.0)
+    straddle = make_sign(2, 'guide', road, 51.6, d=0.0)        # plane through the camera
+    x, y, hd = road.pose_at(45.0, 0.0)
+    car = Box(9, 'car', np.array([float(x), float(y), 0.0]), 4.5, 1.8, 1.5, float(hd),
+              'vehicle_yellow')
+    post = Cylinder(10, 'drum', np.array([float(x), float(y), 0.0]), 0.3, 1.0, 'drum_orange')
+    scene = _scene([behind, straddle], [car, post], road=road)
+    pose = ego_pose(road, 50.0)
+    res = CameraRenderer(scene).render(0.0, pose, 0)
+    assert res.signs == [] and res.distractors == []
+    assert (res.label == -1).all()
+    empty = CameraRenderer(_scene([], road=road)).render(0.0, pose, 0)
+    assert np.abs(res.image.astype(int) - empty.image.astype(int)).mean() < 1.0
+
+
+@pytest.mark.parametrize('weather', WEATHER_PRESETS)
+def test_weather_presets_render(weather):
+    road = Road([(600.0, 0.0)])
+    scene = _scene([make_sign(1, 'road_work_ahead', road, 50.0)], weather=weather, road=road)
+    res = CameraRenderer(scene).render(0.0, ego_pose(road, 0.0), 2)
+    assert res.image.shape == (480, 640, 3) and res.image.dtype == np.uint8
+    assert len(res.signs) == 1
+    x, y, w, h = res.signs[0].box
+    patch = res.image[y + h // 3:y + 2 * h // 3, x + w // 3:x + 2 * w // 3].reshape(-1, 3)
+    b, g, r = np.median(patch, axis=0)
+    assert r > b                                          # orange-ish face in every weather
+
+
+def test_dusk_is_darker_than_sunny():
+    road = Road([(600.0, 0.0)])
+    means = {}
+    for w in ('dusk', 'spring_sunny'):
+        res = CameraRenderer(_scene([], weather=w, road=road)).render(0.0, ego_pose(road, 0.0), 1)
+        means[w] = res.image.mean()
+    assert means['dusk'] < 0.7 * means['spring_sunny']
+
+
+def test_unknown_weather_raises():
+    with pytest.raises(RenderError):
+        CameraRenderer(_scene([], weather='hail'))
+
+
+def test_sign_height_in_image_matches_geometry():
+    road = Road([(600.0, 0.0)])
+    sign = make_sign(1, 'speed_limit', road, 30.0, d=0.0)
+    assert sign.center[2] - sign.height / 2 == pytest.approx(2.1)
+    pose = ego_pose(road, 0.0)
+    res = CameraRenderer(_scene([sign], road=road)).render(0.0, pose, 0)
+    x, y, w, h = res.signs[0].box
+    cam_dist = 30.0 - CAMERA_IN_BASE[0]
+    want_h = DEFAULT_CAMERA.fy * sign.height / cam_dist
+    assert h == pytest.approx(want_h, abs=2.5)
+    assert math.isclose(x + w / 2, 320, abs_tol=3)

@@ -1,0 +1,120 @@
+"""Tests for the procedural sign art (sim/signart.py)."""
+import itertools
+
+import cv2
+import numpy as np
+import pytest
+
+from workzone_ros.core import signs
+from workzone_ros.core.signs import UnknownSignError
+from workzone_ros.sim import signart
+
+KEYS = [c.key for c in signs.CATALOGUE if c.key != 'background']
+
+
+def _on_grey(face: np.ndarray, size: int = 64) -> np.ndarray:
+    """Composite a face on grey in a size x size square (what a classifier crop sees)."""
+    a = face[..., 3:].astype(np.float32) / 255.0
+    rgb = face[..., :3] * a + 128.0 * (1 - a)
+    out = np.full((size, size, 3), 128.0, np.float32)
+    h, w = rgb.shape[:2]
+    oy, ox = (size - h) // 2, (size - w) // 2
+    out[oy:oy + h, ox:ox + w] = rgb
+    return out
+
+
+@pytest.mark.parametrize('key', KEYS)
+def test_every_class_renders_at_64px(key):
+    face = signart.sign_face(key, 64)
+    assert face.dtype == np.uint8 and face.ndim == 3 and face.shape[2] == 4
+    assert max(face.shape[:2]) == 64
+    alpha = face[..., 3]
+    assert alpha.max() == 255
+    shape = signs.get(key).shape
+    if shape in ('diamond', 'octagon', 'triangle'):
+        assert alpha[0, 0] == 0 and alpha[-1, -1] == 0 or shape == 'triangle'
+        assert alpha[-1, 0] == 0 and alpha[-1, -1] == 0
+    else:
+        assert alpha[alpha.shape[0] // 2, 1] > 0
+    assert (face[..., :3][alpha > 250].std(axis=0) > 10).any()   # not a flat colour
+
+
+#: Text-only signs that differ in one word (W20-5L / W20-5R): only that word differs.
+ONE_WORD_PAIRS = {('left_lane_closed_ahead', 'right_lane_closed_ahead')}
+
+
+def test_classes_pairwise_different_at_64px():
+    crops = {k: _on_grey(signart.sign_face(k, 64)) for k in KEYS}
+    for a, b in itertools.combinations(KEYS, 2):
+        d = np.abs(crops[a] - crops[b]).mean(-1)
+        local = float(cv2.resize(d, (8, 8), interpolation=cv2.INTER_AREA).max())
+        floor = 1.5 if (a, b) in ONE_WORD_PAIRS else 6.0
+        assert d.mean() > floor, f'{a} and {b} look alike at 64 px ({d.mean():.1f})'
+        assert local > 30.0, f'{a} and {b}: no 8x8 block differs clearly ({local:.1f})'
+
+
+def test_other_workzone_variants_differ():
+    faces = [_on_grey(signart.sign_face('other_workzone', 64, variant=v))
+             for v in signart.OTHER_VARIANTS]
+    for a, b in itertools.combinations(faces, 2):
+        assert np.abs(a - b).mean() > 6.0
+
+
+@pytest.mark.parametrize('left,right', signart.MIRROR_PAIRS)
+def test_left_right_are_mirror_images(left, right):
+    lf = signart.sign_face(left, 128).astype(np.float32)
+    rf = signart.sign_face(right, 128).astype(np.float32)
+    assert np.abs(lf - rf).mean() > 5.0                      # really different ...
+    assert np.abs(lf[:, ::-1] - rf).mean() < 2.0             # ... and mirror-related
+
+
+def test_colours_of_work_zone_and_general_signs():
+    def main_colour(key):
+        f = signart.sign_face(key, 128)
+        px = f[..., :3][f[..., 3] > 250].reshape(-1, 3)
+        vals, counts = np.unique(px // 16, axis=0, return_counts=True)
+        return vals[counts.argmax()] * 16 + 8
+
+    b, g, r = main_colour('road_work_ahead')
+    assert r > 200 and 80 < g < 140 and b < 40                # fluorescent orange
+    b, g, r = main_colour('stop')
+    assert r > 150 and g < 80 and b < 80                      # red
+    b, g, r = main_colour('warning_diamond')
+    assert r > 200 and g > 170 and b < 60                     # yellow
+    b, g, r = main_colour('guide')
+    assert g > r and g > b                                    # green
+    f = signart.sign_face('work_zone_begin', 150)
+    top, bottom = f[10:int(f.shape[0] * 0.28), 20:-20, :3], f[-60:-20, 20:-20, :3]
+    assert np.median(top[..., 2]) > 200 and np.median(top[..., 0]) < 60    # orange top
+    assert np.median(bottom.reshape(-1, 3), axis=0).min() > 200           # white bottom
+
+
+def test_cache_and_speed_value():
+    a = signart.sign_face('work_zone_speed_limit', 96)
+    assert signart.sign_face('work_zone_speed_limit', 96) is a
+    assert not a.flags.writeable
+    b = signart.sign_face('work_zone_speed_limit', 96, speed_value=55)
+    assert np.abs(a.astype(int) - b.astype(int)).mean() > 0.5
+
+
+def test_aspect_follows_catalogue():
+    for key in KEYS:
+        w, h = signart.face_size(key, 200)
+        c = signs.get(key)
+        want = 1.0 if c.shape == 'diamond' else c.width_m / c.height_m
+        assert abs(w / h - want) < 0.02
+
+
+def test_unknown_class_raises():
+    with pytest.raises(UnknownSignError):
+        signart.sign_face('no_such_sign')
+    with pytest.raises(UnknownSignError):
+        signart.sign_face('background')
+    with pytest.raises(ValueError):
+        signart.sign_face('other_workzone', variant='nope')
+
+
+def test_drum_texture():
+    tex = signart.drum_texture()
+    assert tex.shape == (96, 64, 3)
+    assert cv2.cvtColor(tex, cv2.COLOR_BGR2HSV)[..., 1].max() > 200

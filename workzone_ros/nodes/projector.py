@@ -1,0 +1,260 @@
+"""``projector`` node: candidates + image + CameraInfo (+ odom) -> ``/workzone/rois`` (seed 004 s2).
+
+Thin wrapper around :mod:`workzone_ros.core.sync` and :mod:`workzone_ros.core.projection`:
+
+* candidates and images are matched by stamp with the message_filters ApproximateTime policy
+  (``sync_policy: approximate``, ``slop``, ``queue_size``), or with the seed's "last cloud
+  received" baseline (``sync_policy: latest``);
+* candidates are moved from the scan time (per candidate firing time of the spin) to the
+  image time with odometry poses, then projected with the CameraInfo intrinsics and
+  distortion and the configured LiDAR->camera extrinsics;
+* one ``Rois`` payload per matched image, stamped with the image stamp and carrying the
+  LiDAR stamp used and whether the motion was compensated; optionally the crops.
+
+No CameraInfo yet, unusable extrinsics, or candidates with no image within the slop: the
+input is dropped with a clear reason in ``/diagnostics`` and the log; nothing is guessed.
+"""
+from __future__ import annotations
+
+import collections
+from typing import Any, Optional
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from std_msgs.msg import String
+
+from workzone_ros import interfaces
+from workzone_ros.core.projection import (
+    CameraModel, ProjectionError, RoiParams, candidates_to_rois, euler_matrix,
+    extrinsics_from_list,
+)
+from workzone_ros.core.sync import ApproximateTimeSync, LatestSync, PoseBuffer, SyncError
+from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.conversions import (
+    camera_info_to_numpy, header_to_payload, image_to_numpy, numpy_to_image,
+    payload_to_string, pointcloud2_to_array, stamp_to_time,
+)
+
+__all__ = ['ProjectorNode', 'NODE_CLASS', 'main']
+
+_R = RoiParams()
+_SIM_EXTRINSICS = [0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, -0.5, 1.0, 0.0, 0.0, -0.6,
+                   0.0, 0.0, 0.0, 1.0]
+IMAGE, CANDS = 0, 1
+
+
+def _ns(stamp) -> int:
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+class ProjectorNode(WorkzoneNode):
+    """Synchronise, compensate, project, crop (seed 004 s2 and its future work)."""
+
+    PARAMS = (
+        Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates'),
+        Param('image_topic', '/camera/image_raw', 'input image'),
+        Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo'),
+        Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)'),
+        Param('rois_topic', '/workzone/rois', 'output Rois payload'),
+        Param('crops_topic', '', 'optional crops for viewing ("" = off)'),
+        Param('lidar_to_camera', _SIM_EXTRINSICS,
+              'LiDAR -> camera, row-major 4x4 (or top 3x4): X_cam = T @ X_lidar'),
+        Param('lidar_in_base', [1.0, 0.0, 1.95, 0.0, 0.0, 0.0],
+              'lidar pose in base_link: x y z roll pitch yaw (for odometry)'),
+        Param('sync_policy', 'approximate', 'approximate (message_filters ApproximateTime) '
+              'or latest (seed 004 baseline: last cloud received)',
+              choices=('approximate', 'latest')),
+        Param('slop', 0.1, 'maximum stamp difference image <-> candidates, s', min=0.0,
+              max=10.0),
+        Param('queue_size', 5, 'messages kept per input by the synchroniser', min=1,
+              max=100),
+        Param('age_penalty', 0.1, 'ApproximateTime age penalty', min=0.0, max=100.0),
+        Param('compensate', True, 'ego-motion compensation with odometry'),
+        Param('spin_timing', _R.spin_timing, 'the cloud stamp is the start of the spin: '
+              'time each candidate by its azimuth'),
+        Param('lidar_rate_hz', _R.lidar_rate_hz, 'spin rate for spin_timing', min=0.1,
+              max=100.0),
+        Param('max_odom_extrapolation', 0.1, 'extrapolate odometry at most this far, s',
+              min=0.0, max=5.0),
+        Param('crop_margin', _R.margin, 'crop half-size = margin * max(radius, '
+              'crop_min_radius) ...', min=0.1, max=20.0),
+        Param('crop_min_radius', _R.min_radius, '... smallest sign radius assumed, m',
+              min=0.0, max=10.0),
+        Param('crop_pad_m', _R.pad_m, '... plus this many metres (calibration, sync)',
+              min=0.0, max=10.0),
+        Param('crop_pad_px', _R.pad_px, '... plus this many pixels', min=0.0, max=1000.0),
+        Param('crop_min_px', _R.min_px, 'smallest crop side, px', min=0.0, max=10000.0),
+        Param('crop_max_px', _R.max_px, 'largest crop side, px (0 = no cap)', min=0.0,
+              max=100000.0),
+    )
+    INPUT_TOPICS = ('candidates_topic', 'image_topic', 'camera_info_topic', 'odom_topic')
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__('projector', **kwargs)
+        self._camera: Optional[CameraModel] = None
+        self._extrinsics: Optional[np.ndarray] = None
+        self._extrinsics_error = ''
+        self._poses = PoseBuffer()
+        self._image_stamps: collections.deque = collections.deque(maxlen=64)
+        self._counts = collections.Counter()
+        self._configure()
+        self._rois_pub = self.reliable_publisher(String, self.params.rois_topic)
+        self._crops_pub = self.sensor_publisher(Image, self.params.crops_topic) \
+            if self.params.crops_topic else None
+        self._info_sub = self.reliable_subscription(CameraInfo, self.params.camera_info_topic,
+                                                    self._on_info, depth=1)
+        self._cand_sub = self.reliable_subscription(PointCloud2, self.params.candidates_topic,
+                                                    self._on_candidates, depth=5)
+        self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
+                                                   self._on_image, depth=5)
+        self._odom_sub = self.reliable_subscription(
+            Odometry, self.params.odom_topic, self._on_odom, depth=50) \
+            if self.params.odom_topic and self.params.compensate else None
+
+    # --- configuration -------------------------------------------------------------------
+
+    def _configure(self) -> None:
+        p = self.params
+        try:
+            self._extrinsics = extrinsics_from_list(p.lidar_to_camera)
+            self._extrinsics_error = ''
+        except ProjectionError as exc:
+            self._extrinsics = None
+            self._extrinsics_error = f'unusable lidar_to_camera parameter: {exc}'
+            self.get_logger().error(self._extrinsics_error + ' -- no ROIs until it is fixed')
+        lb = list(p.lidar_in_base) + [0.0] * 6
+        self._base_to_lidar = euler_matrix(tuple(lb[:3]), tuple(lb[3:6]))
+        self._poses.max_extrapolation_ns = int(p.max_odom_extrapolation * 1e9)
+        self._roi_params = RoiParams(
+            margin=p.crop_margin, min_radius=p.crop_min_radius, pad_px=p.crop_pad_px,
+            min_px=p.crop_min_px, max_px=p.crop_max_px, pad_m=p.crop_pad_m,
+            spin_timing=p.spin_timing, lidar_rate_hz=p.lidar_rate_hz)
+        self._slop_ns = int(p.slop * 1e9)
+        self._sync = ApproximateTimeSync(2, p.queue_size, self._slop_ns, p.age_penalty)
+        self._latest = LatestSync()
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Apply live changes (the synchroniser restarts empty)."""
+        self._configure()
+
+    # --- inputs --------------------------------------------------------------------------
+
+    def _on_info(self, msg: CameraInfo) -> None:
+        self._camera = CameraModel.from_info(camera_info_to_numpy(msg))
+
+    def _on_odom(self, msg: Odometry) -> None:
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        try:
+            self._poses.add(_ns(msg.header.stamp), (p.x, p.y, p.z), (q.x, q.y, q.z, q.w))
+        except SyncError as exc:
+            raise InputError(f'odometry: {exc}') from None
+
+    def _on_candidates(self, msg: PointCloud2) -> None:
+        arr = pointcloud2_to_array(msg)
+        missing = [f for f in ('x', 'y', 'z', 'radius') if f not in (arr.dtype.names or ())]
+        if missing:
+            raise InputError(f'candidates cloud has no {"/".join(missing)} field')
+        stamp = _ns(msg.header.stamp)
+        cands = (msg.header, arr.copy())
+        if self.params.sync_policy == 'latest':
+            self._latest.add_cloud(stamp, cands)
+            return
+        if self._image_stamps:
+            nearest = min(abs(stamp - t) for t in self._image_stamps)
+            if nearest > self._slop_ns:
+                self._counts['unmatched candidates'] += 1
+                raise InputError(
+                    f'no image within slop {self.params.slop:.3f} s of the candidates stamped '
+                    f'{stamp * 1e-9:.3f} (nearest image {nearest * 1e-9:.3f} s away): clocks '
+                    f'out of sync or images lost')
+        for _, (image, c) in self._sync.add(CANDS, stamp, cands):
+            self._project(image, c)
+
+    def _on_image(self, msg: Image) -> None:
+        stamp = _ns(msg.header.stamp)
+        self._image_stamps.append(stamp)
+        if self.params.sync_policy == 'latest':
+            got = self._latest.add_image(stamp)
+            if got is not None:
+                self._project(msg, got[1])
+            return
+        for _, (image, c) in self._sync.add(IMAGE, stamp, msg):
+            self._project(image, c)
+
+    # --- output --------------------------------------------------------------------------
+
+    def _lidar_pose(self, t_ns: int) -> Optional[np.ndarray]:
+        base = self._poses.at(t_ns)
+        return None if base is None else base @ self._base_to_lidar
+
+    def _project(self, image: Image, cands: tuple) -> None:
+        topic = self.resolve_topic_name(self.params.image_topic)
+        if self._camera is None:
+            self._counts['no camera info'] += 1
+            self.drop(topic, f'no CameraInfo received on {self.params.camera_info_topic}: '
+                             f'cannot project (intrinsics are never guessed)')
+            return
+        if self._extrinsics is None:
+            self._counts['no extrinsics'] += 1
+            self.drop(topic, self._extrinsics_error)
+            return
+        if (int(image.width), int(image.height)) != (self._camera.width, self._camera.height):
+            self.drop(topic, f'image {image.width}x{image.height} does not match CameraInfo '
+                             f'{self._camera.width}x{self._camera.height}')
+            return
+        header, arr = cands
+        img_ns, lidar_ns = _ns(image.header.stamp), _ns(header.stamp)
+        pose_fn = self._lidar_pose if self._odom_sub is not None else None
+        rois, compensated = candidates_to_rois(arr, lidar_ns, img_ns, self._camera,
+                                               self._extrinsics, pose_fn, self._roi_params)
+        if pose_fn is not None and len(arr) and not compensated:
+            self._counts['not compensated (no odometry at those times)'] += 1
+            self.warn_throttled('odom', f'no odometry around {img_ns * 1e-9:.3f} s: ROIs are '
+                                        f'not motion compensated (flagged in the payload)')
+        payload = interfaces.Rois(header=header_to_payload(image.header), rois=rois,
+                                  lidar_stamp=stamp_to_time(header.stamp),
+                                  motion_compensated=bool(compensated and len(arr)))
+        self._rois_pub.publish(payload_to_string(payload))
+        self._counts['rois published'] += 1
+        if self._crops_pub is not None and rois:
+            frame = image_to_numpy(image, 'bgr8')
+            for r in rois:
+                b = r.box
+                x0, y0 = int(b.x), int(b.y)
+                crop = frame[y0:int(np.ceil(b.y + b.h)), x0:int(np.ceil(b.x + b.w))]
+                if crop.size:
+                    self._crops_pub.publish(numpy_to_image(
+                        np.ascontiguousarray(crop), 'bgr8', image.header,
+                        frame_id=f'{image.header.frame_id}/roi_{r.candidate_id}'))
+
+    def diagnostic_status(self) -> DiagnosticStatus:
+        """Base status plus calibration state and projection counters."""
+        status = super().diagnostic_status()
+        problems = []
+        if self._camera is None:
+            problems.append(f'no CameraInfo on {self.params.camera_info_topic} yet')
+        if self._extrinsics is None:
+            problems.append(self._extrinsics_error)
+        if problems:
+            level = ord(status.level) if isinstance(status.level, bytes) else int(status.level)
+            if level < ord(DiagnosticStatus.WARN):
+                status.level = DiagnosticStatus.WARN
+            status.message = '; '.join(problems + ([status.message]
+                                                   if status.message != 'ok' else []))
+        status.values = list(status.values) + [
+            KeyValue(key=k, value=str(v)) for k, v in sorted(self._counts.items())]
+        return status
+
+
+NODE_CLASS = ProjectorNode
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Console entry point ``projector``."""
+    return run_node(ProjectorNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,175 @@
+"""``tracker`` node: camera image + ``/workzone/detections`` -> ``/workzone/tracks`` (seed 001).
+
+Thin wrapper around :class:`workzone_ros.core.tracking.MultiTracker`.  Images are kept in a
+short ring buffer keyed by their stamp; a ``Detections`` payload is processed with the image
+of exactly the same stamp (the detector stamps its output with the image it ran on).  When the
+detections arrive first they wait (a few frames) for their image.  Frames are processed in
+stamp order; anything older than the last processed frame is dropped (latest-frame-wins), and
+a stamp that jumps backwards (a looping bag) resets the tracks.
+"""
+from __future__ import annotations
+
+import collections
+from typing import Any, Optional
+
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from workzone_ros.core.tracking import METHODS, MODES, SCALES, MultiTracker, TrackerConfig
+from workzone_ros.interfaces import Detections, Tracks
+from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.conversions import (
+    image_to_numpy, payload_to_string, stamp_to_time, string_to_payload,
+)
+
+__all__ = ['TrackerNode', 'NODE_CLASS', 'main']
+
+_D = TrackerConfig()
+
+#: Parameters that map one to one onto TrackerConfig fields.
+_CORE_PARAMS = (
+    Param('mode', _D.mode, 'detection_only (seed 001 baseline) or detection_and_tracking',
+          choices=MODES),
+    Param('method', _D.method, 'meanshift (seed 001) or camshift (OpenCV peer)',
+          choices=METHODS),
+    Param('hue_bins', _D.hue_bins, 'hue bins nh of the target histogram', min=2, max=180),
+    Param('sat_bins', _D.sat_bins, 'saturation bins ns of the target histogram', min=2,
+          max=256),
+    Param('scales', list(SCALES), 'candidate kernel sizes relative to the previous box'),
+    Param('max_iterations', _D.max_iterations, 'mean-shift iterations per candidate', min=1,
+          max=100),
+    Param('shift_threshold_px', _D.shift_threshold_px, 'stop when the centre moves less',
+          min=0.0, max=10.0),
+    Param('max_samples', _D.max_samples, 'pixels sampled inside a box', min=16,
+          max=100000),
+    Param('search_margin', _D.search_margin, 'search window beyond the largest candidate '
+          '(half-boxes)', min=0.0, max=5.0),
+    Param('use_velocity', _D.use_velocity, 'start from the constant-velocity prediction'),
+    Param('min_similarity', _D.min_similarity, 'Bhattacharyya coefficient below which a '
+          'track is lost', min=0.0, max=1.0),
+    Param('max_lost_frames', _D.max_lost_frames, 'lost frames before a track ends', min=0,
+          max=100),
+    Param('max_coast_frames', _D.max_coast_frames, 'frames without a detection before a '
+          'track ends', min=0, max=10000),
+    Param('min_hits_to_coast', _D.min_hits_to_coast, 'detections before a track may run on '
+          'its own', min=1, max=100),
+    Param('max_background_similarity', _D.max_background_similarity, 'a target this '
+          'similar to its surroundings never runs on its own', min=0.0, max=1.0),
+    Param('iou_gate', _D.iou_gate, 'IoU at which a detection agrees with a track', min=0.0,
+          max=1.0),
+    Param('similarity_gate', _D.similarity_gate, 'histogram similarity at which an '
+          'overlapping detection agrees', min=0.0, max=1.0),
+    Param('model_update', _D.model_update, 'weight of a correcting detection in the model',
+          min=0.0, max=1.0),
+    Param('max_box_fraction', _D.max_box_fraction, 'end when the box is wider/taller than '
+          'this image fraction', min=0.0, max=1.0),
+    Param('min_inside_fraction', _D.min_inside_fraction, 'end when less of the box than '
+          'this is inside the image', min=0.0, max=1.0),
+    Param('min_box_px', _D.min_box_px, 'ignore smaller detections', min=1, max=1000),
+    Param('anchor_on_color', _D.anchor_on_color, 'track the coloured part and keep the box '
+          'geometry (regulatory two-colour guard)'),
+    Param('duplicate_iou', _D.duplicate_iou, 'overlap at which the weaker of two tracks '
+          'ends', min=0.0, max=1.0),
+    Param('background_weighting', _D.background_weighting, 'corrected background-weighted '
+          'histogram in the mean-shift weights'),
+    Param('surround_weight', _D.surround_weight, 'penalty of sign colour around a '
+          'candidate in the scale choice (0 = seed)', min=0.0, max=5.0),
+    Param('surround_size', _D.surround_size, 'outer size of that band', min=1.0, max=3.0),
+)
+
+
+def config_from_params(params: Any) -> TrackerConfig:
+    """The core configuration from the node's ``params``."""
+    values = {p.attr: getattr(params, p.attr) for p in _CORE_PARAMS}
+    values['scales'] = tuple(float(v) for v in values['scales'])
+    return TrackerConfig(**values)
+
+
+class TrackerNode(WorkzoneNode):
+    """Kernel-based sign tracking (seed 001): detections + image -> tracks."""
+
+    PARAMS = (
+        Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)'),
+        Param('detections_topic', '/workzone/detections', 'input Detections payloads'),
+        Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads'),
+        Param('image_buffer', 10, 'images kept while waiting for their detections', min=1,
+              max=100),
+    ) + _CORE_PARAMS
+    INPUT_TOPICS = ('image_topic', 'detections_topic')
+
+    def __init__(self, **kwargs: Any) -> None:
+        """Create the node (kwargs go to ``rclpy.node.Node``)."""
+        super().__init__('tracker', **kwargs)
+        self._tracker = MultiTracker(config_from_params(self.params))
+        n = self.params.image_buffer
+        self._images: collections.OrderedDict[int, Image] = collections.OrderedDict()
+        self._pending: collections.OrderedDict[int, Detections] = collections.OrderedDict()
+        self._max = n
+        self._last_ns: Optional[int] = None
+        self._tracks_pub = self.reliable_publisher(String, self.params.tracks_topic)
+        self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
+                                                   self._on_image)
+        self._det_sub = self.reliable_subscription(String, self.params.detections_topic,
+                                                   self._on_detections)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Apply live parameter changes to the tracker (tracks are kept)."""
+        try:
+            self._tracker.reconfigure(config_from_params(self.params))
+        except ValueError as exc:
+            self.warn_throttled('reconfigure', f'tracker configuration rejected: {exc}')
+
+    # --- callbacks ------------------------------------------------------------------------
+
+    def _on_image(self, msg: Image) -> None:
+        ns = stamp_to_time(msg.header.stamp).to_ns()
+        if ns in self._pending:
+            self._process(msg, self._pending.pop(ns))
+            return
+        self._images[ns] = msg
+        while len(self._images) > self._max:
+            self._images.popitem(last=False)
+
+    def _on_detections(self, msg: String) -> None:
+        dets = string_to_payload(msg, Detections)
+        ns = dets.header.stamp.to_ns()
+        image = self._images.pop(ns, None)
+        if image is not None:
+            self._process(image, dets)
+            return
+        self._pending[ns] = dets              # its image has not arrived yet
+        while len(self._pending) > self._max:
+            self._pending.popitem(last=False)
+            self.drop(self.params.detections_topic,
+                      'no image with the stamp of these detections arrived')
+
+    # --- the step -------------------------------------------------------------------------
+
+    def _process(self, image: Image, dets: Detections) -> None:
+        ns = dets.header.stamp.to_ns()
+        if self._last_ns is not None and ns < self._last_ns:
+            if self._last_ns - ns > 2_000_000_000:
+                self.get_logger().info('time jumped back: tracks reset')
+                self._tracker.reset()
+            else:
+                raise InputError('detections older than the last processed frame')
+        frame = image_to_numpy(image, desired_encoding='bgr8')
+        tracks = self._tracker.step(frame, dets.detections)
+        self._last_ns = ns
+        for old in [k for k in self._images if k <= ns]:
+            del self._images[old]
+        for old in [k for k in self._pending if k <= ns]:
+            del self._pending[old]
+        self._tracks_pub.publish(payload_to_string(Tracks(header=dets.header, tracks=tracks)))
+
+
+NODE_CLASS = TrackerNode
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Entry point ``tracker``."""
+    return run_node(TrackerNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

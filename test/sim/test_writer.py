@@ -30,7 +30,7 @@ workzone: {taper_s: 480, length: 300, speed_limit: 45}
 signs:
   - {class: stop, s: 50, side: side_road}
   - {class: speed_limit, s: 75, speed_value: 65, tilt_deg: 0, fade: 0}
-distractors: {vehicles: 1, orange_vehicles: 1, yellow_vehicles: 0, cones: 1, drums: 1,
+distractors: {vehicles: 0, orange_vehicles: 0, yellow_vehicles: 0, cones: 1, drums: 1,
               general_signs: 0, mile_markers: false}
 """
 

@@ -1,11 +1,10 @@
 """launcher: real node processes; restart after SIGKILL, clean SIGINT, crash loop, bag + report."""
+import os
 import re
 import signal
-import subprocess
 import time
 
-from wz_tools_helpers import (LineReader, pid_alive, run_cli, start_cli, wait_gone,
-                              write_launch_bag)
+from wz_tools_helpers import LineReader, run_cli, start_cli, wait_gone, write_launch_bag
 
 DUMMY = 'wz_launch_fixtures.dummy_node'
 _STARTED = re.compile(r'^\[launch\] started (\S+) \(pid (\d+)\)')
@@ -32,7 +31,6 @@ def test_restart_after_sigkill_and_clean_sigint():
         second = _started(reader, 'second')
         assert reader.wait_for(lambda s: s.startswith('[dummy_node] dummy ready'), 30), \
             reader.text()
-        import os
         os.kill(first, signal.SIGKILL)
         assert reader.wait_for(lambda s: 'dummy_node exited (signal SIGKILL); restart #1'
                                in s, 10), reader.text()

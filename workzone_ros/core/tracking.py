@@ -335,6 +335,9 @@ class TargetModel:
         background_similarity: Bhattacharyya coefficient of the model and its surroundings.
         colored: a shape mask was found (False: featureless or achromatic box).
         hue_hist: hue histogram for the CamShift peer (float32, 180 bins, max 255).
+        dark_fraction: share of the shape that is much darker than its colour (legend,
+            border): signs have one, drums, cones and orange vehicles mostly do not.
+        white_fraction: share of the shape that is white (a drum's or cone's bands).
     """
 
     q: np.ndarray
@@ -345,6 +348,8 @@ class TargetModel:
     background_similarity: float
     colored: bool
     hue_hist: np.ndarray
+    dark_fraction: float = 0.0
+    white_fraction: float = 0.0
 
     def box_from_anchor(self, anchor: Sequence[float]) -> tuple[float, float, float, float]:
         """The output box for an anchor ``(x, y, w, h)``."""
@@ -377,6 +382,9 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     patch = cv2.cvtColor(np.ascontiguousarray(frame[yi0:yi1:s, xi0:xi1:s]), cv2.COLOR_BGR2HSV)
     m = shape_mask(patch)
     colored = m is not None
+    dark = white = 0.0
+    if colored:
+        dark, white = _content(patch, m)
     anchor = (x, y, w, h)
     if colored and cfg.anchor_on_color:
         ys_, xs_ = np.nonzero(m)
@@ -430,7 +438,22 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     hue_hist = cv2.calcHist([np.ascontiguousarray(hsv_in)], [0], valid, [180], [0, 180])
     cv2.normalize(hue_hist, hue_hist, 0, 255, cv2.NORM_MINMAX)
     return TargetModel(q=q, qw=qw, mask=mask, relation=relation, anchor=anchor,
-                       background_similarity=bg_sim, colored=colored, hue_hist=hue_hist)
+                       background_similarity=bg_sim, colored=colored, hue_hist=hue_hist,
+                       dark_fraction=dark, white_fraction=white)
+
+
+def _content(hsv: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
+    """Dark and white shares of the shape, relative to the brightness of its colour."""
+    inside = mask > 0
+    n = int(inside.sum())
+    if n == 0:
+        return 0.0, 0.0
+    s, v = hsv[..., 1][inside].astype(np.int16), hsv[..., 2][inside].astype(np.int16)
+    colour = s >= 100
+    ref = float(np.median(v[colour])) if colour.any() else float(np.median(v))
+    dark = float(np.count_nonzero(v < 0.5 * ref)) / n
+    white = float(np.count_nonzero((s < 60) & (v >= 0.75 * ref))) / n
+    return dark, white
 
 
 # --- localisation -------------------------------------------------------------------------

@@ -161,7 +161,8 @@ class ProjectorNode(WorkzoneNode):
         if self.params.sync_policy == 'latest':
             self._latest.add_cloud(stamp, cands)
             return
-        if self._image_stamps:
+        if self._image_stamps and max(self._image_stamps) > stamp + self._slop_ns:
+            # Images newer than the slop window arrived: its own image will not come.
             nearest = min(abs(stamp - t) for t in self._image_stamps)
             if nearest > self._slop_ns:
                 self._counts['unmatched candidates'] += 1

@@ -315,6 +315,7 @@ class CameraRenderer:
         pad = 32
         self._noise: dict[int, np.ndarray] = {}          # filled lazily per sigma level
         self._noise_sigmas = np.array([2.0, 4.0, 7.0, 11.0])
+        self._noise_bank(int(np.argmin(np.abs(self._noise_sigmas - self.weather.noise))))
         self._rain = None
         if self.weather.rain:
             layer = np.zeros((H + 2 * pad, W + 2 * pad), np.float32)
@@ -736,8 +737,8 @@ class CameraRenderer:
         w = self.weather
         H, W = img.shape[:2]
         # Motion blur: small global kernel on some frames (vibration, speed).
-        if rng.random() < 0.35:
-            k = int(rng.integers(3, 8))
+        if rng.random() < 0.25:
+            k = int(rng.integers(3, 6))
             ang = rng.uniform(-0.3, 0.3) + (math.pi / 2 if rng.random() < 0.5 else 0.0)
             ker = np.zeros((k, k), np.float32)
             c = (k - 1) / 2

@@ -779,12 +779,12 @@ class _Builder:
         self.signs.append(panel)
         # posts behind the face; guide signs stand on two
         back = -panel.normal * 0.06
-        offsets = [-w * 0.33, w * 0.33] if w > 1.5 else [0.0]
+        offsets = [-w * 0.33, w * 0.33] if w > 2.0 else [0.0]
         right = np.array([-math.sin(yaw), math.cos(yaw), 0.0])
         for o in offsets:
             base = center + back + right * o
             base[2] = 0.0
-            self.objects.append(Cylinder(self.new_id(), 'post', base, 0.05 if w <= 1.5 else 0.08,
+            self.objects.append(Cylinder(self.new_id(), 'post', base, 0.05 if w <= 2.0 else 0.08,
                                          SIGN_BOTTOM_HEIGHT + h * 0.85, 'post'))
         return panel
 

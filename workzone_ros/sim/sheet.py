@@ -16,7 +16,7 @@ from workzone_ros.core import signs as catalogue
 from workzone_ros.sim import signart
 from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer
 from workzone_ros.sim.world import (
-    LANE_CENTERS, MATERIALS, ROAD_HALF_WIDTH, RIGHT_SHOULDER, SIGN_BOTTOM_HEIGHT, SIGN_LATERAL,
+    LANE_CENTERS, ROAD_HALF_WIDTH, RIGHT_SHOULDER, SIGN_BOTTOM_HEIGHT, SIGN_LATERAL,
     Box, Cone, Cylinder, Pose, Quad, Road, Scene, SignPanel,
 )
 
@@ -137,12 +137,13 @@ def _crop(img: np.ndarray, box, size: int = 64, pad: float = 0.15) -> np.ndarray
     x, y, w, h = box
     m = max(w, h) * (1 + 2 * pad)
     cx, cy = x + w / 2, y + h / 2
-    M = np.array([[size / m, 0, size / 2 - cx * size / m], [0, size / m, size / 2 - cy * size / m]])
+    k = size / m
+    M = np.array([[k, 0, size / 2 - cx * k], [0, k, size / 2 - cy * k]])
     return cv2.warpAffine(img, M, (size, size), flags=cv2.INTER_AREA,
                           borderMode=cv2.BORDER_REPLICATE)
 
 
-def make_contact_sheet(out_png: str, seed: int = 0, crop_distance: float = 30.0) -> np.ndarray:
+def make_contact_sheet(out_png: str, seed: int = 0, crop_distance: float = 25.0) -> np.ndarray:
     """Render the contact sheet and write it to ``out_png``.
 
     Args:

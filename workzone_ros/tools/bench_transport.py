@@ -21,7 +21,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any, Optional
@@ -45,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--bag-seconds', type=float, default=3.0,
                         help='length of the generated bag for the player test (3)')
     parser.add_argument('--no-player', action='store_true', help='skip the player test')
+    parser.add_argument('--shm', action='store_true',
+                        help="use the launcher's Fast DDS profile (shared memory, 32 MB "
+                        'segments) in every process')
     parser.add_argument('--reliable', action='store_true',
                         help='subscribe reliable instead of the sensor-data (best effort) QoS')
 
@@ -313,6 +315,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
+    if getattr(args, 'shm', False):
+        from workzone_ros.tools.launcher import apply_dds_profile
+        apply_dds_profile('shm')
     figures: dict[str, Any] = {'machine': {'cpus': os.cpu_count(),
                                            'loadavg_1min': round(os.getloadavg()[0], 2)}}
     ctx = Context()
@@ -322,8 +327,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     executor.add_node(node)
     receiver = _Receiver(node, reliable=args.reliable)
     figures['subscriber_qos'] = 'reliable' if args.reliable else 'sensor_data (best effort)'
-    figures['fastdds_builtin_transports'] = os.environ.get('FASTDDS_BUILTIN_TRANSPORTS',
-                                                           'DEFAULT')
+    figures['fastdds_profile'] = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE', 'default')
     try:
         print(f'two processes: image {IMAGE_HZ:g} Hz + {args.points}-point cloud '
               f'{POINTS_HZ:g} Hz for {args.seconds:g} s ...', file=sys.stderr, flush=True)

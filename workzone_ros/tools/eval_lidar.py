@@ -9,6 +9,7 @@ Two modes:
       60-90 m).  A ground-truth sign counts when it has at least ``--min-gt-points`` returns
       on its face in the scan and lies in the pre-filter region; it is found when a published
       (persistent) candidate lies within ``max(1.0, 1.5 * radius)`` of its face centre.
+      The first ``k - 1`` scans of a bag are skipped (persistence cannot confirm yet).
       A candidate matching no sign is a false positive.  Rates: FP = false candidates /
       all published candidates; missed = missed signs / counted signs.
     * projection error of the sign centre in pixels (median, p95) with and without ego-motion
@@ -211,14 +212,14 @@ def evaluate_bag(path: Path, params: ClusterParams, k: int, n: int, offset_ms: f
     total = {'scans': 0, 'cands': 0, 'fp': 0, 'signs60': 0, 'missed60': 0}
     err = {'comp': [], 'raw': []}
     offset_ns = int(offset_ms * 1e6)
-    for stamp, pts in scans:
+    for index, (stamp, pts) in enumerate(scans):
         gt = gts.get(stamp)
-        if gt is None:
-            continue
-        total['scans'] += 1
         res = cluster_cloud(pts, params)
         pose = od.lidar(stamp + 50_000_000)
         cands = tracker.update(res.candidates, pose)
+        if gt is None or index < k - 1:
+            continue            # warm-up: persistence cannot confirm before k scans
+        total['scans'] += 1
         pub = cands.subset(cands.confirmed)
         gt_c = np.array([s.center for s in gt.signs], float).reshape(-1, 3)
         gt_n = np.array([len(s.indices) for s in gt.signs], int)

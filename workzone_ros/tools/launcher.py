@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any, Optional, TextIO
 
 __all__ = ['PLANNED_NODES', 'NodeSpec', 'Launcher', 'ReportCollector', 'default_params_file',
-           'resolve_nodes', 'main']
+           'resolve_nodes', 'fastdds_shm_profile', 'apply_dds_profile', 'main']
 
 #: Nodes launched by default when their module exists, in data-flow order.
 PLANNED_NODES = ('lidar_cluster', 'projector', 'color_detector', 'tracker', 'classifier',
@@ -56,6 +56,76 @@ _PR_SET_PDEATHSIG = 1
 # Runs a node module's main() when the module has no ``if __name__ == '__main__'`` block.
 _RUNNER = ('import importlib, sys; m = sys.argv[1]; sys.argv = [m] + sys.argv[2:]; '
            'sys.exit(importlib.import_module(m).main(sys.argv) or 0)')
+
+
+# Fast DDS participant profile: shared memory with 32 MB segments (+ UDP for everything else).
+# The default 512 kB segment sends images and clouds over fragmented UDP, where best-effort
+# (sensor-data) subscribers lose most of them (see ``workzone-ros bench transport --shm``).
+_SHM_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <transport_descriptors>
+    <transport_descriptor>
+      <transport_id>workzone_shm</transport_id>
+      <type>SHM</type>
+      <segment_size>{segment}</segment_size>
+    </transport_descriptor>
+    <transport_descriptor>
+      <transport_id>workzone_udp</transport_id>
+      <type>UDPv4</type>
+    </transport_descriptor>
+  </transport_descriptors>
+  <participant profile_name="workzone_participant" is_default_profile="true">
+    <rtps>
+      <userTransports>
+        <transport_id>workzone_shm</transport_id>
+        <transport_id>workzone_udp</transport_id>
+      </userTransports>
+      <useBuiltinTransports>false</useBuiltinTransports>
+    </rtps>
+  </participant>
+</profiles>
+"""
+
+
+def fastdds_shm_profile(segment_mb: int = 32) -> Path:
+    """Write (once) the large-segment shared-memory Fast DDS profile; returns its path."""
+    import tempfile
+    text = _SHM_PROFILE.format(segment=int(segment_mb) * 1024 * 1024)
+    path = Path(tempfile.gettempdir()) / f'workzone_fastdds_shm_{os.getuid()}_{segment_mb}.xml'
+    if not path.is_file() or path.read_text() != text:
+        tmp = path.with_suffix(f'.{os.getpid()}.tmp')
+        tmp.write_text(text)
+        tmp.replace(path)
+    return path
+
+
+def apply_dds_profile(choice: str) -> Optional[str]:
+    """Set ``FASTRTPS_DEFAULT_PROFILES_FILE`` for this process and its children.
+
+    Must run before rclpy creates a participant in this process.
+
+    Args:
+        choice: ``'shm'`` (built-in large-segment profile, unless the user already set a
+            profile file), ``'none'``, or the path of a Fast DDS XML file.
+
+    Returns:
+        The profile file in effect, or None.
+    """
+    current = os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE')
+    if choice == 'none':
+        return current
+    if 'fastrtps' not in os.environ.get('RMW_IMPLEMENTATION', 'rmw_fastrtps_cpp'):
+        return current
+    if choice == 'shm':
+        if current:
+            return current
+        path = str(fastdds_shm_profile())
+    else:
+        if not Path(choice).is_file():
+            raise LaunchError(f'Fast DDS profile not found: {choice}')
+        path = str(Path(choice).resolve())
+    os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = path
+    return path
 
 
 class LaunchError(Exception):
@@ -619,6 +689,8 @@ class Launcher:
         names = ', '.join(s.name for s in self.specs) or 'none'
         mode = 'in one process' if self.args.single_process else 'one process each'
         self.log(f'nodes: {names} ({mode}); params {self.params}')
+        if getattr(self.args, 'dds_profile_file', None):
+            self.log(f'Fast DDS profile {self.args.dds_profile_file}')
         try:
             if not self.args.single_process:
                 for child in self.children:
@@ -712,6 +784,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--ready-timeout', type=float, default=30.0, metavar='S',
                    help='longest wait for the nodes before playing the bag (30)')
     p.add_argument('--quiet-play', action='store_true', help='no bag progress lines')
+    p.add_argument('--dds-profile', default='shm', metavar='shm|none|FILE',
+                   help='Fast DDS profile for every process: shm = shared memory with 32 MB '
+                   'segments so large images/clouds are not fragmented over UDP (default; '
+                   'an already set FASTRTPS_DEFAULT_PROFILES_FILE wins), none, or an XML file')
     return p
 
 
@@ -728,6 +804,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         return EXIT_BAG
     try:
         specs = resolve_nodes(args.nodes)
+        args.dds_profile_file = apply_dds_profile(args.dds_profile)
     except LaunchError as exc:
         print(f'workzone-ros launch: error: {exc}', file=sys.stderr)
         return EXIT_BAG

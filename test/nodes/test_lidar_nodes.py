@@ -142,7 +142,8 @@ def test_cloud_camera_info_image_in_candidates_and_rois_out(ros):
     assert (arr['x'][0], arr['y'][0], arr['z'][0]) == pytest.approx(SIGN, abs=0.05)
     rois = interfaces.decode(got_rois[0].data, interfaces.Rois)
     assert rois.lidar_stamp is not None
-    assert rois.header.stamp.to_ns() == rois.lidar_stamp.to_ns()   # exact-stamp pair here
+    # Paired within the slop (0.1 s); usually the same stamp, unless a message was lost.
+    assert abs(rois.header.stamp.to_ns() - rois.lidar_stamp.to_ns()) <= 100_000_000
     assert len(rois.rois) == 1
     roi = rois.rois[0]
     # The sign centre by hand: camera frame = LIDAR_TO_CAMERA @ SIGN, pinhole + distortion.

@@ -705,8 +705,12 @@ class MultiTracker:
         pairs = []
         for ti, tr in enumerate(self._tracks):
             ref = tr.pred_box if tr.pred_box is not None else tr.box
+            ref_anchor = tr.pred_anchor if tr.pred_anchor is not None else tr.anchor
             for di, dm in enumerate(dets):
-                iou = max(box_iou(ref, dm.box), box_iou(tr.box, dm.box))
+                # The anchor term lets a detection of only the orange top of a two-colour box
+                # agree with the track of the whole box.
+                iou = max(box_iou(ref, dm.box), box_iou(tr.box, dm.box),
+                          box_iou(ref_anchor, dm.box))
                 if iou <= 0.0:
                     continue
                 sim = bhattacharyya(tr.target.q, dm.target.q) if dm.target is not None else 0.0
@@ -811,13 +815,23 @@ class MultiTracker:
 
     def _correct(self, tr: _Track, dm: _DetModel, sim: float) -> None:
         cfg = self.config
+        tracking = cfg.mode == 'detection_and_tracking'
         new = dm.target
         if new is not None:
             a = cfg.model_update
             q = (1 - a) * tr.target.q + a * new.q
             qw = (1 - a) * tr.target.qw + a * new.qw
+            box = dm.box
+            rel = tr.target.relation
+            if tracking and cfg.anchor_on_color and (new.relation[3] < 0.8 * rel[3]
+                                        or new.relation[2] < 0.8 * rel[2]):
+                # Two-colour guard: this detection covers only the coloured part of a box
+                # whose full extent the track knows (the detector missed the white bottom):
+                # keep the measured geometry instead of shrinking the box to the orange top.
+                new = replace(new, relation=rel)
+                box = new.box_from_anchor(new.anchor)
             tr.target = replace(new, q=q / q.sum(), qw=qw / qw.sum())
-            self._advance(tr, new.anchor, dm.box)
+            self._advance(tr, new.anchor, box)
         else:
             tr.box = dm.box           # no model from this box (mostly outside): keep the old
         tr.hits += 1

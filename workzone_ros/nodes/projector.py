@@ -1,4 +1,4 @@
-"""``projector`` node: candidates + image + CameraInfo (+ odom) -> ``/workzone/rois`` (seed 004 s2).
+"""``projector`` node: candidates + image + CameraInfo (+ odom) -> ``/workzone/rois`` (seed 004).
 
 Thin wrapper around :mod:`workzone_ros.core.sync` and :mod:`workzone_ros.core.projection`:
 

@@ -126,7 +126,10 @@ def main(argv: Optional[list[str]] = None) -> int:
                 print(f'{name:<{width}}  {desc}')
             return 0
         if cmd == 'sheet':
-            from workzone_ros.sim.sheet import make_contact_sheet
+            try:
+                from workzone_ros.sim.sheet import make_contact_sheet
+            except ImportError as exc:
+                return _fail(f'contact sheet unavailable: {exc}')
             out = Path(args.output)
             out.parent.mkdir(parents=True, exist_ok=True)
             make_contact_sheet(str(out), seed=args.seed)

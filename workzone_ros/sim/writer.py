@@ -523,9 +523,9 @@ def write_bag(spec: ScenarioSpec, out: str | Path, opts: SynthOptions = SynthOpt
                 last = now
                 frac = (done_f + done_s) / max(len(tasks), 1)
                 el = now - started
-                eta = el / frac - el if frac > 0 else float('nan')
+                eta = f'{el / frac - el:.0f} s' if frac >= 0.03 else '?'
                 progress(f'synth {spec.name}: frames {done_f}/{len(frames)}, scans '
-                         f'{done_s}/{len(scans)}, {el:.0f} s elapsed, ETA {eta:.0f} s')
+                         f'{done_s}/{len(scans)}, {el:.0f} s elapsed, ETA {eta}')
         flush_odom(end_ns)
         put(end_ns, 'gt_workzone', msgs.string(encode(_gt_workzone(world, duration, end_ns))))
         counts = dict(bag.counts)
@@ -614,8 +614,8 @@ def export_crops(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
     for spec in specs:
         world = _World(spec, SynthOptions(seed=seed, workers=0))
         by_id = {s.object_id: s for s in world.scene.signs}
-        plan = sorted(set((round(t * FPS), None) for t, _ in _sign_times(world, 12.0, 90.0, 6)))
-        for k, _ in plan:
+        plan = sorted({round(t * FPS) for t, _ in _sign_times(world, 12.0, 90.0, 6)})
+        for k in plan:
             t = k / FPS
             if all(counts.get(key, 0) >= per_class for key in catalogue.BY_KEY):
                 break

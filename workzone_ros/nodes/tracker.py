@@ -57,6 +57,8 @@ _CORE_PARAMS = (
           'similar to its surroundings never runs on its own', min=0.0, max=1.0),
     Param('iou_gate', _D.iou_gate, 'IoU at which a detection agrees with a track', min=0.0,
           max=1.0),
+    Param('agree_iou', _D.agree_iou, 'IoU with the tracked box at which a detection '
+          'corrects the track', min=0.0, max=1.0),
     Param('similarity_gate', _D.similarity_gate, 'histogram similarity at which an '
           'overlapping detection agrees', min=0.0, max=1.0),
     Param('model_update', _D.model_update, 'weight of a correcting detection in the model',

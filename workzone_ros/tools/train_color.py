@@ -108,6 +108,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--v-min', type=int, default=35, help='value gate (default 35)')
     p.add_argument('--ignore-s', type=int, default=0,
                    help='leave sign-face pixels with S below this out of training (default 0)')
+    p.add_argument('--erode', type=int, default=1,
+                   help='ignore this many pixels at the face outline (blended edge; default 1)')
     p.add_argument('--pos-weight', type=float, default=1.0,
                    help='positive class weight relative to background (default 1: balanced)')
     p.add_argument('--val-frac', type=float, default=0.2, help='validation share (default 0.2)')
@@ -140,6 +142,12 @@ def main(argv: Optional[list[str]] = None) -> int:
         use = np.ones(mask.shape, bool)
         if args.ignore_s > 0:
             use = ~mask | (hsv[..., 1] >= args.ignore_s)
+        if args.erode > 0:
+            k = np.ones((2 * args.erode + 1, 2 * args.erode + 1), np.uint8)
+            m8 = mask.astype(np.uint8)
+            edge = (cv2.dilate(m8, k) > 0) & (cv2.erode(m8, k) == 0)
+            use &= ~edge
+            neg -= cm.histogram_from_pixels(hsv, edge & ~mask, args.v_min)[0]
         pp_, nn_ = cm.histogram_from_pixels(hsv, mask & use, args.v_min)
         excl, _ = cm.histogram_from_pixels(hsv, mask & ~use, args.v_min)
         pos += pp_
@@ -162,7 +170,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         'train_images': len(train), 'val_images': len(val),
         'sign_boxes': len(boxes), 'estimators': int(len(clf.estimators_)),
         'requested_estimators': args.estimators, 'v_min': args.v_min,
-        'ignore_s': args.ignore_s, 'pos_weight': args.pos_weight,
+        'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }

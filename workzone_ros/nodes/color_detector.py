@@ -1,0 +1,161 @@
+"""``color_detector`` node: camera image (+ LiDAR ROIs) -> ``/workzone/detections``.
+
+Thin wrapper around :mod:`workzone_ros.core.detection` (seed 000 section III.A, with the
+seed 002 / seed 004 alternatives selectable by ``method``).  Each image is converted, handed
+to the core detector together with the ROIs of the same image stamp (the projector stamps
+its ``Rois`` with the image it projected into; a short ring buffer matches them exactly), and
+the ``Detections`` payload is published with the image's header.  Without LiDAR the node
+works on colour alone; ROIs that arrive after their image are too late and are not waited
+for (latest frame wins, no queueing).
+"""
+from __future__ import annotations
+
+import collections
+import os
+from typing import Any, Optional
+
+from sensor_msgs.msg import CompressedImage, Image
+from std_msgs.msg import String
+
+from workzone_ros import interfaces
+from workzone_ros.core.color_model import ModelError, default_model, load_model
+from workzone_ros.core.detection import METHODS, ColorDetector, DetectorConfig, RgbLpModel
+from workzone_ros.nodes import conversions as conv
+from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
+
+__all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
+
+DEFAULT_MODEL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__)))), 'config', 'models', 'color_orange.npz')
+
+# Parameters that map one to one onto DetectorConfig fields.
+_CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',
+         'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
+         'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
+         'lidar_only_confidence')
+
+
+class ColorDetectorNode(WorkzoneNode):
+    """Colour sign detector node (see the module docstring)."""
+
+    PARAMS = (
+        Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
+              read_only=True),
+        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+              read_only=True),
+        Param('rois_topic', '/workzone/rois', 'LiDAR ROIs (Rois payload); empty = no LiDAR',
+              read_only=True),
+        Param('detections_topic', '/workzone/detections', 'output Detections payload',
+              read_only=True),
+        Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
+              'the seed 004 HSV ranges if that file does not exist)', read_only=True),
+        Param('method', 'learned', 'learned (seed 000) | rgb_lp (seed 002) | hsv (seed 004)',
+              choices=METHODS),
+        Param('colors', ['orange', 'red', 'yellow'], 'colours to detect'),
+        Param('threshold', 0.5, 'posterior threshold tau', min=0.01, max=0.99),
+        Param('scale', 2, 'mask computed at 1/scale resolution', min=1, max=4),
+        Param('use_prior', True, 'spatial prior and its ROI (seed 000 Fig. 1)'),
+        Param('open_px', 2, 'opening kernel (mask pixels, 0 = off)', min=0, max=15),
+        Param('close_px', 3, 'closing kernel (mask pixels, 0 = off)', min=0, max=15),
+        Param('min_radius_px', 4.0, 'smallest sign radius (px)', min=0.0),
+        Param('max_radius_px', 240.0, 'largest sign radius (px)', min=1.0),
+        Param('min_area_px', 40.0, 'smallest blob area (px)', min=0.0),
+        Param('nms_iou', 0.3, 'non-maximum suppression IoU', min=0.0, max=1.0),
+        Param('extension', True, 'regulatory two-colour box extension (seed 000)'),
+        Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
+              min=0.5, max=10.0),
+        Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),
+        Param('roi_threshold', 0.3, 'posterior threshold inside LiDAR ROIs', min=0.01,
+              max=0.99),
+        Param('roi_margin', 0.25, 'ROI growth (fraction of its size)', min=0.0, max=2.0),
+        Param('lidar_confidence', 0.5, 'noisy-OR weight of LiDAR support', min=0.0, max=1.0),
+        Param('lidar_only', False, 'report ROIs without a colour blob as lidar-only detections'),
+        Param('lidar_only_confidence', 0.3, 'confidence of lidar-only detections', min=0.0,
+              max=1.0),
+        Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
+    )
+    INPUT_TOPICS = ('image_topic', 'rois_topic')
+
+    def __init__(self, **kwargs: Any) -> None:
+        """Create the node; raises ConfigError on an unreadable model file."""
+        super().__init__('color_detector', **kwargs)
+        p = self.params
+        path = p.model_path or DEFAULT_MODEL
+        try:
+            if p.model_path or os.path.exists(path):
+                self._model = load_model(path)
+                source = path
+            else:
+                self._model = default_model()
+                source = 'seed 004 HSV ranges (no trained model file)'
+                self.get_logger().warning(f'{path} not found: using the seed 004 HSV ranges; '
+                                          "train one with 'workzone-ros train color'")
+            self._detector = self._make_detector()
+        except (ModelError, ValueError) as exc:
+            self.destroy_node()
+            raise ConfigError(str(exc)) from None
+        self.get_logger().info(f'colour model: {source}; classes {self._model.classes}')
+        self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
+            collections.OrderedDict()
+        self._frames = 0
+        self._pub = self.reliable_publisher(String, p.detections_topic)
+        if p.compressed:
+            self._image_sub = self.sensor_subscription(
+                CompressedImage, p.image_topic.rstrip('/') + '/compressed', self._on_compressed,
+                depth=1)
+        else:
+            self._image_sub = self.sensor_subscription(Image, p.image_topic, self._on_image,
+                                                       depth=1)
+        self._rois_sub = None
+        if p.rois_topic:
+            self._rois_sub = self.reliable_subscription(String, p.rois_topic, self._on_rois,
+                                                        depth=10)
+
+    def _make_detector(self) -> ColorDetector:
+        p = self.params
+        cfg = DetectorConfig(colors=tuple(p.colors),
+                             **{k: getattr(p, k) for k in _CORE})
+        lp = None
+        if 'rgb_lp_thresholds' in self._model.extras:
+            lp = RgbLpModel(self._model.extras['rgb_lp_thresholds'])
+        return ColorDetector(self._model, cfg, lp)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Rebuild the detector with the new values (rejected values never get here)."""
+        try:
+            self._detector = self._make_detector()
+        except (ModelError, ValueError) as exc:
+            self.get_logger().error(f'parameter change not applied: {exc}')
+
+    # -- callbacks --
+    def _on_rois(self, msg: String) -> None:
+        rois = conv.string_to_payload(msg, interfaces.Rois)
+        self._rois[rois.header.stamp.to_ns()] = list(rois.rois)
+        while len(self._rois) > self.params.rois_buffer:
+            self._rois.popitem(last=False)
+
+    def _on_image(self, msg: Image) -> None:
+        self._process(conv.image_to_numpy(msg, 'bgr8'), msg.header)
+
+    def _on_compressed(self, msg: CompressedImage) -> None:
+        self._process(conv.compressed_to_numpy(msg), msg.header)
+
+    def _process(self, bgr, header) -> None:
+        head = conv.header_to_payload(header)
+        rois: Optional[list] = self._rois.get(head.stamp.to_ns())
+        dets = self._detector.detect(bgr, rois or ())
+        self._pub.publish(conv.payload_to_string(
+            interfaces.Detections(header=head, detections=dets)))
+        self._frames += 1
+
+
+NODE_CLASS = ColorDetectorNode
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Run the node (Jazzy-style main)."""
+    return run_node(ColorDetectorNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

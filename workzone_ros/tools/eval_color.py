@@ -1,0 +1,403 @@
+"""``workzone-ros evaluate color``: seed 000 Table I metrics on held-out bags; real clips.
+
+Synthetic bags (``--bags``; never the ones the model was trained or tuned on): every camera
+frame is run through the detector and matched to ``/groundtruth/signs``:
+
+* a ground-truth work-zone sign is *eligible* when its box is at least ``--min-px`` on its
+  shorter side and at least ``--min-visible`` visible (seed 001 ignores signs under 30 px);
+* a detection matches a sign when IoU > tau = 0.5 (one to one, best IoU first);
+* for a matched pair, area precision = |o n g| / |o| and recall = |o n g| / |g| (seed 000);
+  Table I macro-averages them over the test images (per image first, then over images),
+  separately for warning (diamond) and regulatory (rectangular) signs;
+* we also report what Table I leaves out: the share of eligible signs matched at all
+  (detection rate) and the false detections per frame (a detection overlapping no sign of
+  any kind, IoU < 0.1; drums, cones and orange vehicles are the usual ones).
+
+Methods: ``learned`` (seed 000), ``rgb_lp`` (seed 002), ``hsv`` (seed 004), each with LiDAR
+guidance off; ``learned`` also with it on.  LiDAR ROIs come from the ground-truth LiDAR sign
+hits (``/groundtruth/lidar``: the centroid of each sign's returns in the latest scan before
+the image) projected by the projector core (``core.projection.candidates_to_rois``); the
+report says so.
+
+Pixel accuracy of the colour model: ``--pixels DIR`` (a held-out ``synth pixels`` folder).
+
+Real clips (``--real DIR``, default ../shared/realdata/us_workzone_video): per clip, the
+share of frames inside the sign's frame range (README) with an orange detection, and false
+orange detections per frame after the zone begins (frames with no sign).  The clips are
+evaluation data only.
+
+Usage::
+
+    workzone-ros evaluate color --model config/models/color_orange.npz \
+        --bags /tmp/bags/paper_c_7 ... --pixels /tmp/pix_eval --real --json out.json \
+        --sheet out.png
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any, Iterable, Optional, Sequence
+
+import cv2
+import numpy as np
+
+from workzone_ros import interfaces
+from workzone_ros.core import color_model as cm
+from workzone_ros.core import detection as dt
+from workzone_ros.core import signs as catalogue
+from workzone_ros.interfaces import Box
+
+__all__ = ['main', 'match_frame', 'TableI', 'REAL_CLIPS', 'draw']
+
+REPO = Path(__file__).resolve().parents[2]
+REALDATA = REPO.parent / 'shared' / 'realdata'
+#: Clip -> (sign frame range, sign-free frame range) from the realdata README (approximate,
+#: read by eye there): the sign is visible in the first range, no sign in the second.
+REAL_CLIPS = {'charlotte.mp4': ((0, 110), (120, 533)), 'denver.mp4': ((0, 165), (240, 454))}
+
+
+def kind_of(class_key: str) -> str:
+    """``warning`` (diamond) or ``regulatory`` (rectangle) for a work-zone class."""
+    return 'warning' if catalogue.get(class_key).shape == 'diamond' else 'regulatory'
+
+
+def match_frame(dets: Sequence[Box], gts: Sequence[Box], tau: float = 0.5
+                ) -> list[tuple[int, int, float, float, float]]:
+    """Greedy one-to-one matching, best IoU first; pairs (det, gt, iou, precision, recall)."""
+    pairs = []
+    for i, d in enumerate(dets):
+        for j, g in enumerate(gts):
+            iou, p, r = dt.box_metrics(d, g)
+            if iou > tau:
+                pairs.append((iou, i, j, p, r))
+    pairs.sort(reverse=True)
+    used_d, used_g, out = set(), set(), []
+    for iou, i, j, p, r in pairs:
+        if i in used_d or j in used_g:
+            continue
+        used_d.add(i)
+        used_g.add(j)
+        out.append((i, j, iou, p, r))
+    return out
+
+
+class TableI:
+    """Accumulates seed 000 Table I quantities per (group, kind)."""
+
+    def __init__(self) -> None:
+        # group -> kind -> list of per-image (mean precision, mean recall)
+        self.images: dict = defaultdict(lambda: defaultdict(list))
+        self.eligible: dict = defaultdict(lambda: defaultdict(int))
+        self.matched: dict = defaultdict(lambda: defaultdict(int))
+        self.false: dict = defaultdict(int)
+        self.frames: dict = defaultdict(int)
+
+    def add(self, groups: Iterable[str], dets: Sequence[Box], gts: Sequence[tuple[Box, str]],
+            all_signs: Sequence[Box], tau: float = 0.5) -> None:
+        """One frame: detections, eligible (box, kind) ground truth, every sign box."""
+        pairs = match_frame(dets, [g for g, _ in gts], tau)
+        per_kind: dict = defaultdict(list)
+        for _, j, _, p, r in pairs:
+            per_kind[gts[j][1]].append((p, r))
+        matched_d = {i for i, *_ in pairs}
+        false = sum(1 for i, d in enumerate(dets) if i not in matched_d
+                    and all(dt.box_metrics(d, s)[0] < 0.1 for s in all_signs))
+        for group in groups:
+            self.frames[group] += 1
+            self.false[group] += false
+            for _, k in gts:
+                self.eligible[group][k] += 1
+            for k, v in per_kind.items():
+                self.matched[group][k] += len(v)
+                self.images[group][k].append(tuple(np.mean(v, axis=0)))
+
+    def summary(self) -> dict:
+        """group -> {warning: {...}, regulatory: {...}, false_per_frame, frames}."""
+        out = {}
+        for group in sorted(self.frames):
+            row: dict[str, Any] = {'frames': self.frames[group],
+                                   'false_per_frame': self.false[group] / self.frames[group]}
+            for k in ('warning', 'regulatory'):
+                ims = self.images[group][k]
+                row[k] = {
+                    'precision': float(np.mean([p for p, _ in ims])) if ims else None,
+                    'recall': float(np.mean([r for _, r in ims])) if ims else None,
+                    'images': len(ims), 'eligible': self.eligible[group][k],
+                    'detection_rate': (self.matched[group][k] / self.eligible[group][k]
+                                       if self.eligible[group][k] else None)}
+            out[group] = row
+        return out
+
+
+def draw(img: np.ndarray, dets, gts=(), rois=(), label: str = '') -> np.ndarray:
+    """An overlay: ground truth green, detections red (lidar-supported magenta), ROIs cyan."""
+    out = img.copy()
+    for r in rois:
+        b = r.box
+        cv2.rectangle(out, (int(b.x), int(b.y)), (int(b.x2), int(b.y2)), (255, 255, 0), 1)
+    for g in gts:
+        cv2.rectangle(out, (int(g.x), int(g.y)), (int(g.x2), int(g.y2)), (0, 255, 0), 1)
+    for d in dets:
+        b = d.box
+        col = (255, 0, 255) if 'lidar' in d.sources else (0, 0, 255)
+        cv2.rectangle(out, (int(b.x), int(b.y)), (int(b.x2), int(b.y2)), col, 2)
+        cv2.putText(out, f'{d.color[0]}{d.kind[0]} {d.confidence:.2f}',
+                    (int(b.x), max(10, int(b.y) - 3)), cv2.FONT_HERSHEY_SIMPLEX, 0.4, col, 1)
+    if label:
+        cv2.putText(out, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 2)
+    return out
+
+
+def _sheet(tiles: list[np.ndarray], path: str, cols: int = 3, width: int = 480) -> None:
+    if not tiles:
+        return
+    h = int(width * tiles[0].shape[0] / tiles[0].shape[1])
+    tiles = [cv2.resize(t, (width, h)) for t in tiles]
+    while len(tiles) % cols:
+        tiles.append(np.zeros_like(tiles[0]))
+    rows = [np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)]
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(path, np.vstack(rows))
+
+
+# --- synthetic bags -----------------------------------------------------------------------
+
+def _image(msg) -> np.ndarray:
+    if hasattr(msg, 'format'):                 # CompressedImage
+        return cv2.imdecode(np.frombuffer(bytes(msg.data), np.uint8), cv2.IMREAD_COLOR)
+    data = np.frombuffer(bytes(msg.data), np.uint8).reshape(msg.height, msg.step)
+    img = data[:, : msg.width * 3].reshape(msg.height, msg.width, 3)
+    return cv2.cvtColor(img, cv2.COLOR_RGB2BGR) if msg.encoding == 'rgb8' else img
+
+
+def _stamp(header) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _gt_rois(gt_lidar, image_ns: int, camera) -> list:
+    """ROIs from the ground-truth LiDAR sign hits of the latest scan before the image."""
+    from workzone_ros.core import projection
+    from workzone_ros.sim.world import LIDAR_TO_CAMERA
+    if gt_lidar is None or not gt_lidar.signs:
+        return []
+    dtype = np.dtype([('x', 'f8'), ('y', 'f8'), ('z', 'f8'), ('radius', 'f8'), ('id', 'i8'),
+                      ('count', 'i8')])
+    cands = np.array([(s.center[0], s.center[1], s.center[2],
+                       0.5 * catalogue.get(s.class_key).height_m, s.sign_id, len(s.indices))
+                      for s in gt_lidar.signs if len(s.indices) >= 3], dtype)
+    rois, _ = projection.candidates_to_rois(cands, gt_lidar.header.stamp.to_ns(), image_ns,
+                                            camera, LIDAR_TO_CAMERA)
+    return rois
+
+
+def evaluate_bags(bags: Sequence[str], detectors: dict, args, tiles: list) -> dict:
+    """Table I per method and weather over ``bags``."""
+    from workzone_ros.bagio import read_messages
+    from workzone_ros.core.projection import CameraModel
+    tables = {name: TableI() for name in detectors}
+    timing = defaultdict(list)
+    for bag in bags:
+        gts: dict[int, interfaces.GtSigns] = {}
+        for topic, _, msg in read_messages(bag, ['/groundtruth/signs']):
+            g = interfaces.decode(msg.data, interfaces.GtSigns)
+            gts[g.header.stamp.to_ns()] = g
+        camera = None
+        last_lidar = None
+        n = 0
+        topics = ['/camera/image_raw', '/camera/image_raw/compressed', '/camera/camera_info',
+                  '/groundtruth/lidar']
+        for topic, _, msg in read_messages(bag, topics):
+            if topic == '/camera/camera_info':
+                if camera is None:
+                    camera = CameraModel(int(msg.width), int(msg.height),
+                                         np.asarray(msg.k, float).reshape(3, 3),
+                                         np.asarray(msg.d, float), msg.distortion_model)
+                continue
+            if topic == '/groundtruth/lidar':
+                last_lidar = interfaces.decode(msg.data, interfaces.GtLidar)
+                continue
+            ns = _stamp(msg.header)
+            g = gts.get(ns)
+            if g is None:
+                continue
+            n += 1
+            if args.every > 1 and n % args.every:
+                continue
+            img = _image(msg)
+            wz = [s for s in g.signs if s.category == 'workzone']
+            elig = [(s.box, kind_of(s.class_key)) for s in wz
+                    if min(s.box.w, s.box.h) >= args.min_px
+                    and s.visible_fraction >= args.min_visible]
+            all_boxes = [s.box for s in g.signs]
+            # ineligible work-zone signs are "don't care": detections on them are not false
+            rois = None
+            groups = ('all', g.weather or 'unknown')
+            for name, (det, lidar) in detectors.items():
+                if lidar and rois is None:
+                    rois = _gt_rois(last_lidar, ns, camera) if camera is not None else []
+                t0 = time.perf_counter()
+                dets = [d for d in det.detect(img, rois if lidar else ())
+                        if d.color == 'orange']
+                timing[name].append(time.perf_counter() - t0)
+                tables[name].add(groups, [d.box for d in dets], elig, all_boxes)
+                if name == args.sheet_method and tiles is not None and elig and \
+                        len(tiles) < args.sheet_n and n % args.sheet_every == 0:
+                    tiles.append(draw(img, dets, [b for b, _ in elig],
+                                      rois if lidar else (),
+                                      f'{Path(bag).name} {g.weather} #{n}'))
+        print(f'{bag}: {n} frames', file=sys.stderr, flush=True)
+    out = {name: t.summary() for name, t in tables.items()}
+    for name, ts in timing.items():
+        out[name]['ms_per_frame_p50'] = float(np.median(ts) * 1e3) if ts else None
+    return out
+
+
+# --- pixels -------------------------------------------------------------------------------
+
+def evaluate_pixels(model: cm.ColorModel, folder: str, threshold: float) -> dict:
+    """Pixel accuracy of P(x | sign) >= threshold against held-out masks, per weather."""
+    import csv
+    from workzone_ros.tools.train_color import pixel_metrics
+    root = Path(folder)
+    by_weather = defaultdict(list)
+    with open(root / 'index.csv') as fh:
+        for row in csv.DictReader(fh):
+            by_weather[row.get('weather', 'unknown')].append((root / row['image'],
+                                                              root / row['mask']))
+    lut = model.lut('orange')
+    v = model.v_min[model.index('orange')]
+    out = {w: pixel_metrics(lut, v, pairs, 40, threshold) for w, pairs in by_weather.items()}
+    out['all'] = pixel_metrics(lut, v, [p for ps in by_weather.values() for p in ps], 40,
+                               threshold)
+    return out
+
+
+# --- real clips ---------------------------------------------------------------------------
+
+def evaluate_real(folder: Path, detectors: dict, args, tiles: list) -> dict:
+    """Per clip: detection share in the sign's frame range, false detections per frame after."""
+    out = {}
+    for clip, ((s0, s1), (f0, f1)) in REAL_CLIPS.items():
+        path = folder / clip
+        if not path.exists():
+            out[clip] = {'skipped': f'{path} not found'}
+            continue
+        cap = cv2.VideoCapture(str(path))
+        res = {name: {'sign_frames': 0, 'sign_detected': 0, 'free_frames': 0,
+                      'false_detections': 0} for name in detectors}
+        k = -1
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            k += 1
+            in_sign, free = s0 <= k <= s1, f0 <= k <= f1
+            if not (in_sign or free):
+                continue
+            img = cv2.resize(frame, (640, 480), interpolation=cv2.INTER_AREA)
+            for name, (det, _) in detectors.items():
+                dets = [d for d in det.detect(img) if d.color == 'orange']
+                r = res[name]
+                if in_sign:
+                    r['sign_frames'] += 1
+                    r['sign_detected'] += bool(dets)
+                else:
+                    r['free_frames'] += 1
+                    r['false_detections'] += len(dets)
+                if name == args.sheet_method and tiles is not None and k % 40 == 5:
+                    tiles.append(draw(img, dets, label=f'{clip} #{k}'))
+        cap.release()
+        for r in res.values():
+            r['detected_share'] = r['sign_detected'] / max(r['sign_frames'], 1)
+            r['false_per_frame'] = r['false_detections'] / max(r['free_frames'], 1)
+        out[clip] = res
+    return out
+
+
+def build_detectors(model: cm.ColorModel, methods: Sequence[str], lidar: bool,
+                    threshold: float) -> dict:
+    """name -> (ColorDetector, uses_lidar) for the requested methods."""
+    lp = None
+    if 'rgb_lp_thresholds' in model.extras:
+        lp = dt.RgbLpModel(model.extras['rgb_lp_thresholds'])
+    out = {}
+    for m in methods:
+        if m == 'rgb_lp' and lp is None:
+            print('rgb_lp: the model file has no seed 002 thresholds (train with --rgb-lp); '
+                  'skipped', file=sys.stderr)
+            continue
+        if m == 'learned':
+            cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold)
+        else:        # the seeds' baselines: no prior (they have none), full resolution
+            cfg = dt.DetectorConfig(method=m, colors=('orange',), use_prior=False, scale=1)
+        out[m] = (dt.ColorDetector(model, cfg, lp), False)
+        if m == 'learned' and lidar:
+            out['learned+lidar'] = (dt.ColorDetector(model, cfg, lp), True)
+    return out
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """Run the evaluation; prints JSON, returns the exit status."""
+    p = argparse.ArgumentParser(prog='workzone-ros evaluate color', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--model', default=str(REPO / 'config' / 'models' / 'color_orange.npz'))
+    p.add_argument('--bags', nargs='*', default=[], help='held-out synthetic bags')
+    p.add_argument('--pixels', help='held-out `synth pixels` folder (pixel accuracy)')
+    p.add_argument('--real', nargs='?', const=str(REALDATA / 'us_workzone_video'),
+                   help='real clips folder (default ../shared/realdata/us_workzone_video)')
+    p.add_argument('--methods', nargs='+', default=['learned', 'rgb_lp', 'hsv'],
+                   choices=dt.METHODS)
+    p.add_argument('--no-lidar', action='store_true', help='skip the LiDAR-guided run')
+    p.add_argument('--threshold', type=float, default=0.5, help='posterior threshold tau')
+    p.add_argument('--min-px', type=float, default=16.0, help='eligible GT: shorter side')
+    p.add_argument('--min-visible', type=float, default=0.9, help='eligible GT: visible share')
+    p.add_argument('--every', type=int, default=1, help='use every n-th frame')
+    p.add_argument('--json', help='write the report here')
+    p.add_argument('--sheet', help='PNG contact sheet of synthetic overlays')
+    p.add_argument('--real-sheet', help='PNG contact sheet of real-clip overlays')
+    p.add_argument('--sheet-method', default='learned+lidar')
+    p.add_argument('--sheet-n', type=int, default=12)
+    p.add_argument('--sheet-every', type=int, default=25)
+    args = p.parse_args(argv)
+    cv2.setNumThreads(1)
+    try:
+        model = cm.load_model(args.model)
+    except cm.ModelError as exc:
+        print(f'workzone-ros evaluate color: {exc}', file=sys.stderr)
+        return 2
+    report: dict[str, Any] = {'model': args.model, 'model_metadata': dict(model.metadata),
+                              'tau': 0.5, 'min_px': args.min_px,
+                              'min_visible': args.min_visible, 'threshold': args.threshold,
+                              'rois': 'ground-truth LiDAR sign hits (latest scan) projected by '
+                                      'core.projection.candidates_to_rois'}
+    report['model_metadata'].pop('metrics', None)
+    detectors = build_detectors(model, args.methods, not args.no_lidar, args.threshold)
+    if args.bags:
+        tiles: list = []
+        report['bags'] = list(args.bags)
+        report['synthetic'] = evaluate_bags(args.bags, detectors, args, tiles)
+        if args.sheet:
+            _sheet(tiles, args.sheet)
+    if args.pixels:
+        report['pixels'] = evaluate_pixels(model, args.pixels, args.threshold)
+    if args.real:
+        tiles = []
+        real_dets = {k: v for k, v in detectors.items() if not v[1]}
+        args_real = argparse.Namespace(**vars(args))
+        args_real.sheet_method = 'learned'
+        report['real'] = evaluate_real(Path(args.real), real_dets, args_real, tiles)
+        if args.real_sheet:
+            _sheet(tiles, args.real_sheet)
+    text = json.dumps(report, indent=2, default=float)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

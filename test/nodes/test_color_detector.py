@@ -1,0 +1,151 @@
+"""color_detector node over real topics: image (+ ROIs) in, stamped Detections out."""
+import time
+
+import cv2
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Image
+from std_msgs.msg import String
+
+from workzone_ros import interfaces
+from workzone_ros.core import color_model as cm
+from workzone_ros.interfaces import Box, Roi, Rois
+from workzone_ros.nodes.base import ConfigError
+from workzone_ros.nodes.color_detector import ColorDetectorNode
+from workzone_ros.nodes.conversions import make_header, numpy_to_image, payload_to_string
+
+ORANGE = (0, 110, 245)
+
+
+def _frame(sign=True):
+    img = np.empty((480, 640, 3), np.uint8)
+    img[:240] = (205, 175, 150)
+    img[240:] = (85, 88, 84)
+    if sign:
+        pts = np.array([[420, 110], [460, 150], [420, 190], [380, 150]], np.int32)
+        cv2.fillConvexPoly(img, pts, ORANGE)
+    return img
+
+
+class Ros:
+    def __init__(self):
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.nodes = []
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.executor.add_node(node)
+        return node
+
+    def spin_until(self, cond, timeout=10.0, each=None):
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if each:
+                each()
+            self.executor.spin_once(timeout_sec=0.1)
+            if cond():
+                return True
+        return False
+
+    def close(self):
+        self.executor.shutdown()
+        for n in self.nodes:
+            n.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros():
+    r = Ros()
+    try:
+        yield r
+    finally:
+        r.close()
+
+
+@pytest.fixture
+def model_path(tmp_path):
+    path = tmp_path / 'color_orange.npz'
+    cm.save_model(cm.default_model(), path)        # seed 004 ranges: no training needed
+    return str(path)
+
+
+def _node(ros, model_path, **params):
+    overrides = [Parameter('model_path', value=model_path), Parameter('use_prior', value=False)]
+    overrides += [Parameter(k, value=v) for k, v in params.items()]
+    return ros.add(ColorDetectorNode(context=ros.context, parameter_overrides=overrides,
+                                     diagnostics_period_s=0.2))
+
+
+def test_image_in_detections_out_with_and_without_rois(ros, model_path):
+    _node(ros, model_path, image_topic='t/image', rois_topic='t/rois',
+          detections_topic='t/dets')
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, 't/image', QoSProfile(
+        depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    rois_pub = peer.create_publisher(String, 't/rois', 10)
+    got = []
+    peer.create_subscription(String, 't/dets', got.append, 10)
+
+    # 1. no LiDAR at all: colour alone
+    h1 = make_header(stamp=interfaces.Time(sec=10, nanosec=5), frame_id='camera')
+    msg1 = numpy_to_image(_frame(), 'bgr8', h1)
+    assert ros.spin_until(lambda: got, each=lambda: img_pub.publish(msg1))
+    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    assert d.header.stamp == interfaces.Time(sec=10, nanosec=5)
+    assert d.header.frame_id == 'camera'
+    assert len(d.detections) == 1 and d.detections[0].sources == ['color']
+    assert d.detections[0].box.iou(Box(380, 110, 81, 81)) > 0.8
+
+    # 2. ROIs with the exact image stamp arrive first: the detection is LiDAR-supported
+    t2 = interfaces.Time(sec=11, nanosec=0)
+    roi = Roi(candidate_id=42, box=Box(370, 100, 100, 100), center=(420, 150), range_m=30.0,
+              radius_m=0.6, position=(2.0, -1.0, 30.0))
+    rois_pub.publish(payload_to_string(Rois(header=interfaces.Header(stamp=t2), rois=[roi])))
+    ros.spin_until(lambda: False, timeout=0.5)
+    msg2 = numpy_to_image(_frame(), 'bgr8', make_header(stamp=t2))
+
+    def fused():
+        ds = [interfaces.decode(m.data, interfaces.Detections) for m in got]
+        return [x for x in ds if x.header.stamp == t2 and x.detections
+                and x.detections[0].sources == ['color', 'lidar']]
+    assert ros.spin_until(lambda: fused(), each=lambda: img_pub.publish(msg2))
+    assert fused()[0].detections[0].roi_id == 42
+
+    # 3. an empty frame gives an empty Detections, not silence
+    t3 = interfaces.Time(sec=12, nanosec=0)
+    msg3 = numpy_to_image(_frame(sign=False), 'bgr8', make_header(stamp=t3))
+
+    def empty():
+        ds = [interfaces.decode(m.data, interfaces.Detections) for m in got]
+        return [x for x in ds if x.header.stamp == t3]
+    assert ros.spin_until(lambda: empty(), each=lambda: img_pub.publish(msg3))
+    assert empty()[0].detections == []
+
+
+def test_bad_rois_are_dropped_not_fatal(ros, model_path):
+    node = _node(ros, model_path, image_topic='u/image', rois_topic='u/rois',
+                 detections_topic='u/dets')
+    peer = ros.add(rclpy.create_node('peer2', context=ros.context))
+    rois_pub = peer.create_publisher(String, 'u/rois', 10)
+    assert ros.spin_until(lambda: any(s.dropped for s in node.topic_stats().values()),
+                          each=lambda: rois_pub.publish(String(data='{"schema": "nope"}')))
+
+
+def test_missing_model_file_is_a_config_error(ros, tmp_path):
+    with pytest.raises(ConfigError, match='does not exist'):
+        _node(ros, str(tmp_path / 'missing.npz'))
+
+
+def test_live_parameter_change_rebuilds_detector(ros, model_path):
+    node = _node(ros, model_path)
+    assert node.set_parameters([Parameter('method', value='hsv')])[0].successful
+    assert node._detector.config.method == 'hsv'
+    assert not node.set_parameters([Parameter('method', value='cnn')])[0].successful

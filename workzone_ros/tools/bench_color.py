@@ -1,0 +1,117 @@
+"""``workzone-ros bench color``: the colour detector per 640x480 frame, and LUT vs boosting.
+
+Figures (one core: ``cv2.setNumThreads(1)``; run it on a quiet machine):
+
+* ``frame_ms``: the main path per frame (resize, HSV, table lookup, posterior threshold,
+  morphology, connected components, filters, refinement, NMS) for the orange model alone and
+  for orange + red + yellow, p50 / p99 over ``--frames`` frames.  The frames are synthetic
+  renders when the simulator is importable (a sign in view), else a drawn test frame.
+* ``per_pixel_ns``: P(x | sign) per pixel by the boosted model (scikit-learn
+  ``predict_proba`` over (hue, saturation)) vs the lookup table, and their ratio.  The
+  boosted model is fitted here on the frame (H = ``--estimators`` stumps) so the figure does
+  not depend on a model file.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workzone_ros.core import color_model as cm
+from workzone_ros.core import detection as dt
+
+__all__ = ['add_arguments', 'run']
+
+MODEL = Path(__file__).resolve().parents[2] / 'config' / 'models' / 'color_orange.npz'
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``workzone-ros bench color``."""
+    parser.add_argument('--model', default=str(MODEL), help='colour model (.npz)')
+    parser.add_argument('--frames', type=int, default=300, help='timed frames (default 300)')
+    parser.add_argument('--estimators', type=int, default=40, help='stumps for predict_proba')
+    parser.add_argument('--scale', type=int, default=2, help='mask downscale (default 2)')
+
+
+def _frames(n: int = 8) -> list[np.ndarray]:
+    """A few 640x480 frames with signs: simulator renders if available, else drawn."""
+    try:
+        from workzone_ros.sim.scenario import load_scenario
+        from workzone_ros.sim.writer import SynthOptions, _World
+        world = _World(load_scenario('demo', 3), SynthOptions(seed=3, workers=0))
+        out = []
+        for k in np.linspace(150, 450, n).astype(int):
+            t = k / 15.0
+            out.append(world.renderer.render(t, world.ego.base_pose(t), int(k)).image)
+        return out
+    except Exception:  # noqa: BLE001 - the simulator is optional here
+        rng = np.random.default_rng(0)
+        img = np.empty((480, 640, 3), np.uint8)
+        img[:240] = (205, 175, 150)
+        img[240:] = (85, 88, 84)
+        img = cv2.add(img, rng.integers(0, 20, img.shape, dtype=np.uint8))
+        pts = np.array([[420, 110], [460, 150], [420, 190], [380, 150]], np.int32)
+        cv2.fillConvexPoly(img, pts, (0, 110, 245))
+        return [img]
+
+
+def _time(fn, frames, n) -> np.ndarray:
+    for f in frames:
+        fn(f)
+    ts = []
+    for i in range(n):
+        f = frames[i % len(frames)]
+        t0 = time.perf_counter()
+        fn(f)
+        ts.append(time.perf_counter() - t0)
+    return np.array(ts) * 1e3
+
+
+def run(args: argparse.Namespace) -> dict:
+    """Run the benchmark; returns the figures."""
+    cv2.setNumThreads(1)
+    try:
+        model = cm.load_model(args.model)
+        source = args.model
+    except cm.ModelError:
+        model, source = cm.default_model(), 'seed 004 HSV ranges (no model file)'
+    frames = _frames()
+    out: dict = {'model': source, 'frame': '640x480', 'scale': args.scale,
+                 'threads': cv2.getNumThreads()}
+    for label, colors in (('orange', ('orange',)), ('orange+red+yellow',
+                                                     ('orange', 'red', 'yellow'))):
+        det = dt.ColorDetector(model, dt.DetectorConfig(colors=colors, scale=args.scale))
+        ms = _time(det.detect, frames, args.frames)
+        out[f'frame_ms_{label}'] = {'p50': float(np.percentile(ms, 50)),
+                                    'p99': float(np.percentile(ms, 99))}
+    det = dt.ColorDetector(model, dt.DetectorConfig(colors=('orange',), scale=args.scale))
+    out['detections_per_frame'] = float(np.mean([len(det.detect(f)) for f in frames]))
+    # per-pixel cost: boosted model (predict_proba) vs the table
+    img = frames[0]
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    mask = (model.likelihood(img, 'orange') >= 0.5)
+    if mask.sum() < 10 or (~mask).sum() < 10:
+        mask = hsv[..., 1] > 150
+    pos, neg = cm.histogram_from_pixels(hsv, mask)
+    clf = cm.fit_boosted(pos, neg, args.estimators)
+    X = hsv[..., :2].reshape(-1, 2).astype(np.float64)
+    t0 = time.perf_counter()
+    clf.predict_proba(X)
+    t_boost = time.perf_counter() - t0
+    lut = cm.boosted_lut(clf)
+    lut_u8 = np.round(lut * 254).astype(np.uint8).reshape(-1)
+    idx = cv2.merge([hsv[..., 1], hsv[..., 0]]).view(np.uint16)[..., 0]
+    reps = 50
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        np.take(lut_u8, idx)
+    t_lut = (time.perf_counter() - t0) / reps
+    n = X.shape[0]
+    out['per_pixel_ns'] = {'boosted_predict_proba': t_boost / n * 1e9,
+                           'lut': t_lut / n * 1e9,
+                           'ratio': t_boost / max(t_lut, 1e-12),
+                           'stumps': int(len(clf.estimators_))}
+    return out

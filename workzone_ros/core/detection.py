@@ -79,6 +79,9 @@ class DetectorConfig:
         max_aspect: largest w/h or h/w of an orange blob.
         diamond_hull_fill: below this hull fill an orange blob is a diamond (warning sign).
         refine: refine boxes at full resolution.
+        border_scale: (w, h) factors from the orange blob's box to the sign face's box: a sign
+            has a black border and a thin orange margin outside it that the blob misses.  The
+            trainer measures them on its training faces (model extra ``box_scale``).
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
         extension: regulatory two-colour extension on/off.
@@ -112,6 +115,7 @@ class DetectorConfig:
     max_aspect: float = 4.0
     diamond_hull_fill: float = 0.72
     refine: bool = True
+    border_scale: tuple[float, float] = (1.0, 1.0)
     nms_iou: float = 0.3
     nms_contain: float = 0.7
     extension: bool = True
@@ -301,7 +305,8 @@ class RgbLpModel:
 
 
 def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds: int = 6,
-               max_candidates: int = 300, time_limit: float = 60.0) -> RgbLpModel:
+               max_candidates: int = 80, time_limit: float = 60.0,
+               max_bins: int = 3000) -> RgbLpModel:
     """Choose rho* = argmin FP(rho) + w FN(rho) over subsets of thresholds (seed 002, eq. 2).
 
     Boolean linear program over quantised RGB bins with pixel counts as weights: x_k selects
@@ -315,6 +320,8 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
         w: the weight of a false negative relative to a false positive.
         max_thresholds: cardinality bound (each threshold costs time per frame).
         max_candidates: candidates kept after a single-threshold pre-screen.
+        max_bins: only the heaviest positive / negative colour bins enter the program (the
+            rest hold a small share of the pixels; the reported rates count every bin).
         time_limit: solver time limit in seconds.
 
     Returns:
@@ -325,6 +332,8 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
 
     centres = _bin_centres()
     ip, ineg = np.nonzero(pos)[0], np.nonzero(neg)[0]
+    ip = ip[np.argsort(pos[ip])[::-1][:max_bins]]
+    ineg_all = ineg
     if len(ip) == 0 or len(ineg) == 0:
         raise ModelError('the RGB threshold LP needs both sign and background pixels')
     pw, nw = pos[ip], neg[ineg]
@@ -336,8 +345,9 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
     single = nw @ a_neg + w * (pw @ ~a_pos)
     keep = np.argsort(single)[:max_candidates]
     cands, a_pos, a_neg = cands[keep], a_pos[:, keep], a_neg[:, keep]
-    # Only negative bins that some candidate passes matter.
-    live = a_neg.any(axis=1)
+    # Only negative bins that some candidate passes matter; the heaviest of them.
+    live = np.nonzero(a_neg.any(axis=1))[0]
+    live = live[np.argsort(nw[live])[::-1][:max_bins]]
     a_neg, nw = a_neg[live], nw[live]
     k, npos, nneg = len(cands), len(ip), len(nw)
     # variables: x (k), y (npos), z (nneg)
@@ -359,11 +369,17 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
         raise ModelError(f'RGB threshold LP failed: {res.message}')
     sel = np.nonzero(res.x[:k] > 0.5)[0]
     chosen = cands[sel]
-    passed_pos = a_pos[:, sel].any(axis=1) if len(sel) else np.zeros(npos, bool)
-    passed_neg = a_neg[:, sel].any(axis=1) if len(sel) else np.zeros(nneg, bool)
+    allc = centres[ineg_all]
+    pass_all = np.zeros(len(ineg_all), bool)
+    for a, b, c_, t in chosen:
+        pass_all |= allc @ np.array([a, b, c_]) >= t
+    pos_all = np.nonzero(pos)[0]
+    pass_pos = np.zeros(len(pos_all), bool)
+    for a, b, c_, t in chosen:
+        pass_pos |= centres[pos_all] @ np.array([a, b, c_]) >= t
     meta = {'w': w, 'candidates': int(k), 'selected': int(len(sel)),
-            'fn_rate': float(pw[~passed_pos].sum() / pw.sum()),
-            'fp_rate': float(nw[passed_neg].sum() / neg.sum()),
+            'fn_rate': float(pos[pos_all][~pass_pos].sum() / pos.sum()),
+            'fp_rate': float(neg[ineg_all][pass_all].sum() / neg.sum()),
             'status': str(res.message), 'mip_gap': float(getattr(res, 'mip_gap', 0.0) or 0.0)}
     return RgbLpModel(chosen, meta)
 
@@ -569,6 +585,7 @@ class ColorDetector:
         bw, bh = int(bx1 - bx0), int(by1 - by0)
         if bw < 2 or bh < 2:
             return None
+        gx, gy = cfg.border_scale
         area = float(np.count_nonzero(pix))
         if area < cfg.min_area_px:
             return None
@@ -591,6 +608,10 @@ class ColorDetector:
                 kind = 'general'
         conf = _mode(post[pix]) if cfg.method == 'learned' else fill
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, color, conf, kind, area, hull_fill)
+        if color == 'orange' and (gx != 1.0 or gy != 1.0):
+            cand.x -= 0.5 * (gx - 1.0) * bw
+            cand.y -= 0.5 * (gy - 1.0) * bh
+            cand.w, cand.h = gx * bw, gy * bh
         if (color == 'orange' and cfg.method == 'learned' and cfg.extension
                 and kind == 'regulatory' and aspect >= cfg.ext_min_aspect):
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])

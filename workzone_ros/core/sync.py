@@ -8,6 +8,9 @@
   every message is used at most once, and sets come out in time order.  Seed 004 s2.4.1 / s6.2
   projected "using the last point cloud received" under a mutex; this is what replaces it.
 * :class:`LatestSync` -- that seed baseline: each image is paired with the latest cloud.
+* :class:`NearestSync` -- each image is paired with the candidate set nearest in time within
+  the slop; a set may serve several images (15 Hz camera, 10 Hz LiDAR: every frame gets one),
+  and an image waits a bounded time for a later set only when that set could be nearer.
 * :class:`PoseBuffer` -- odometry poses with interpolation (linear for the position, slerp
   for the orientation) and short extrapolation, used for ego-motion compensation between
   scan time and image time (the seed's 5 m error at 60 mph without it).
@@ -22,7 +25,7 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'PoseBuffer', 'quat_to_matrix',
+__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'PoseBuffer', 'quat_to_matrix',
            'matrix_to_quat', 'slerp', 'pose_matrix']
 
 
@@ -254,6 +257,114 @@ class LatestSync:
     def add_image(self, stamp_ns: int) -> Optional[tuple[int, Any]]:
         """The cloud to project onto this image (the latest), or None."""
         return self._cloud
+
+
+class NearestSync:
+    """Pair every image with the candidate set nearest in time, within the slop.
+
+    Unlike :class:`ApproximateTimeSync` a candidate set is not consumed by its pair: with a
+    15 Hz camera and a 10 Hz LiDAR every image gets a set (about a third of them share one).
+    Unlike :class:`LatestSync` the pairing looks at stamps, not at arrival order, and may wait
+    for a later set.
+
+    Rules, for an image stamped ``t`` (a set's *time* is its stamp plus ``time_offset_ns``):
+
+    1. The best set is the one with the smallest ``|time - t|``; ties go to the earlier set.
+       Sets farther than ``slop_ns`` never qualify.
+    2. The decision is final when no later set can be nearer: the newest set seen has a time
+       ``>= t``, or the earliest possible next set (newest time + ``min_period_ns``) would be
+       at least as far as the best one (or beyond the slop).  Sets are assumed to arrive in
+       stamp order (a late out-of-order set is still used by images not yet decided).
+    3. Otherwise the image waits, at most until an image stamped ``>= t + max_wait_ns``
+       arrives (the image stream is the clock: deterministic, no timers) or ``max_pending``
+       images are waiting; then it takes the best set it has, or none.
+
+    :meth:`add_image` and :meth:`add_candidates` return the decisions they made, in image
+    stamp order, each ``(image_stamp, image, set_stamp, set)`` where ``set_stamp`` and
+    ``set`` are None when no set lies within the slop.
+
+    Args:
+        slop_ns: maximum ``|image stamp - set time|``.
+        min_period_ns: lower bound of the spacing of set stamps (one scan period; 0 = no
+            bound, so an image older than the newest set always waits for the next one).
+        max_wait_ns: how long an image may wait for a nearer set, on the image clock.
+        time_offset_ns: added to set stamps before matching (e.g. half a spin when the stamp
+            is the start of the spin and the camera looks forward).
+        history: candidate sets kept.
+        max_pending: images kept waiting at most.
+    """
+
+    def __init__(self, slop_ns: int, min_period_ns: int = 0, max_wait_ns: int = 0,
+                 time_offset_ns: int = 0, history: int = 10, max_pending: int = 10) -> None:
+        if slop_ns < 0 or min_period_ns < 0 or max_wait_ns < 0:
+            raise SyncError('slop, min_period and max_wait must be >= 0')
+        if history < 1 or max_pending < 1:
+            raise SyncError('history and max_pending must be at least 1')
+        self.slop_ns = int(slop_ns)
+        self.min_period_ns = int(min_period_ns)
+        self.max_wait_ns = int(max_wait_ns)
+        self.time_offset_ns = int(time_offset_ns)
+        self.history = int(history)
+        self.max_pending = int(max_pending)
+        self._sets: list[tuple[int, int, Any]] = []      # (time, stamp, set), time-sorted
+        self._newest: Optional[int] = None               # newest set time seen
+        self._pending: list[tuple[int, Any]] = []        # (image stamp, image), sorted
+        self._clock: Optional[int] = None                # newest image stamp seen
+
+    def pending(self) -> int:
+        """Images waiting for a decision."""
+        return len(self._pending)
+
+    def add_candidates(self, stamp_ns: int, cands: Any) -> list:
+        """Store a candidate set; return the images it decided."""
+        stamp = int(stamp_ns)
+        t = stamp + self.time_offset_ns
+        bisect.insort(self._sets, (t, stamp, cands), key=lambda e: e[0])
+        if len(self._sets) > self.history:
+            del self._sets[0]
+        self._newest = t if self._newest is None else max(self._newest, t)
+        return self._decide(force=())
+
+    def add_image(self, stamp_ns: int, image: Any = None) -> list:
+        """Queue an image; return the images decided now (this one if no wait is needed)."""
+        stamp = int(stamp_ns)
+        bisect.insort(self._pending, (stamp, image), key=lambda e: e[0])
+        self._clock = stamp if self._clock is None else max(self._clock, stamp)
+        force = {id(e) for e in self._pending[:max(len(self._pending) - self.max_pending, 0)]}
+        return self._decide(force=force)
+
+    def best(self, t_ns: int) -> Optional[tuple[int, int, Any]]:
+        """The stored ``(time, stamp, set)`` nearest to ``t_ns`` within the slop, or None."""
+        best, best_d = None, None
+        for entry in self._sets:                     # time order: ties keep the earlier
+            d = abs(entry[0] - t_ns)
+            if d <= self.slop_ns and (best_d is None or d < best_d):
+                best, best_d = entry, d
+        return best
+
+    def _final(self, t: int, best: Optional[tuple[int, int, Any]]) -> bool:
+        if self._newest is not None and self._newest >= t:
+            return True
+        if self._newest is None:
+            return False                             # no set yet: the first may be near
+        nxt = self._newest + self.min_period_ns      # earliest possible next set time
+        if nxt - t > self.slop_ns:
+            return True
+        return best is not None and nxt - t >= abs(best[0] - t)
+
+    def _decide(self, force) -> list:
+        out, keep = [], []
+        for entry in self._pending:
+            t, image = entry
+            best = self.best(t)
+            expired = self._clock is not None and self._clock - t >= self.max_wait_ns
+            if id(entry) in force or expired or self._final(t, best):
+                out.append((t, image, None if best is None else best[1],
+                            None if best is None else best[2]))
+            else:
+                keep.append(entry)
+        self._pending = keep
+        return out
 
 
 # --- poses ------------------------------------------------------------------------------

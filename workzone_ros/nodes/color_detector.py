@@ -113,7 +113,8 @@ class ColorDetectorNode(WorkzoneNode):
 
     def _make_detector(self) -> ColorDetector:
         p = self.params
-        cfg = DetectorConfig(colors=tuple(p.colors),
+        bs = tuple(float(v) for v in self._model.extras.get('box_scale', (1.0, 1.0)))
+        cfg = DetectorConfig(colors=tuple(p.colors), border_scale=bs,
                              **{k: getattr(p, k) for k in _CORE})
         lp = None
         if 'rgb_lp_thresholds' in self._model.extras:

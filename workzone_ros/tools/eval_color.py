@@ -331,7 +331,8 @@ def build_detectors(model: cm.ColorModel, methods: Sequence[str], lidar: bool,
                   'skipped', file=sys.stderr)
             continue
         if m == 'learned':
-            cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold)
+            bs = tuple(float(v) for v in model.extras.get('box_scale', (1.0, 1.0)))
+            cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold, border_scale=bs)
         else:        # the seeds' baselines: no prior (they have none), full resolution
             cfg = dt.DetectorConfig(method=m, colors=('orange',), use_prior=False, scale=1)
         out[m] = (dt.ColorDetector(model, cfg, lp), False)

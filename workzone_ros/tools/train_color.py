@@ -165,6 +165,24 @@ def main(argv: Optional[list[str]] = None) -> int:
     lut = cm.boosted_lut(clf)
     t_fit = time.perf_counter() - t0 - t_count
     prior = cm.fit_prior(boxes, size or (640, 480))
+    # face box / orange box: the black border and the thin outer margin the blob misses
+    ratios = []
+    for ip, mp in train:
+        img, mask = _read(ip, mp)
+        hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+        orange = (lut[hsv[..., 0], hsv[..., 1]] >= 0.5) & (hsv[..., 2] >= args.v_min)
+        n, lab, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8))
+        for i in range(1, n):
+            x, y, w, h, _ = stats[i]
+            if min(w, h) < 24:
+                continue
+            ys, xs = np.nonzero(orange[y:y + h, x:x + w] & (lab[y:y + h, x:x + w] == i))
+            if len(xs) < 50:
+                continue
+            rw, rh = w / (xs.max() - xs.min() + 1), h / (ys.max() - ys.min() + 1)
+            if rh < 1.3:            # two-colour faces are the extension's business
+                ratios.append((rw, rh))
+    box_scale = tuple(float(v) for v in np.median(ratios, axis=0)) if ratios else (1.0, 1.0)
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
         'train_images': len(train), 'val_images': len(val),
@@ -174,7 +192,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
-    extras = {}
+    extras = {'box_scale': np.array(box_scale)}
+    meta['box_scale'] = list(box_scale)
+    meta['box_scale_faces'] = len(ratios)
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)

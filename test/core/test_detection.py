@@ -219,7 +219,7 @@ def test_rgb_lp_thresholds_and_mser(model):
         p, n = dt.rgb_histograms(img, mask)
         pos += p
         neg += n
-    lp = dt.fit_rgb_lp(pos, neg, w=4.0, max_thresholds=4, time_limit=20)
+    lp = dt.fit_rgb_lp(pos, neg, w=1.0, max_thresholds=4, time_limit=20)
     assert 1 <= len(lp.thresholds) <= 4
     assert lp.metadata['fn_rate'] < 0.2 and lp.metadata['fp_rate'] < 0.2
     det = dt.ColorDetector(model, dt.DetectorConfig(method='rgb_lp', use_prior=False, scale=1),

@@ -4,7 +4,8 @@ import pytest
 
 from workzone_ros.core.projection import (
     CameraModel, ProjectionError, RoiParams, candidates_to_rois, compensate, crop_boxes,
-    euler_matrix, extrinsics_from_list, invert, point_times, project_points,
+    euler_matrix, extrinsics_from_list, forward_time_offset, invert, point_times,
+    project_points,
 )
 from workzone_ros.core.lidar_clustering import CANDIDATE_DTYPE
 
@@ -152,3 +153,29 @@ def test_candidates_to_rois_compensates_with_the_pose_function():
     # No pose at these times: not compensated, and said so.
     none, comp3 = candidates_to_rois(cands, 0, image_ns, CAM, T, lambda t: None)
     assert not comp3 and len(none) == 1
+
+
+@pytest.mark.parametrize('image_ms', [-60, 20, 50, 250])
+def test_compensation_for_any_gap_the_pairing_leaves(image_ms):
+    # nearest may pair an image with a later scan (image before the firing), latest with a
+    # much older one: the candidate is moved to the image time either way.
+    speed = 27.0
+
+    def pose(t_ns):
+        m = np.eye(4)
+        m[0, 3] = speed * t_ns * 1e-9
+        return m
+
+    sign = np.array([30.0, -6.0, 1.0])
+    fired = point_times(sign[None], 0, 10.0)[0]
+    cands = _cands([tuple(sign - [speed * fired * 1e-9, 0, 0]) + (0.8,)])
+    image_ns = image_ms * 1_000_000
+    rois, comp = candidates_to_rois(cands, 0, image_ns, CAM, T, pose, RoiParams())
+    truth = by_hand(sign - [speed * image_ns * 1e-9, 0, 0])
+    assert comp and rois[0].center == pytest.approx(tuple(truth), abs=0.05)
+
+
+def test_forward_time_offset_follows_the_spin_model():
+    assert forward_time_offset(RoiParams()) == 50_000_000          # half a 10 Hz spin
+    assert forward_time_offset(RoiParams(lidar_rate_hz=20.0)) == 25_000_000
+    assert forward_time_offset(RoiParams(spin_timing=False)) == 0

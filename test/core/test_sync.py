@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from workzone_ros.core.sync import (
-    ApproximateTimeSync, LatestSync, PoseBuffer, SyncError, matrix_to_quat, quat_to_matrix,
-    slerp,
+    ApproximateTimeSync, LatestSync, NearestSync, PoseBuffer, SyncError, matrix_to_quat,
+    quat_to_matrix, slerp,
 )
 
 S = 1_000_000_000
@@ -124,6 +124,93 @@ def test_latest_baseline_pairs_each_image_with_the_last_cloud():
     assert base.add_image(190) == (100, 'c1')          # reused: the seed's behaviour
     base.add_cloud(200, 'c2')
     assert base.add_image(180) == (200, 'c2')          # even a cloud newer than the image
+
+
+MS = 1_000_000
+
+
+def nearest_run(events, **kw):
+    """Feed ('i'|'c', stamp_ms) events to a NearestSync; return {image_ms: set_ms or None}
+    and the order in which images were decided."""
+    sync = NearestSync(**kw)
+    got, order = {}, []
+    for kind, t in events:
+        out = sync.add_image(t * MS, ('img', t)) if kind == 'i' else \
+            sync.add_candidates(t * MS, ('set', t))
+        for t_img, image, t_set, cands in out:
+            assert image == ('img', t_img // MS)
+            assert (cands is None and t_set is None) or cands == ('set', t_set // MS)
+            got[t_img // MS] = None if t_set is None else t_set // MS
+            order.append(t_img // MS)
+    return got, order
+
+
+def test_nearest_picks_the_nearest_set_and_reuses_sets():
+    # All sets already there: each image takes the nearest, a set serves several images.
+    ev = [('c', 0), ('c', 100), ('c', 200), ('i', 30), ('i', 60), ('i', 90), ('i', 140)]
+    got, _ = nearest_run(ev, slop_ns=100 * MS, min_period_ns=100 * MS)
+    assert got == {30: 0, 60: 100, 90: 100, 140: 100}
+
+
+def test_nearest_ties_go_to_the_earlier_set_and_slop_is_enforced():
+    ev = [('c', 0), ('c', 100), ('c', 300), ('i', 50), ('i', 200), ('i', 250)]
+    got, _ = nearest_run(ev, slop_ns=60 * MS, min_period_ns=100 * MS)
+    assert got == {50: 0, 200: None, 250: 300}    # 200 is 100 ms from both: over the slop
+
+
+def test_nearest_waits_for_a_later_set_only_when_it_could_be_nearer():
+    # 15 Hz camera, 10 Hz LiDAR stamped 50 ms later, candidates arriving after the next image.
+    kw = dict(slop_ns=100 * MS, min_period_ns=100 * MS, max_wait_ns=150 * MS)
+    got, order = nearest_run([('c', 50), ('i', 67)], **kw)
+    assert got == {67: 50}                        # the next set (>= 150) cannot be nearer
+    got, order = nearest_run([('c', 50), ('i', 133)], **kw)
+    assert got == {}                              # 150 could be nearer (17 < 83 ms): wait
+    got, order = nearest_run([('c', 50), ('i', 133), ('i', 200), ('c', 150)], **kw)
+    assert got == {133: 150, 200: 150} and order == [133, 200]
+    # Tie with the next possible set (0 is 50 ms from -50 and from 50): no wait.
+    got, _ = nearest_run([('c', -50), ('i', 0)], **kw)
+    assert got == {0: -50}
+
+
+def test_nearest_wait_is_bounded_on_the_image_clock():
+    kw = dict(slop_ns=100 * MS, min_period_ns=100 * MS, max_wait_ns=150 * MS)
+    # The LiDAR stalls after 50: image 133 gives up when an image 150 ms younger arrives.
+    got, order = nearest_run([('c', 50), ('i', 133), ('i', 200), ('i', 267), ('i', 283)], **kw)
+    assert got == {133: 50} and order == [133]
+    # No set at all yet: the images wait, then leave with none.
+    got, order = nearest_run([('i', 0), ('i', 67), ('i', 133), ('i', 217)], **kw)
+    assert got == {0: None, 67: None} and order == [0, 67]
+    # max_wait 0: never wait, take the best set already there.
+    got, _ = nearest_run([('c', 50), ('i', 133)], slop_ns=100 * MS, min_period_ns=100 * MS)
+    assert got == {133: 50}
+
+
+def test_nearest_pending_images_are_capped_and_a_newer_set_decides():
+    kw = dict(slop_ns=100 * MS, min_period_ns=0, max_wait_ns=10 ** 12, max_pending=2)
+    # No period bound: images newer than the newest set wait until a set at or after them.
+    got, order = nearest_run([('c', 0), ('i', 40), ('i', 50), ('i', 60)], **kw)
+    assert got == {40: 0} and order == [40]       # the oldest is forced out by the cap
+    got, order = nearest_run([('c', 0), ('i', 40), ('i', 50), ('c', 70)], **kw)
+    assert got == {40: 70, 50: 70}
+
+
+def test_nearest_time_offset_and_late_sets():
+    # Sets matched by stamp + half a spin (when the LiDAR looks forward).
+    ev = [('c', 50), ('i', 133), ('c', 150), ('i', 200)]
+    got, _ = nearest_run(ev, slop_ns=100 * MS, min_period_ns=100 * MS, max_wait_ns=150 * MS,
+                         time_offset_ns=50 * MS)
+    assert got == {133: 50, 200: 150}             # 100 vs 133 and 200 vs 200
+    # A set arriving out of order is placed by its stamp for the images that follow.
+    got, _ = nearest_run([('c', 0), ('c', 200), ('c', 130), ('i', 140)], slop_ns=100 * MS,
+                         min_period_ns=100 * MS)
+    assert got == {140: 130}
+
+
+def test_nearest_bad_arguments():
+    with pytest.raises(SyncError):
+        NearestSync(-1)
+    with pytest.raises(SyncError):
+        NearestSync(10, history=0)
 
 
 def _yaw_quat(yaw):

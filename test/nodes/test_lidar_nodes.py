@@ -196,3 +196,64 @@ def test_bad_extrinsics_are_reported_not_guessed(ros):
         Parameter('lidar_to_camera', value=[1.0, 2.0, 3.0])], **FAST))
     status = proj.diagnostic_status()
     assert 'lidar_to_camera' in status.message
+
+
+def test_nearest_policy_gives_every_image_the_nearest_scan_and_reuses_scans(ros):
+    # 15 Hz images, 10 Hz candidate sets stamped 50 ms after the frames (the simulator's
+    # timing), published a little after their stamp: every image gets ROIs, from the set
+    # whose forward time (stamp + half a spin) is nearest; sets serve several images.
+    from workzone_ros.core.lidar_clustering import CANDIDATE_DTYPE
+    t = _topics()
+    ros.add(ProjectorNode(context=ros.context, parameter_overrides=[
+        Parameter('candidates_topic', value=t['cands']),
+        Parameter('image_topic', value=t['image']),
+        Parameter('camera_info_topic', value=t['info']),
+        Parameter('rois_topic', value=t['rois']),
+        Parameter('odom_topic', value=''),
+        Parameter('sync_policy', value='nearest'),
+        Parameter('lidar_to_camera', value=[float(v) for v in LIDAR_TO_CAMERA.ravel()])],
+        **FAST))
+    io = ros.add(rclpy.create_node('io3', context=ros.context))
+    pub_cands = io.create_publisher(PointCloud2, t['cands'], 10)
+    pub_img = io.create_publisher(Image, t['image'], 10)
+    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    got = []
+    io.create_subscription(String, t['rois'], got.append, 50)
+    cam = SMALL_CAMERA
+    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
+    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
+    cands = np.zeros(1, CANDIDATE_DTYPE)
+    cands[0] = (*SIGN, 0.6, 200.0, 96, 1)
+    t0 = 1_700_000_000_000_000_000
+    ms = 1_000_000
+    # Arrival order: a set is published after the images up to ~100 ms past its stamp.
+    images = [round(k * 1000 / 15) for k in range(16)]
+    sets = [50 + 100 * j for j in range(10)]
+    events = sorted([(s, 'i') for s in images] + [(s + 100, 'c') for s in sets])
+    state = {'k': 0}
+
+    def each():
+        pub_info.publish(info)
+        if state['k'] < len(events) and ros.nodes[0]._camera is not None:
+            when, kind = events[state['k']]
+            state['k'] += 1
+            if kind == 'i':
+                pub_img.publish(numpy_to_image(frame, 'bgr8', stamp=interfaces.Time.from_ns(
+                    t0 + when * ms), frame_id='camera'))
+            else:
+                pub_cands.publish(array_to_pointcloud2(cands, stamp=interfaces.Time.from_ns(
+                    t0 + (when - 100) * ms), frame_id='lidar'))
+
+    def done():
+        return state['k'] >= len(events) and len(got) >= 8
+
+    assert ros.spin_until(done, each=each), (state['k'], len(got))
+    pairs = {}
+    for msg in got:
+        r = interfaces.decode(msg.data, interfaces.Rois)
+        pairs[(r.header.stamp.to_ns() - t0) // ms] = (r.lidar_stamp.to_ns() - t0) // ms
+        assert len(r.rois) == 1
+    for img, used in pairs.items():
+        nearest = min(sets, key=lambda s: (abs(s + 50 - img), s))
+        assert used == nearest and abs(img - used - 50) <= 100
+    assert len(set(pairs.values())) < len(pairs)        # some scan served two images

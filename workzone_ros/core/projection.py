@@ -25,7 +25,7 @@ import numpy as np
 
 __all__ = ['ProjectionError', 'CameraModel', 'Projected', 'project_points', 'crop_boxes',
            'compensate', 'point_times', 'invert', 'extrinsics_from_list', 'euler_matrix',
-           'RoiParams', 'candidates_to_rois']
+           'RoiParams', 'candidates_to_rois', 'forward_time_offset']
 
 
 class ProjectionError(ValueError):
@@ -278,6 +278,18 @@ class RoiParams:
     lidar_rate_hz: float = 10.0
     start_azimuth: float = float(np.pi)
     clockwise: bool = True
+
+
+def forward_time_offset(params: 'RoiParams') -> int:
+    """Nanoseconds from a scan stamp to when the spin looks forward (+x, the camera axis).
+
+    Half a spin for the default spin model (:func:`point_times`); 0 without ``spin_timing``.
+    The projector's ``nearest`` synchroniser matches images against this time.
+    """
+    if not params.spin_timing:
+        return 0
+    return int(point_times(np.array([[1.0, 0.0, 0.0]]), 0, params.lidar_rate_hz,
+                           params.start_azimuth, params.clockwise)[0])
 
 
 def candidates_to_rois(cands: np.ndarray, lidar_stamp_ns: int, image_stamp_ns: int,

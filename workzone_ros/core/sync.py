@@ -25,8 +25,8 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'PoseBuffer', 'quat_to_matrix',
-           'matrix_to_quat', 'slerp', 'pose_matrix']
+__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'PoseBuffer',
+           'quat_to_matrix', 'matrix_to_quat', 'slerp', 'pose_matrix']
 
 
 class SyncError(ValueError):

@@ -6,14 +6,16 @@ Thin wrapper around :mod:`workzone_ros.core.sync` and :mod:`workzone_ros.core.pr
 
   - ``nearest`` (default): every image gets the candidate set nearest in time within the
     ``slop`` (a set may serve several images), waiting at most ``max_wait`` for a later scan
-    when that one could be nearer (:class:`~workzone_ros.core.sync.NearestSync`);
+    when that one could be nearer (:class:`~workzone_ros.core.sync.NearestSync`); with
+    ``sync_forward_time`` a set's time is when the spin looks along the camera axis;
   - ``approximate``: the message_filters ApproximateTime policy (``slop``, ``queue_size``,
     ``age_penalty``): one-to-one pairs, so with a 15 Hz camera and a 10 Hz LiDAR about a
     third of the images get no ROIs;
   - ``latest``: the seed's "last cloud received" baseline (no slop);
 * candidates are moved from the scan time (per candidate firing time of the spin) to the
-  image time with odometry poses, whatever the gap the pairing left (before or after), then projected with the CameraInfo intrinsics and
-  distortion and the configured LiDAR->camera extrinsics;
+  image time with odometry poses, whatever the gap the pairing left (image before or after
+  the scan), then projected with the CameraInfo intrinsics and distortion and the configured
+  LiDAR->camera extrinsics;
 * one ``Rois`` payload per matched image, stamped with the image stamp and carrying the
   LiDAR stamp used and whether the motion was compensated; optionally the crops.
 
@@ -34,7 +36,7 @@ from std_msgs.msg import String
 from workzone_ros import interfaces
 from workzone_ros.core.projection import (
     CameraModel, ProjectionError, RoiParams, candidates_to_rois, euler_matrix,
-    extrinsics_from_list,
+    extrinsics_from_list, forward_time_offset,
 )
 from workzone_ros.core.sync import (
     ApproximateTimeSync, LatestSync, NearestSync, PoseBuffer, SyncError,
@@ -82,8 +84,9 @@ class ProjectorNode(WorkzoneNode):
         Param('age_penalty', 0.1, 'ApproximateTime age penalty', min=0.0, max=100.0),
         Param('max_wait', 0.15, 'nearest: how long an image may wait (image clock) for a '
               'later scan that could be nearer, s; 0 = never wait', min=0.0, max=5.0),
-        Param('sync_time_offset', 0.0, 'nearest: candidate set time = stamp + this, s (e.g. '
-              'half a spin when the stamp is the spin start)', min=-1.0, max=1.0),
+        Param('sync_forward_time', True, 'nearest: match the time the spin looks forward '
+              '(along the camera axis: stamp + half a spin with spin_timing) instead of the '
+              'cloud stamp'),
         Param('compensate', True, 'ego-motion compensation with odometry'),
         Param('spin_timing', _R.spin_timing, 'the cloud stamp is the start of the spin: '
               'time each candidate by its azimuth'),
@@ -147,10 +150,11 @@ class ProjectorNode(WorkzoneNode):
         self._slop_ns = int(p.slop * 1e9)
         self._sync = ApproximateTimeSync(2, p.queue_size, self._slop_ns, p.age_penalty)
         self._latest = LatestSync()
+        offset = forward_time_offset(self._roi_params) if p.sync_forward_time else 0
         self._nearest = NearestSync(self._slop_ns, int(1e9 / p.lidar_rate_hz),
-                                    int(p.max_wait * 1e9), int(p.sync_time_offset * 1e9),
-                                    history=max(p.queue_size, 2), max_pending=max(
-                                        p.queue_size, 2))
+                                    int(p.max_wait * 1e9), offset,
+                                    history=max(p.queue_size, 2),
+                                    max_pending=max(p.queue_size, 2))
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Apply live changes (the synchroniser restarts empty)."""
@@ -213,11 +217,12 @@ class ProjectorNode(WorkzoneNode):
         """Project the images the nearest-time synchroniser decided."""
         for img_ns, image, _, cands in decided:
             if cands is None:
-                self._counts['images without candidates within slop'] += 1
-                self.drop(self.resolve_topic_name(self.params.image_topic),
-                          f'no candidates within slop {self.params.slop:.3f} s of the image '
-                          f'stamped {img_ns * 1e-9:.3f}: LiDAR late, lost or clocks out of '
-                          f'sync')
+                if self._ready():             # else the missing calibration is the reason
+                    self._counts['images without candidates within slop'] += 1
+                    self.drop(self.resolve_topic_name(self.params.image_topic),
+                              f'no candidates within slop {self.params.slop:.3f} s of the image '
+                              f'stamped {img_ns * 1e-9:.3f}: LiDAR late, lost or clocks out of '
+                              f'sync')
                 continue
             self._project(image, cands)
 
@@ -225,16 +230,23 @@ class ProjectorNode(WorkzoneNode):
         base = self._poses.at(t_ns)
         return None if base is None else base @ self._base_to_lidar
 
-    def _project(self, image: Image, cands: tuple) -> None:
+    def _ready(self) -> bool:
+        """CameraInfo and extrinsics are there; else drop the image with the reason."""
         topic = self.resolve_topic_name(self.params.image_topic)
         if self._camera is None:
             self._counts['no camera info'] += 1
             self.drop(topic, f'no CameraInfo received on {self.params.camera_info_topic}: '
                              f'cannot project (intrinsics are never guessed)')
-            return
+            return False
         if self._extrinsics is None:
             self._counts['no extrinsics'] += 1
             self.drop(topic, self._extrinsics_error)
+            return False
+        return True
+
+    def _project(self, image: Image, cands: tuple) -> None:
+        topic = self.resolve_topic_name(self.params.image_topic)
+        if not self._ready():
             return
         if (int(image.width), int(image.height)) != (self._camera.width, self._camera.height):
             self.drop(topic, f'image {image.width}x{image.height} does not match CameraInfo '

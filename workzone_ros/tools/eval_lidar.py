@@ -20,6 +20,20 @@ Two modes:
       exact pose at the image time).  The error therefore includes the candidate-centre
       error of the clustering.  Speeds come from the bags (``synth --speed``).
 
+``sync BAG [BAG ...]``
+    Compares the projector's synchronisation policies (``approximate``, ``latest``,
+    ``nearest``; see :mod:`workzone_ros.core.sync`) on synth bags.  The bag is replayed as
+    the projector sees it: candidates (clustering + persistence, as ``lidar_cluster``) arrive
+    ``--cloud-delay-ms`` after their scan stamp (a whole spin plus processing), images
+    ``--image-delay-ms`` after theirs; each policy pairs them in arrival order, and every pair
+    is projected with ego-motion compensation.  Per policy: the fraction of camera
+    sign-frames (a ground-truth sign within ``--max-range`` in ``/groundtruth/signs``) whose
+    GT box centre lies inside an ROI, over all such signs and over the signs the LiDAR chain
+    detects at all (matched by a confirmed candidate in some scan); the ROI centre error vs
+    the GT box centre (median, p95; with and without compensation); the mean
+    ``|image stamp - lidar stamp|`` of the pairs and of the forward firing time (stamp +
+    half a spin); the mean wait from the image's arrival to its pairing.
+
 ``realdata [DIR]``
     Runs the chain on the three PJLab scenes (``shared/realdata/lidar_camera_pjlab``), prints
     the candidates and writes ROI overlays (PNG) to ``--out``.
@@ -41,9 +55,10 @@ from workzone_ros.core.lidar_clustering import (
 )
 from workzone_ros.core.pcd import read_pcd
 from workzone_ros.core.projection import (
-    CameraModel, RoiParams, candidates_to_rois, compensate, extrinsics_from_list, point_times,
-    project_points,
+    CameraModel, RoiParams, candidates_to_rois, compensate, extrinsics_from_list,
+    forward_time_offset, point_times, project_points,
 )
+from workzone_ros.core.sync import ApproximateTimeSync, LatestSync, NearestSync
 
 __all__ = ['main', 'load_pjlab_scene', 'PJLAB_SCENES', 'REAL_PARAMS', 'run_scene',
            'BANDS']
@@ -150,12 +165,18 @@ def _odom_pose(msg) -> tuple[int, np.ndarray]:
     return t, pose_matrix([p.x, p.y, p.z], [q.x, q.y, q.z, q.w])
 
 
-def _load_bag(path: Path):
-    """Scans (stamp, points), GT per scan stamp, odometry, camera info from a synth bag."""
+def _load_bag(path: Path, frames: Optional[list] = None):
+    """Scans (stamp, points), GT per scan stamp, odometry, camera info from a synth bag.
+
+    With ``frames`` (a list), the ``/groundtruth/signs`` payloads (one per camera frame,
+    stamped like the image) are appended to it as ``(stamp_ns, GtSigns)``.
+    """
     from workzone_ros import bagio, interfaces
     from workzone_ros.core.pointcloud import FieldSpec, cloud_view
     scans, gts, odom, info = [], {}, [], None
     topics = ['/lidar/points', '/groundtruth/lidar', '/odom', '/camera/camera_info']
+    if frames is not None:
+        topics.append('/groundtruth/signs')
     for item in bagio.read_messages(str(path), topics=topics):
         topic, msg = _topic_msg(item)
         if topic == '/lidar/points':
@@ -171,6 +192,9 @@ def _load_bag(path: Path):
             odom.append(_odom_pose(msg))
         elif topic == '/camera/camera_info' and info is None:
             info = msg
+        elif topic == '/groundtruth/signs':
+            gs = interfaces.decode(msg.data, interfaces.GtSigns)
+            frames.append((gs.header.stamp.to_ns(), gs))
     return scans, gts, odom, info
 
 
@@ -368,8 +392,200 @@ def _jsonable(obj):
     return obj
 
 
+# --- synchronisation policies --------------------------------------------------------------
+
+#: Policies compared by ``sync``: name -> (policy, overrides).  ``forward`` = the projector's
+#: ``sync_forward_time`` (match the time the spin looks forward, not the cloud stamp).
+SYNC_VARIANTS = {
+    'approximate': ('approximate', {}),
+    'latest': ('latest', {}),
+    'nearest-stamp': ('nearest', {'forward': False}),
+    'nearest': ('nearest', {'forward': True}),            # the projector's default
+    'nearest-nowait': ('nearest', {'forward': True, 'max_wait_ns': 0}),
+}
+
+
+def pair_stream(events, policy: str, slop_ns: int, queue_size: int = 5,
+                age_penalty: float = 0.1, period_ns: int = 100_000_000,
+                max_wait_ns: int = 150_000_000, time_offset_ns: int = 0) -> dict:
+    """Run one synchronisation policy over arrival-ordered events.
+
+    Args:
+        events: ``(arrival_ns, kind, stamp_ns, payload)`` sorted by arrival; kind 'image' or
+            'cands'.
+        policy: 'approximate', 'latest' or 'nearest' (as the projector's ``sync_policy``).
+
+    Returns:
+        ``{image_stamp: (set_stamp, set, decided_at_ns)}`` for the images that got a set.
+    """
+    out: dict = {}
+    if policy == 'approximate':
+        sync = ApproximateTimeSync(2, queue_size, slop_ns, age_penalty)
+        for arrival, kind, stamp, payload in events:
+            for (t_img, t_set), (_, cands) in sync.add(0 if kind == 'image' else 1, stamp,
+                                                       payload):
+                out[t_img] = (t_set, cands, arrival)
+    elif policy == 'latest':
+        latest = LatestSync()
+        for arrival, kind, stamp, payload in events:
+            if kind == 'cands':
+                latest.add_cloud(stamp, payload)
+            else:
+                got = latest.add_image(stamp)
+                if got is not None:
+                    out[stamp] = (got[0], got[1], arrival)
+    elif policy == 'nearest':
+        near = NearestSync(slop_ns, period_ns, max_wait_ns, time_offset_ns,
+                           history=max(queue_size, 2), max_pending=max(queue_size, 2))
+        for arrival, kind, stamp, payload in events:
+            got = near.add_image(stamp) if kind == 'image' else \
+                near.add_candidates(stamp, payload)
+            for t_img, _, t_set, cands in got:
+                if cands is not None:
+                    out[t_img] = (t_set, cands, arrival)
+    else:
+        raise ValueError(f'unknown policy {policy!r}')
+    return out
+
+
+def evaluate_sync(path: Path, params: ClusterParams, k: int, n: int, variants: dict,
+                  slop_ns: int, cloud_delay_ns: int, image_delay_ns: int, max_range: float,
+                  roi_params: RoiParams, camera: CameraModel, lidar_to_camera: np.ndarray,
+                  base_to_lidar: np.ndarray, sync_kw: dict) -> dict:
+    """Per-policy ROI coverage, centre error and stamp gaps on one bag (module docstring)."""
+    frames: list = []
+    scans, gts, odom, info = _load_bag(path, frames)
+    if info is not None:
+        camera = CameraModel(int(info.width), int(info.height),
+                             np.asarray(info.k, float).reshape(3, 3),
+                             np.asarray(info.d, float), info.distortion_model or 'plumb_bob')
+    od = _Odom(odom, base_to_lidar)
+    tracker = CandidateTracker(k=k, n=n)
+    half_spin = forward_time_offset(roi_params) or int(0.5e9 / roi_params.lidar_rate_hz)
+    events, detected = [], set()
+    for stamp, pts in scans:             # as lidar_cluster: clustering + persistence
+        res = cluster_cloud(pts, params)
+        cands = tracker.update(res.candidates, od.lidar(stamp + half_spin))
+        arr = candidates_to_array(cands)
+        gt = gts.get(stamp)
+        if gt is not None and len(gt.signs) and len(arr):
+            gt_c = np.array([s.center for s in gt.signs], float)
+            xyz = np.column_stack([arr['x'], arr['y'], arr['z']]).astype(float)
+            d = np.linalg.norm(gt_c[:, None, :] - xyz[None, :, :], axis=2)
+            hit = (d <= np.maximum(1.0, 1.5 * arr['radius'].astype(float))[None, :]).any(1)
+            detected.update(s.sign_id for s, h in zip(gt.signs, hit) if h)
+        events.append((stamp + cloud_delay_ns, 0, 'cands', stamp, arr))
+    for stamp, gs in frames:
+        events.append((stamp + image_delay_ns, 1, 'image', stamp, gs))
+    events.sort(key=lambda e: (e[0], e[1], e[3]))
+    events = [(a, kind, t, p) for a, _, kind, t, p in events]
+    out = {'bag': str(path), 'speed_mps': _mean_speed(odom), 'frames': len(frames),
+           'policies': {}}
+    for name, (policy, over) in variants.items():
+        kw = dict(sync_kw)
+        kw.update(over)
+        if kw.pop('forward', False):
+            kw['time_offset_ns'] = forward_time_offset(roi_params)
+        pairs = pair_stream(events, policy, slop_ns, **kw)
+        r = {'paired': len(pairs), 'sign_frames': 0, 'covered': 0, 'det_sign_frames': 0,
+             'det_covered': 0, 'err': [], 'err_raw': [], 'dt': [], 'dt_fwd': [], 'wait': []}
+        for t_img, gs in frames:
+            signs = [s for s in gs.signs if s.distance_m <= max_range]
+            got = pairs.get(t_img)
+            rois, rois_raw = [], []
+            if got is not None:
+                t_set, arr, decided = got
+                r['dt'].append(abs(t_img - t_set) * 1e-6)
+                r['dt_fwd'].append(abs(t_img - t_set - half_spin) * 1e-6)
+                r['wait'].append((decided - t_img - image_delay_ns) * 1e-6)
+                if signs:
+                    rois, _ = candidates_to_rois(arr, t_set, t_img, camera, lidar_to_camera,
+                                                 od.lidar, roi_params)
+                    rois_raw, _ = candidates_to_rois(arr, t_set, t_img, camera,
+                                                     lidar_to_camera, None, roi_params)
+            for s in signs:
+                det = s.sign_id in detected
+                r['sign_frames'] += 1
+                r['det_sign_frames'] += det
+                c = np.array([s.box.x + s.box.w / 2, s.box.y + s.box.h / 2])
+                for key, rs in (('err', rois), ('err_raw', rois_raw)):
+                    inside = [np.hypot(*(np.array(q.center) - c)) for q in rs
+                              if q.box.x <= c[0] <= q.box.x + q.box.w
+                              and q.box.y <= c[1] <= q.box.y + q.box.h]
+                    if inside:
+                        r[key].append(float(min(inside)))
+                        if key == 'err':
+                            r['covered'] += 1
+                            r['det_covered'] += det
+        out['policies'][name] = r
+    return out
+
+
+def _sync(args) -> int:
+    import yaml
+    data = (yaml.safe_load(Path(args.config).read_text()) or {}) if args.config else {}
+    cfg = (data.get('lidar_cluster') or {}).get('ros__parameters', {}) or {}
+    pcfg = (data.get('projector') or {}).get('ros__parameters', {}) or {}
+    params = ClusterParams.from_mapping(cfg)
+    k = int(cfg.get('persistence_k', 2))
+    n = int(cfg.get('persistence_n', 3))
+    t_l2c = extrinsics_from_list(pcfg['lidar_to_camera']) if 'lidar_to_camera' in pcfg else \
+        extrinsics_from_list(list(np.array([[0, -1, 0, 0], [0, 0, -1, -0.5], [1, 0, 0, -0.6],
+                                            [0, 0, 0, 1]], float).ravel()))
+    b2l = np.eye(4)
+    b2l[:3, 3] = pcfg.get('lidar_in_base', [1.0, 0.0, 1.95])[:3]
+    from workzone_ros.sim.world import DEFAULT_CAMERA
+    cam = CameraModel(DEFAULT_CAMERA.width, DEFAULT_CAMERA.height, DEFAULT_CAMERA.K,
+                      DEFAULT_CAMERA.D)
+    variants = {k_: v for k_, v in SYNC_VARIANTS.items()
+                if not args.policies or k_ in args.policies}
+    sync_kw = dict(queue_size=args.queue_size, age_penalty=args.age_penalty,
+                   period_ns=int(1e9 / RoiParams().lidar_rate_hz),
+                   max_wait_ns=int(args.max_wait * 1e9))
+    results = []
+    for bag in args.bags:
+        r = evaluate_sync(Path(bag), params, k, n, variants, int(args.slop * 1e9),
+                          int(args.cloud_delay_ms * 1e6), int(args.image_delay_ms * 1e6),
+                          args.max_range, RoiParams(), cam, t_l2c, b2l, sync_kw)
+        results.append(r)
+        _print_sync(r, args)
+    if len(results) > 1:
+        merged = {'bag': 'all bags', 'speed_mps': float('nan'),
+                  'frames': sum(r['frames'] for r in results), 'policies': {}}
+        for name in variants:
+            rs = [r['policies'][name] for r in results]
+            merged['policies'][name] = {key: (sum((x[key] for x in rs), []) if isinstance(
+                rs[0][key], list) else sum(x[key] for x in rs)) for key in rs[0]}
+        _print_sync(merged, args)
+        results.append(merged)
+    if args.json:
+        Path(args.json).write_text(json.dumps(_jsonable(results), indent=2))
+    return 0
+
+
+def _print_sync(r, args) -> None:
+    print(f'== {r["bag"]} (ego {r["speed_mps"]:.1f} m/s): {r["frames"]} camera frames, slop '
+          f'{args.slop * 1e3:.0f} ms, candidates arrive {args.cloud_delay_ms:.0f} ms after the '
+          f'scan stamp, images {args.image_delay_ms:.0f} ms after theirs')
+    print(f'   {"policy":<20} {"frames w/ ROIs":>14} {"covered (all)":>18} '
+          f'{"covered (LiDAR-det.)":>20} {"err med/p95 px":>15} {"uncomp med/p95":>15} '
+          f'{"|dt| ms":>8} {"|dt fwd|":>8} {"wait ms":>8}')
+    for name, p in r['policies'].items():
+        f = r['frames']
+        cov = f'{p["covered"]}/{p["sign_frames"]} ' \
+              f'{100 * p["covered"] / max(p["sign_frames"], 1):5.1f}%'
+        det = f'{p["det_covered"]}/{p["det_sign_frames"]} ' \
+              f'{100 * p["det_covered"] / max(p["det_sign_frames"], 1):5.1f}%'
+        print(f'   {name:<20} {100 * p["paired"] / max(f, 1):13.1f}% {cov:>18} {det:>20} '
+              f'{_pct(p["err"], 50):6.2f}/{_pct(p["err"], 95):<8.2f} '
+              f'{_pct(p["err_raw"], 50):6.2f}/{_pct(p["err_raw"], 95):<8.2f} '
+              f'{np.mean(p["dt"]) if p["dt"] else float("nan"):8.1f} '
+              f'{np.mean(p["dt_fwd"]) if p["dt_fwd"] else float("nan"):8.1f} '
+              f'{np.mean(p["wait"]) if p["wait"] else float("nan"):8.1f}')
+
+
 def main(argv: Optional[list[str]] = None) -> int:
-    """``workzone-ros evaluate lidar {synthetic,realdata} ...``."""
+    """``workzone-ros evaluate lidar {synthetic,sync,realdata} ...``."""
     parser = argparse.ArgumentParser(prog='workzone-ros evaluate lidar', description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='mode', required=True)
@@ -382,13 +598,29 @@ def main(argv: Optional[list[str]] = None) -> int:
     s.add_argument('--min-gt-points', type=int, default=3,
                    help='a sign counts in a scan with at least this many face returns')
     s.add_argument('--json', help='write the figures to this JSON file')
+    y = sub.add_parser('sync', help='compare the projector synchronisation policies')
+    y.add_argument('bags', nargs='+', help='bags written by workzone-ros synth')
+    y.add_argument('--config', default='config/workzone.yaml',
+                   help='parameters file (lidar_cluster and projector sections)')
+    y.add_argument('--policies', nargs='*', choices=list(SYNC_VARIANTS),
+                   help='variants to compare (default: all)')
+    y.add_argument('--slop', type=float, default=0.1, help='s (the projector default)')
+    y.add_argument('--max-wait', type=float, default=0.15, help='nearest: s (image clock)')
+    y.add_argument('--queue-size', type=int, default=5)
+    y.add_argument('--age-penalty', type=float, default=0.1)
+    y.add_argument('--cloud-delay-ms', type=float, default=110.0,
+                   help='candidates arrive this long after their scan stamp (spin + work)')
+    y.add_argument('--image-delay-ms', type=float, default=5.0,
+                   help='images arrive this long after their stamp')
+    y.add_argument('--max-range', type=float, default=60.0, help='GT signs up to this far, m')
+    y.add_argument('--json', help='write the figures to this JSON file')
     r = sub.add_parser('realdata', help='the PJLab scenes: candidates and ROI overlays')
     here = Path(__file__).resolve().parents[2]
     r.add_argument('dir', nargs='?', default=str(here.parent / 'shared' / 'realdata'
                                                  / 'lidar_camera_pjlab'))
     r.add_argument('--out', default='/tmp/workzone_lidar_realdata')
     args = parser.parse_args(argv)
-    return _synthetic(args) if args.mode == 'synthetic' else _realdata(args)
+    return {'synthetic': _synthetic, 'sync': _sync, 'realdata': _realdata}[args.mode](args)
 
 
 if __name__ == '__main__':

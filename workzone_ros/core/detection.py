@@ -125,7 +125,7 @@ class DetectorConfig:
     white_v_rel: float = 0.8
     ext_min_dark: float = 0.03
     roi_prior: float = 1.0
-    roi_threshold: float = 0.3
+    roi_threshold: float = 0.5
     roi_margin: float = 0.25
     lidar_confidence: float = 0.5
     lidar_only: bool = False
@@ -304,7 +304,7 @@ class RgbLpModel:
         return {'rgb_lp_thresholds': self.thresholds.astype(np.float64)}
 
 
-def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds: int = 6,
+def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 1.0, max_thresholds: int = 6,
                max_candidates: int = 80, time_limit: float = 60.0,
                max_bins: int = 3000) -> RgbLpModel:
     """Choose rho* = argmin FP(rho) + w FN(rho) over subsets of thresholds (seed 002, eq. 2).
@@ -317,7 +317,8 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
 
     Args:
         pos, neg: counts from :func:`rgb_histograms`.
-        w: the weight of a false negative relative to a false positive.
+        w: the weight of a false negative relative to a false positive, in units of the
+            class-size ratio (1 = balanced).
         max_thresholds: cardinality bound (each threshold costs time per frame).
         max_candidates: candidates kept after a single-threshold pre-screen.
         max_bins: only the heaviest positive / negative colour bins enter the program (the
@@ -336,6 +337,9 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
     ineg_all = ineg
     if len(ip) == 0 or len(ineg) == 0:
         raise ModelError('the RGB threshold LP needs both sign and background pixels')
+    # w is relative to the class sizes: FP + w (N_neg / N_pos) FN, so w = 1 weighs the
+    # classes equally (raw pixel counts make "no threshold at all" optimal: signs are <0.1 %)
+    w = w * float(neg.sum()) / float(pos.sum())
     pw, nw = pos[ip], neg[ineg]
     rep = np.repeat(centres[ip], np.minimum(pw, 50).astype(int), axis=0)
     cands = candidate_rgb_thresholds(rep)
@@ -377,7 +381,7 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 4.0, max_thresholds:
     pass_pos = np.zeros(len(pos_all), bool)
     for a, b, c_, t in chosen:
         pass_pos |= centres[pos_all] @ np.array([a, b, c_]) >= t
-    meta = {'w': w, 'candidates': int(k), 'selected': int(len(sel)),
+    meta = {'w_effective': w, 'candidates': int(k), 'selected': int(len(sel)),
             'fn_rate': float(pos[pos_all][~pass_pos].sum() / pos.sum()),
             'fp_rate': float(neg[ineg_all][pass_all].sum() / neg.sum()),
             'status': str(res.message), 'mip_gap': float(getattr(res, 'mip_gap', 0.0) or 0.0)}

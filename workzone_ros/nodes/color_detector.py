@@ -65,7 +65,7 @@ class ColorDetectorNode(WorkzoneNode):
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),
-        Param('roi_threshold', 0.3, 'posterior threshold inside LiDAR ROIs', min=0.01,
+        Param('roi_threshold', 0.5, 'posterior threshold inside LiDAR ROIs', min=0.01,
               max=0.99),
         Param('roi_margin', 0.25, 'ROI growth (fraction of its size)', min=0.0, max=2.0),
         Param('lidar_confidence', 0.5, 'noisy-OR weight of LiDAR support', min=0.0, max=1.0),

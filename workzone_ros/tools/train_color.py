@@ -115,7 +115,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--val-frac', type=float, default=0.2, help='validation share (default 0.2)')
     p.add_argument('--rgb-lp', action='store_true',
                    help='also choose the seed 002 RGB thresholds (Boolean LP)')
-    p.add_argument('--lp-w', type=float, default=4.0, help='seed 002 FN weight w (default 4)')
+    p.add_argument('--lp-w', type=float, default=1.0,
+                   help='seed 002 FN weight w, relative to the class sizes (default 1)')
     p.add_argument('--lp-max', type=int, default=6, help='seed 002 max thresholds (default 6)')
     args = p.parse_args(argv)
 

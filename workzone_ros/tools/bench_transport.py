@@ -44,9 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--bag-seconds', type=float, default=3.0,
                         help='length of the generated bag for the player test (3)')
     parser.add_argument('--no-player', action='store_true', help='skip the player test')
-    parser.add_argument('--shm', action='store_true',
-                        help="use the launcher's Fast DDS profile (shared memory, 32 MB "
-                        'segments) in every process')
+    parser.add_argument('--default-transport', action='store_true',
+                        help="Fast DDS defaults instead of the launcher's profile (shared "
+                        'memory with 32 MB segments, the default here as in the launcher)')
     parser.add_argument('--reliable', action='store_true',
                         help='subscribe reliable instead of the sensor-data (best effort) QoS')
 
@@ -315,7 +315,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.signals import SignalHandlerOptions
-    if getattr(args, 'shm', False):
+    if not getattr(args, 'default_transport', False):
         from workzone_ros.tools.launcher import apply_dds_profile
         apply_dds_profile('shm')
     figures: dict[str, Any] = {'machine': {'cpus': os.cpu_count(),

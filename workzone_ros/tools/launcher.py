@@ -60,7 +60,8 @@ _RUNNER = ('import importlib, sys; m = sys.argv[1]; sys.argv = [m] + sys.argv[2:
 
 # Fast DDS participant profile: shared memory with 32 MB segments (+ UDP for everything else).
 # The default 512 kB segment sends images and clouds over fragmented UDP, where best-effort
-# (sensor-data) subscribers lose most of them (compare ``workzone-ros bench transport`` with ``--default-transport``).
+# (sensor-data) subscribers lose most of them (compare ``workzone-ros bench transport``
+# with and without ``--default-transport``).
 _SHM_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <transport_descriptors>

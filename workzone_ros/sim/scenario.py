@@ -34,7 +34,6 @@ drives at constant speed, so an event at ``s`` happens at ``t = (s - start_s) / 
 from __future__ import annotations
 
 import math
-import sys
 import zlib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -391,10 +390,8 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
 
 def scenario_dir() -> Path:
     """The scenario library: config/scenarios in the source tree or the installed share/."""
-    here = Path(__file__).resolve().parents[2] / 'config' / 'scenarios'
-    if here.is_dir():
-        return here
-    return Path(sys.prefix) / 'share' / 'workzone_ros' / 'config' / 'scenarios'
+    from workzone_ros.resources import config_path
+    return config_path('scenarios')
 
 
 def list_scenarios() -> dict[str, str]:

@@ -143,15 +143,9 @@ class NodeSpec:
 
 def default_params_file() -> Optional[Path]:
     """``config/workzone.yaml`` next to the package (source checkout) or in the share dir."""
-    here = Path(__file__).resolve().parents[2] / 'config' / 'workzone.yaml'
-    if here.is_file():
-        return here
-    try:
-        from ament_index_python.packages import get_package_share_directory
-        share = Path(get_package_share_directory(PACKAGE)) / 'config' / 'workzone.yaml'
-        return share if share.is_file() else None
-    except Exception:  # noqa: BLE001 - PackageNotFoundError, or no ament_index at all
-        return None
+    from workzone_ros.resources import config_path
+    path = config_path('workzone.yaml')
+    return path if path.is_file() else None
 
 
 def _module_exists(module: str) -> bool:

@@ -41,7 +41,9 @@ def _report(stdout: str) -> dict[str, int]:
 
 @pytest.mark.parametrize('mode', [[], ['--single-process']], ids=['processes', 'single'])
 def test_graph_processes_a_synthetic_bag(demo_bag, mode):
-    res = _cli('launch', '--bag', str(demo_bag), '--rate', '1.0', '--report', '--nodes', NODES,
+    # Half rate: nodes drop frames by design when they fall behind (latest frame wins), and a
+    # loaded 2-core CI machine should not turn that into a test failure.
+    res = _cli('launch', '--bag', str(demo_bag), '--rate', '0.5', '--report', '--nodes', NODES,
                *mode)
     out = res.stdout + res.stderr
     assert res.returncode == 0, out[-3000:]

@@ -48,12 +48,16 @@ from workzone_ros.interfaces import Box, Detection, Track
 
 __all__ = [
     'TrackerConfig', 'TrackingError', 'TargetModel', 'SearchWindow', 'MultiTracker',
-    'MODES', 'METHODS', 'SCALES', 'bhattacharyya', 'shape_mask', 'build_target',
+    'MODES', 'METHODS', 'ASSOCIATIONS', 'SCALES', 'seed_config', 'bhattacharyya', 'shape_mask', 'build_target',
     'meanshift_localise', 'camshift_localise', 'box_iou',
 ]
 
 MODES = ('detection_only', 'detection_and_tracking')
 METHODS = ('meanshift', 'camshift')
+#: How an associated detection updates a confident track: ``fuse`` (ours) weighs the tracked
+#: and the detected box by their agreement with the target model and the track's scale;
+#: ``overwrite`` (seed 001) replaces the track's box by the detection's.
+ASSOCIATIONS = ('fuse', 'overwrite')
 #: Kernel sizes of the candidates relative to the previous box (seed 001, III.B).
 SCALES = (1.0, 1.02, 1.05, 1.07, 1.10)
 _MASK_GRID = 32          # resolution of the shape mask over normalized coordinates [-1, 1]^2
@@ -107,6 +111,26 @@ class TrackerConfig:
             box: a too-small candidate leaves sign colour in its ring (0 = seed 001: the
             best Bhattacharyya coefficient alone, which prefers the smallest kernel).
         surround_size: outer size of that band relative to the candidate box.
+        association: ``fuse`` or ``overwrite`` (seed 001), see :data:`ASSOCIATIONS`.  With
+            ``fuse``, a detection associated with a confident track (``min_hits_to_coast``
+            hits, tracked similarity >= ``min_similarity``) is scored like a mean-shift
+            candidate with the track's model at the detection's anchor (Bhattacharyya
+            coefficient minus ``surround_weight`` times the ring's); the tracked box is
+            scored the same way.  Each gets the weight ``exp(score / fuse_temperature)``
+            times a size-consistency factor ``exp(-d^2 / (2 size_sigma^2))`` where d is the
+            log-size difference from the track's predicted size (previous size times its
+            recent per-frame growth).  Boxes overlapping by ``fuse_iou`` or more are
+            averaged with these weights, otherwise the heavier one wins; the model and the
+            box geometry are refreshed in proportion to the detection's weight.
+        fuse_temperature: score scale of the fusion weights.
+        size_sigma: log-size tolerance of the size-consistency factor.
+        fuse_iou: anchor IoU at which the two boxes are averaged rather than chosen.
+        max_ring_similarity: drift guard: a track running on its own whose surroundings
+            (the ``surround_size`` ring) look like its target more than this sits in a
+            region much larger than its box (an orange vehicle): it is lost (1 = off).
+        max_growth_excess: drift guard: a track running on its own whose anchor grew more
+            than this fraction beyond the growth its detections showed (perspective: the
+            inverse size of a static sign falls linearly with time) ends (0 = off).
     """
 
     mode: str = 'detection_and_tracking'
@@ -136,18 +160,41 @@ class TrackerConfig:
     background_weighting: bool = True
     surround_weight: float = 0.5
     surround_size: float = 1.2
+    association: str = 'fuse'
+    fuse_temperature: float = 0.05
+    size_sigma: float = 0.15
+    fuse_iou: float = 0.3
+    fuse_bias: float = 0.0
+    fuse_min_px: float = 0.0
+    max_ring_similarity: float = 0.6
+    max_growth_excess: float = 0.3
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise TrackingError(f'mode {self.mode!r} is not one of {MODES}')
         if self.method not in METHODS:
             raise TrackingError(f'method {self.method!r} is not one of {METHODS}')
+        if self.association not in ASSOCIATIONS:
+            raise TrackingError(f'association {self.association!r} is not one of '
+                                f'{ASSOCIATIONS}')
+        if self.fuse_temperature <= 0 or self.size_sigma <= 0:
+            raise TrackingError('fuse_temperature and size_sigma must be positive')
         if self.hue_bins < 1 or self.sat_bins < 1:
             raise TrackingError('hue_bins and sat_bins must be positive')
         if not self.scales or min(self.scales) <= 0:
             raise TrackingError(f'scales must be positive, got {self.scales!r}')
         if self.max_samples < 16:
             raise TrackingError('max_samples must be at least 16')
+
+
+def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
+    """Seed 001's exact rule on top of ``config``: plain ``sqrt(t_u / c_u)`` weights (eq. 3),
+    the best Bhattacharyya coefficient alone picks the kernel size, mean-shift starts at
+    the previous centre, an associated detection overwrites the track and no drift guards.
+    The regulatory two-colour guard stays (``anchor_on_color``)."""
+    return replace(config or TrackerConfig(), background_weighting=False, surround_weight=0.0,
+                   use_velocity=False, association='overwrite', max_ring_similarity=1.0,
+                   max_growth_excess=0.0)
 
 
 # --- histograms ---------------------------------------------------------------------------
@@ -478,12 +525,14 @@ def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: fl
         cfg: tracker configuration (scales, iterations, threshold).
 
     Returns:
-        ``(cx, cy, half_w, half_h, rho)`` of the best candidate; rho = 0 when none converged.
+        ``(cx, cy, half_w, half_h, rho, ring)`` of the best candidate: rho = 0 when none
+        converged; ring is the Bhattacharyya coefficient of the target and the candidate's
+        surroundings (None when ``surround_weight`` is 0: the seed's rule does not look).
     """
     nb = target.q.size
     q, qw, mask = target.q, target.qw, target.mask
     eps2 = cfg.shift_threshold_px ** 2
-    best = (zx, zy, ax, ay, 0.0)
+    best = (zx, zy, ax, ay, 0.0, None)
     best_score = -math.inf
     start = (zx, zy)
     for scale in cfg.scales:
@@ -521,12 +570,14 @@ def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: fl
             else:
                 rho = 0.0
         score = rho
+        ring_sim = None
         if cfg.surround_weight > 0 and rho > 0:
             ring = _surround(win, mask, cx, cy, bx, by, cfg.surround_size, nb)
             if ring is not None:
-                score -= cfg.surround_weight * bhattacharyya(ring, q)
+                ring_sim = bhattacharyya(ring, q)
+                score -= cfg.surround_weight * ring_sim
         if score > best_score:
-            best, best_score = (cx, cy, bx, by, rho), score
+            best, best_score = (cx, cy, bx, by, rho, ring_sim), score
         if scale == cfg.scales[0]:
             start = (cx, cy)          # the other sizes start where the first one converged
     return best
@@ -541,10 +592,10 @@ def camshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: flo
     the CamShift box, so both methods share the track-life rules.
 
     Returns:
-        ``(cx, cy, half_w, half_h, rho)``.
+        ``(cx, cy, half_w, half_h, rho, None)`` (ring: see :func:`meanshift_localise`).
     """
     if win.nx < 2 or win.ny < 2:
-        return zx, zy, ax, ay, 0.0
+        return zx, zy, ax, ay, 0.0, None
     s = win.stride
     hsv = win.hsv
     bp = cv2.calcBackProject([hsv], [0], target.hue_hist, [0, 180], 1)
@@ -560,7 +611,7 @@ def camshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: flo
             max(cfg.shift_threshold_px / s, 0.1))
     _, (x, y, w, h) = cv2.CamShift(bp, (gx0, gy0, gw, gh), crit)
     if w <= 0 or h <= 0:
-        return zx, zy, ax, ay, 0.0
+        return zx, zy, ax, ay, 0.0, None
     cx = win.x0 + s * (x + w / 2.0)
     cy = win.y0 + s * (y + h / 2.0)
     bx, by = s * w / 2.0, s * h / 2.0
@@ -569,7 +620,36 @@ def camshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: flo
     if kern is not None:
         p = _histogram(kern[0], kern[1], target.q.size)
         rho = bhattacharyya(p, target.q) if p is not None else 0.0
-    return cx, cy, bx, by, rho
+    return cx, cy, bx, by, rho, None
+
+
+def score_box(win: SearchWindow, target: TargetModel, cx: float, cy: float, bx: float,
+              by: float, cfg: TrackerConfig) -> tuple[float, float]:
+    """Target agreement of the box centred at (cx, cy), half-size (bx, by), as mean-shift
+    scores its candidates: ``(rho, ring)``, the Bhattacharyya coefficients of the target
+    with the kernel histogram (eq. 1 with the target's shape mask) and with the
+    surroundings up to ``surround_size`` times the box (0 when either is empty)."""
+    nb = target.q.size
+    rho = ring_sim = 0.0
+    kern = _kernel(win, target.mask, cx, cy, bx, by)
+    if kern is not None:
+        p = _histogram(kern[0], kern[1], nb)
+        rho = bhattacharyya(p, target.q) if p is not None else 0.0
+    ring = _surround(win, target.mask, cx, cy, bx, by, cfg.surround_size, nb)
+    if ring is not None:
+        ring_sim = bhattacharyya(ring, target.q)
+    return rho, ring_sim
+
+
+def _blend(a: Sequence[float], b: Sequence[float], wb: float) -> tuple[float, float, float,
+                                                                       float]:
+    """Weighted mean of two ``(x, y, w, h)`` boxes (corners averaged; ``wb`` is b's weight)."""
+    wa = 1.0 - wb
+    x0 = wa * a[0] + wb * b[0]
+    y0 = wa * a[1] + wb * b[1]
+    x1 = wa * (a[0] + a[2]) + wb * (b[0] + b[2])
+    y1 = wa * (a[1] + a[3]) + wb * (b[1] + b[3])
+    return (x0, y0, x1 - x0, y1 - y0)
 
 
 # --- track life ---------------------------------------------------------------------------
@@ -592,7 +672,12 @@ class _Track:
     pred_anchor: Optional[tuple[float, float, float, float]] = None
     pred_box: Optional[tuple[float, float, float, float]] = None
     pred_rho: float = 0.0
-    history: list = field(default_factory=list)
+    pred_ring: float = 0.0
+    growth: float = 0.0              # log anchor-size change per frame (EMA)
+    inv_rate: float = 0.0            # fall of 1 / anchor width per frame, from detections
+    ref_width: float = 0.0           # anchor width at the last detection-led update
+    since_ref: int = 0               # frames since then
+    fused_share: float = 1.0         # detection's weight in the last update
 
 
 @dataclass
@@ -657,10 +742,13 @@ class MultiTracker:
         win = SearchWindow(frame, zx - mx, zy - my, zx + mx + 1, zy + my + 1, stride,
                            self._luts)
         fn = meanshift_localise if cfg.method == 'meanshift' else camshift_localise
-        cx, cy, bx, by, rho = fn(win, tr.target, zx, zy, ax, ay, cfg)
+        cx, cy, bx, by, rho, ring = fn(win, tr.target, zx, zy, ax, ay, cfg)
+        if ring is None and (cfg.association == 'fuse' or cfg.max_ring_similarity < 1.0):
+            ring = score_box(win, tr.target, cx, cy, bx, by, cfg)[1]
         tr.pred_anchor = (cx - bx, cy - by, 2 * bx, 2 * by)
         tr.pred_box = tr.target.box_from_anchor(tr.pred_anchor)
         tr.pred_rho = rho
+        tr.pred_ring = ring or 0.0
 
     # -- the frame step ------------------------------------------------------------------
 
@@ -741,10 +829,18 @@ class MultiTracker:
         survivors: list[_Track] = []
         for ti, tr in enumerate(self._tracks):
             tr.age += 1
+            tr.since_ref += 1
             if ti in t_match:
                 di, sim = t_match[ti]
                 dm = dets[di]
-                self._correct(tr, dm, sim)
+                if tracking and cfg.association == 'fuse' and dm.target is not None \
+                        and self._confident(tr) \
+                        and min(tr.pred_box[2], tr.pred_box[3]) >= cfg.fuse_min_px:
+                    t0 = time.perf_counter()
+                    self._fuse(frame, tr, dm, sim)
+                    self.last_localise_s[ti] += time.perf_counter() - t0
+                else:
+                    self._correct(tr, dm, sim)
                 survivors.append(tr)
                 out_det.append((di, self._payload(tr, 'detection')))
                 continue
@@ -768,9 +864,17 @@ class MultiTracker:
                     tr.box = (b[0] + vx, b[1] + vy, b[2], b[3])
                     survivors.append(tr)
                 continue
+            if tr.pred_ring > cfg.max_ring_similarity:
+                # Drift guard: the target's colour continues all around the box (the box sits
+                # in a much larger region of sign colour, e.g. an orange vehicle): not a sign
+                # anymore; coast blind like an occlusion and end unless a detection returns.
+                tr.lost += 1
+                if tr.lost <= cfg.max_lost_frames:
+                    survivors.append(tr)
+                continue
             pb = tr.pred_box
             if not self._inside(pb, W, H) or pb[2] > cfg.max_box_fraction * W \
-                    or pb[3] > cfg.max_box_fraction * H:
+                    or pb[3] > cfg.max_box_fraction * H or self._overgrown(tr):
                 continue
             self._advance(tr, tr.pred_anchor, pb)
             tr.similarity = tr.pred_rho
@@ -787,7 +891,8 @@ class MultiTracker:
                     out_det.append((di, self._det_only(dm)))
                 continue
             tr = _Track(self._next_id, dm.target, dm.target.anchor, dm.box, dm.det.kind,
-                        dm.det.color, dm.det.confidence)
+                        dm.det.color, dm.det.confidence,
+                        ref_width=max(dm.target.anchor[2], 1.0))
             self._next_id += 1
             survivors.append(tr)
             out_det.append((di, self._payload(tr, 'detection')))
@@ -824,6 +929,97 @@ class MultiTracker:
         tr.velocity = (0.5 * vx + 0.5 * (nx - ox), 0.5 * vy + 0.5 * (ny - oy))
         tr.anchor, tr.box = anchor, box
 
+    def _confident(self, tr: _Track) -> bool:
+        """The track may outvote a detection: detected often enough, tracked well."""
+        cfg = self.config
+        return tr.pred_box is not None and tr.hits >= cfg.min_hits_to_coast \
+            and tr.target.colored and tr.pred_rho >= cfg.min_similarity \
+            and tr.target.background_similarity <= cfg.max_background_similarity
+
+    def _lost_white_part(self, old: TargetModel, new: TargetModel) -> bool:
+        """Two-colour guard: the track knows a box reaching well beyond its coloured anchor
+        (the white part of a regulatory sign) and this detection covers much less of it."""
+        if not self.config.anchor_on_color:
+            return False
+        rel = old.relation
+        return rel[3] >= 1.25 and (new.relation[3] < 0.8 * rel[3]
+                                   or new.relation[2] < 0.8 * rel[2])
+
+    def _overgrown(self, tr: _Track) -> bool:
+        """Drift guard: the tracked anchor grew past what perspective and the track's own
+        detections allow.  A static sign's inverse image size falls linearly with time
+        (size = f S / d, d falling at the ego speed); ``inv_rate`` is that slope measured
+        between detections."""
+        excess = self.config.max_growth_excess
+        if excess <= 0 or tr.ref_width <= 0 or tr.pred_anchor is None:
+            return False
+        inv = 1.0 / tr.ref_width - tr.since_ref * tr.inv_rate
+        expected = 1.0 / max(inv, 1e-3)
+        return tr.pred_anchor[2] > (1.0 + excess) * expected + 2.0
+
+    def _measure_growth(self, tr: _Track) -> None:
+        """After a detection-led update: the per-frame growth and inverse-size slope."""
+        aw = max(tr.anchor[2], 1.0)
+        if tr.ref_width > 0 and tr.since_ref > 0:
+            n = tr.since_ref
+            g = min(max(math.log(aw / tr.ref_width) / n, -0.05), 0.2)
+            tr.growth = 0.6 * tr.growth + 0.4 * g
+            inv = max((1.0 / tr.ref_width - 1.0 / aw) / n, 0.0)
+            tr.inv_rate = 0.6 * tr.inv_rate + 0.4 * inv
+        tr.ref_width = aw
+        tr.since_ref = 0
+
+    def _fuse(self, frame: np.ndarray, tr: _Track, dm: _DetModel, sim: float) -> None:
+        """Association rule ``fuse``: weigh the tracked and the detected box (see
+        :class:`TrackerConfig`) and update the track with the result."""
+        cfg = self.config
+        new = dm.target
+        ad = new.anchor
+        ax, ay = max(ad[2], 1.0) / 2, max(ad[3], 1.0) / 2
+        cx, cy = ad[0] + ax, ad[1] + ay
+        m = cfg.surround_size
+        win = SearchWindow(frame, cx - m * ax - 2, cy - m * ay - 2, cx + m * ax + 3,
+                           cy + m * ay + 3, _stride(ax, ay, cfg.max_samples), self._luts)
+        rho_d, ring_d = score_box(win, tr.target, cx, cy, ax, ay, cfg)
+        s_d = rho_d - cfg.surround_weight * ring_d + cfg.fuse_bias
+        s_t = tr.pred_rho - cfg.surround_weight * tr.pred_ring
+        g = math.exp(tr.growth)
+        pw, ph = max(tr.anchor[2], 1.0) * g, max(tr.anchor[3], 1.0) * g
+
+        def size_factor(a) -> float:
+            d2 = math.log(max(a[2], 1.0) / pw) ** 2 + math.log(max(a[3], 1.0) / ph) ** 2
+            return math.exp(-0.5 * d2 / cfg.size_sigma ** 2)
+
+        top = max(s_d, s_t)
+        w_d = math.exp((s_d - top) / cfg.fuse_temperature) * size_factor(ad)
+        w_t = math.exp((s_t - top) / cfg.fuse_temperature) * size_factor(tr.pred_anchor)
+        share = w_d / (w_d + w_t) if w_d + w_t > 0 else 1.0
+        box_d = dm.box
+        if self._lost_white_part(tr.target, new):
+            box_d = tr.target.box_from_anchor(ad)        # two-colour guard (see _correct)
+        at, bt = tr.pred_anchor, tr.pred_box
+        if box_iou(at, ad) < cfg.fuse_iou:
+            share = 1.0 if share >= 0.5 else 0.0         # disjoint: one of them, not between
+        anchor = _blend(at, ad, share)
+        box = _blend(bt, box_d, share)
+        base = new if share >= 0.5 else tr.target
+        a = cfg.model_update * share
+        q = (1 - a) * tr.target.q + a * new.q
+        qw = (1 - a) * tr.target.qw + a * new.qw
+        aw, ah = max(anchor[2], 1.0), max(anchor[3], 1.0)
+        rel = ((box[0] - anchor[0]) / aw, (box[1] - anchor[1]) / ah, box[2] / aw, box[3] / ah)
+        tr.target = replace(base, q=q / q.sum(), qw=qw / qw.sum(), relation=rel,
+                            anchor=anchor)
+        self._advance(tr, anchor, box)
+        if share >= 0.5:
+            self._measure_growth(tr)
+        tr.fused_share = share
+        tr.hits += 1
+        tr.lost = 0
+        tr.coast = 0
+        tr.similarity = min(1.0, max(0.0, sim))
+        tr.kind, tr.color, tr.confidence = dm.det.kind, dm.det.color, dm.det.confidence
+
     def _correct(self, tr: _Track, dm: _DetModel, sim: float) -> None:
         cfg = self.config
         tracking = cfg.mode == 'detection_and_tracking'
@@ -834,8 +1030,7 @@ class MultiTracker:
             qw = (1 - a) * tr.target.qw + a * new.qw
             box = dm.box
             rel = tr.target.relation
-            if tracking and cfg.anchor_on_color and (new.relation[3] < 0.8 * rel[3]
-                                        or new.relation[2] < 0.8 * rel[2]):
+            if tracking and self._lost_white_part(tr.target, new):
                 # Two-colour guard: this detection covers only the coloured part of a box
                 # whose full extent the track knows (the detector missed the white bottom):
                 # keep the measured geometry instead of shrinking the box to the orange top.
@@ -843,6 +1038,7 @@ class MultiTracker:
                 box = new.box_from_anchor(new.anchor)
             tr.target = replace(new, q=q / q.sum(), qw=qw / qw.sum())
             self._advance(tr, new.anchor, box)
+            self._measure_growth(tr)
         else:
             tr.box = dm.box           # no model from this box (mostly outside): keep the old
         tr.hits += 1

@@ -37,6 +37,7 @@ import argparse
 import json
 import os
 import sys
+import time
 from collections import defaultdict
 from dataclasses import replace
 from pathlib import Path
@@ -47,21 +48,25 @@ import numpy as np
 __all__ = ['main', 'CONFIGS', 'evaluate_bag', 'area_pr']
 
 TAU = 0.5
+DEFAULT_MODEL = str(Path(__file__).resolve().parents[2] / 'config' / 'models' /
+                    'color_orange.npz')
 
 
 def _configs():
-    from workzone_ros.core.tracking import TrackerConfig
+    from workzone_ros.core.tracking import TrackerConfig, seed_config
     ours = TrackerConfig()
     return {
         'detection_only': replace(ours, mode='detection_only'),
         'meanshift': ours,
-        'meanshift_seed': replace(ours, background_weighting=False, surround_weight=0.0),
+        'meanshift_overwrite': replace(ours, association='overwrite'),
+        'meanshift_seed': seed_config(ours),
         'meanshift_no_guard': replace(ours, anchor_on_color=False),
         'camshift': replace(ours, method='camshift'),
     }
 
 
-CONFIGS = ('detection_only', 'meanshift', 'meanshift_seed', 'meanshift_no_guard', 'camshift')
+CONFIGS = ('detection_only', 'meanshift', 'meanshift_overwrite', 'meanshift_seed',
+           'meanshift_no_guard', 'camshift')
 
 
 def _xywh(b) -> tuple[float, float, float, float]:
@@ -88,18 +93,29 @@ def area_pr(o, g) -> tuple[float, float]:
 # --- detectors ------------------------------------------------------------------------------
 
 class _ColorDetector:
+    """The colour detector core as the ``color_detector`` node builds it (orange only)."""
+
     name = 'color'
 
     def __init__(self, model_path: Optional[str]) -> None:
         from workzone_ros.core.color_model import default_model, load_model
         from workzone_ros.core.detection import ColorDetector, DetectorConfig
-        if model_path:
-            model = load_model(model_path)
-            self.name = f'color (learned model {model_path})'
+        path = model_path or DEFAULT_MODEL
+        if model_path or os.path.exists(path):
+            model = load_model(path)
+            st = os.stat(path)
+            self.model_file = {'path': path, 'size': st.st_size,
+                               'mtime': time.strftime('%Y-%m-%d %H:%M:%S',
+                                                      time.localtime(st.st_mtime))}
+            self.name = f"color (model {path}, {st.st_size} B, {self.model_file['mtime']})"
+            self.key = f'{st.st_size}_{int(st.st_mtime)}'
         else:
             model = default_model()
+            self.model_file = None
             self.name = 'color (default_model(): seed 004 HSV orange range, no trained model)'
-        self.det = ColorDetector(model, DetectorConfig(colors=('orange',)))
+            self.key = 'default'
+        bs = tuple(float(v) for v in model.extras.get('box_scale', (1.0, 1.0)))
+        self.det = ColorDetector(model, DetectorConfig(colors=('orange',), border_scale=bs))
 
     def __call__(self, frame, gt):
         return self.det.detect(frame)
@@ -165,22 +181,73 @@ def _frames(bag: str):
                 del gts[k]
 
 
+class _CachedDetector:
+    """Detections of a bag stored once per (bag, detector, model file): reruns of the
+    trackers do not rerun the detector.  The cache is a JSON lines file of Detections."""
+
+    def __init__(self, inner, path: str) -> None:
+        from workzone_ros.interfaces import Detections, decode
+        self.inner, self.path = inner, path
+        self.name = inner.name + ' [cached]'
+        self.model_file = getattr(inner, 'model_file', None)
+        self.stored: dict[int, Any] = {}
+        self.new: list[str] = []
+        if os.path.exists(path):
+            with open(path) as fh:
+                for line in fh:
+                    d = decode(line, Detections)
+                    self.stored[d.header.stamp.to_ns()] = list(d.detections)
+
+    def __call__(self, frame, gt):
+        from workzone_ros.interfaces import Detections, encode
+        ns = gt.header.stamp.to_ns()
+        if ns in self.stored:
+            return self.stored[ns]
+        dets = self.inner(frame, gt)
+        self.new.append(encode(Detections(header=gt.header, detections=list(dets))))
+        return dets
+
+    def flush(self) -> None:
+        if self.new:
+            with open(self.path, 'a') as fh:
+                fh.write('\n'.join(self.new) + '\n')
+            self.new.clear()
+
+
+DRUM_KINDS = ('drum', 'cone')
+
+
 def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
-                 overlay: Optional[list] = None) -> dict:
-    """Run every configuration on one bag; returns the per-configuration figures."""
+                 overlay: Optional[list] = None, configs: Optional[dict] = None,
+                 trace: Optional[list] = None) -> dict:
+    """Run every configuration on one bag; returns the per-configuration figures.
+
+    Definitions (seed 001, IV and Table II; tau = 0.5):
+
+    * a sign-frame is *run* from the first frame where a detection matched the sign
+      (IoU >= tau) on ("the frames which were executed on the tracking");
+    * a *detector miss* is a run sign-frame with no detection at IoU >= tau;
+    * it is *covered* when an output of the configuration (a track box, whatever its
+      source) matches it at IoU >= tau;
+    * precision / recall (area-based) of the best output with IoU >= tau, averaged over
+      the matched run sign-frames;
+    * a *false output* overlaps no work-zone sign (IoU < 0.3 with each, whatever its size);
+      it is *on drums* when it overlaps a GT drum or cone (IoU >= 0.3, or >= half of the
+      drum inside it), else *on other non-signs* (vehicles, general signs, background).
+      Counted for all outputs and for ``tracking`` outputs only (what the tracker adds),
+      as frames and as distinct track ids.
+    """
     from workzone_ros.core.tracking import MultiTracker
-    cfgs = _configs()
+    cfgs = configs or _configs()
     trackers = {k: MultiTracker(c) for k, c in cfgs.items()}
     started: set[int] = set()              # sign ids the detector has found once
     acc = {k: defaultdict(float) for k in cfgs}
-    covered_ids = {k: set() for k in cfgs}
+    ids = {k: defaultdict(set) for k in cfgs}
     missed_ids: set[int] = set()
-    false_ids = {k: set() for k in cfgs}
-    drum_ids = {k: set() for k in cfgs}
     times = {k: [] for k in cfgs}
     reg = {k: defaultdict(float) for k in cfgs}
     n_frames = 0
-    det_drum_fp = 0
+    det_false = defaultdict(int)
     weather = ''
     for ns, frame, gt in _frames(bag):
         n_frames += 1
@@ -188,13 +255,22 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
         dets = detector(frame, gt)
         det_boxes = [_xywh(d.box) for d in dets]
         wz = [s for s in gt.signs if s.category == 'workzone']
+        wz_boxes = [_xywh(s.box) for s in wz]
         evaluable = [s for s in wz if min(s.box.w, s.box.h) >= min_size
                      and s.visible_fraction >= 0.5]
-        drums = [_xywh(d.box) for d in gt.distractors if d.kind == 'drum']
+        drums = [_xywh(d.box) for d in gt.distractors if d.kind in DRUM_KINDS]
+
+        def false_kind(b):
+            if any(_iou(b, g) >= 0.3 for g in wz_boxes):
+                return None
+            if any(_iou(b, d) >= 0.3 or _ioa(d, b) >= 0.5 for d in drums):
+                return 'drums'
+            return 'other'
+
         for b in det_boxes:
-            if all(_iou(b, _xywh(s.box)) < 0.3 for s in wz) and \
-                    any(_iou(b, d) >= 0.3 for d in drums):
-                det_drum_fp += 1
+            fk = false_kind(b)
+            if fk:
+                det_false[fk] += 1
         det_hit = {}
         for s in evaluable:
             g = _xywh(s.box)
@@ -212,16 +288,16 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
                 if s.sign_id not in started:
                     continue
                 g = _xywh(s.box)
-                best, bo, bsrc = 0.0, None, None
+                best, bo = 0.0, None
                 for b, src, _ in boxes:
                     v = _iou(b, g)
                     if v > best:
-                        best, bo, bsrc = v, b, src
+                        best, bo = v, b
                 a['tracked_frames'] += 1
                 two = s.class_key in ('work_zone_begin', 'work_zone_speed_limit')
                 if two:
                     reg[name]['frames'] += 1
-                if best > TAU:
+                if best >= TAU:
                     p, r = area_pr(bo, g)
                     a['matched'] += 1
                     a['precision_sum'] += p
@@ -232,33 +308,42 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
                         reg[name]['recall_sum'] += r
                 if not det_hit[s.sign_id]:
                     a['missed_by_detector'] += 1
-                    if name == 'meanshift':
-                        missed_ids.add(s.sign_id)
-                    if any(src == 'tracking' and _iou(b, g) > TAU for b, src, _ in boxes):
+                    missed_ids.add(s.sign_id)
+                    ids[name]['missed'].add(s.sign_id)
+                    if best >= TAU:
                         a['covered'] += 1
-                        covered_ids[name].add(s.sign_id)
+                        ids[name]['covered'].add(s.sign_id)
+                if trace is not None:
+                    dbest = max((_iou(b, g) for b in det_boxes), default=0.0)
+                    trace.append((n_frames, name, s.sign_id, s.class_key, dbest, best,
+                                  min(s.box.w, s.box.h)))
             for b, src, tid in boxes:
-                if src != 'tracking':
+                if src == 'tracking':
+                    a['tracking_outputs'] += 1
+                fk = false_kind(b)
+                if fk is None:
                     continue
-                a['tracking_outputs'] += 1
-                if all(_iou(b, _xywh(s.box)) < 0.3 for s in wz):
-                    a['false_tracking'] += 1
-                    false_ids[name].add(tid)
-                    if any(_iou(b, d) >= 0.3 or _ioa(d, b) >= 0.5 for d in drums):
-                        a['false_tracking_on_drums'] += 1
-                        drum_ids[name].add(tid)
+                a[f'false_{fk}'] += 1
+                ids[name][f'false_{fk}'].add(tid)
+                if src == 'tracking':
+                    a[f'false_tracking_{fk}'] += 1
+                    ids[name][f'false_tracking_{fk}'].add(tid)
         if overlay is not None:
-            overlay.append((ns, frame, gt, dets, frame_out['meanshift']))
+            overlay.append((ns, frame, gt, dets, frame_out.get('meanshift', [])))
         if max_frames and n_frames >= max_frames:
             break
+    if hasattr(detector, 'flush'):
+        detector.flush()
     res: dict[str, Any] = {'bag': bag, 'frames': n_frames, 'weather': weather,
-                           'detector_false_alarms_on_drums': det_drum_fp,
+                           'detector_false_on_drums': det_false['drums'],
+                           'detector_false_on_other': det_false['other'],
                            'signs_missed_by_detector': len(missed_ids)}
     for name in cfgs:
         a = acc[name]
         m = max(a['matched'], 1)
         t = np.array(times[name]) * 1e3
         r = reg[name]
+        i = ids[name]
         res[name] = {
             'tracked_frames': int(a['tracked_frames']),
             'match_rate': _r(a['matched'] / max(a['tracked_frames'], 1)),
@@ -267,12 +352,15 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
             'missed_by_detector': int(a['missed_by_detector']),
             'covered': int(a['covered']),
             'covered_fraction': _r(a['covered'] / max(a['missed_by_detector'], 1)),
-            'covered_signs': len(covered_ids[name]),
+            'covered_signs': len(i['covered']),
+            'missed_signs': len(i['missed']),
             'tracking_outputs': int(a['tracking_outputs']),
-            'false_tracking': int(a['false_tracking']),
-            'false_tracks': len(false_ids[name]),
-            'false_tracking_on_drums': int(a['false_tracking_on_drums']),
-            'false_tracks_on_drums': len(drum_ids[name]),
+            'false_on_drums': int(a['false_drums']),
+            'false_on_other': int(a['false_other']),
+            'false_tracking_on_drums': int(a['false_tracking_drums']),
+            'false_tracking_on_other': int(a['false_tracking_other']),
+            'false_tracks_on_drums': len(i['false_tracking_drums'] - {0}),
+            'false_tracks_on_other': len(i['false_tracking_other'] - {0}),
             'two_colour_frames': int(r['frames']),
             'two_colour_match_rate': _r(r['matched'] / max(r['frames'], 1)),
             'two_colour_precision': _r(r['precision_sum'] / max(r['matched'], 1)),
@@ -377,8 +465,20 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='evaluable signs: smallest side in px (default 12)')
     p.add_argument('--max-frames', type=int, default=0, help='stop after N frames per bag')
     p.add_argument('--json', help='write the figures here')
-    p.add_argument('--overlay', help='write a tracking overlay strip PNG (first bag)')
+    p.add_argument('--overlay', help='write a tracking overlay strip PNG per bag (a bag\'s '
+                   'name is appended when there are several)')
+    p.add_argument('--det-cache', default=None,
+                   help='directory for cached detections (one file per bag and model file)')
+    p.add_argument('--configs', default=','.join(CONFIGS),
+                   help=f'comma-separated configurations (default {",".join(CONFIGS)})')
     args = p.parse_args(argv)
+    chosen = [c.strip() for c in args.configs.split(',') if c.strip()]
+    all_cfgs = _configs()
+    bad = [c for c in chosen if c not in all_cfgs]
+    if bad:
+        print(f'unknown configurations {bad}; choose from {list(all_cfgs)}', file=sys.stderr)
+        return 2
+    cfgs = {c: all_cfgs[c] for c in chosen}
     import cv2
     cv2.setNumThreads(1)
     results = []
@@ -394,13 +494,22 @@ def main(argv: Optional[list[str]] = None) -> int:
                 det = _GtDetector(args.miss, args.jitter, k, args.min_size)
         else:
             det = _GtDetector(args.miss, args.jitter, k, args.min_size)
-        frames: Optional[list] = [] if args.overlay and k == 0 else None
-        res = evaluate_bag(bag, det, args.min_size, args.max_frames, frames)
+        if args.det_cache and args.detector == 'color' and isinstance(det, _ColorDetector):
+            os.makedirs(args.det_cache, exist_ok=True)
+            det = _CachedDetector(det, os.path.join(
+                args.det_cache, f'{Path(bag).resolve().name}_{det.key}.jsonl'))
+        frames: Optional[list] = [] if args.overlay else None
+        res = evaluate_bag(bag, det, args.min_size, args.max_frames, frames, cfgs)
         res['detector'] = det.name
+        res['model_file'] = getattr(det, 'model_file', None)
         results.append(res)
-        _print(res)
+        _print(res, list(cfgs))
         if frames:
-            out = write_overlay(args.overlay, frames)
+            path = args.overlay
+            if len(args.bags) > 1:
+                root, ext = os.path.splitext(args.overlay)
+                path = f'{root}_{Path(bag).name}{ext or ".png"}'
+            out = write_overlay(path, frames)
             print(f'overlay: {out}')
             frames.clear()
     if args.json:
@@ -411,18 +520,23 @@ def main(argv: Optional[list[str]] = None) -> int:
     return 0
 
 
-def _print(res: dict) -> None:
+def _print(res: dict, names: Optional[list] = None) -> None:
     print(f"\n== {res['bag']}  ({res['frames']} frames, {res['weather']}, detector "
           f"{res['detector']})")
-    print(f"   detector false alarms on drums: {res['detector_false_alarms_on_drums']}; "
-          f"signs the detector missed at least once: {res['signs_missed_by_detector']}")
-    cols = ('tracked_frames', 'match_rate', 'precision', 'recall', 'missed_by_detector',
-            'covered', 'covered_fraction', 'false_tracking', 'false_tracks_on_drums',
-            'two_colour_match_rate', 'two_colour_recall', 'ms_per_track_frame_p50')
-    print('   ' + 'config'.ljust(20) + ''.join(c[:14].rjust(15) for c in cols))
-    for name in CONFIGS:
+    print(f"   detector false alarms: on drums/cones {res['detector_false_on_drums']}, on "
+          f"other non-signs {res['detector_false_on_other']}; signs the detector missed at "
+          f"least once: {res['signs_missed_by_detector']}")
+    cols = (('tracked_frames', 'run'), ('match_rate', 'match'), ('precision', 'prec'),
+            ('recall', 'rec'), ('missed_by_detector', 'misses'), ('covered', 'covered'),
+            ('covered_signs', 'cov.signs'), ('false_tracking_on_drums', 'ftrk.drum'),
+            ('false_tracks_on_drums', 'ftrk.drum.ids'), ('false_tracking_on_other', 'ftrk.oth'),
+            ('false_tracks_on_other', 'ftrk.oth.ids'), ('false_on_drums', 'fout.drum'),
+            ('false_on_other', 'fout.oth'), ('two_colour_match_rate', '2col.match'),
+            ('two_colour_recall', '2col.rec'), ('ms_per_track_frame_p50', 'ms.p50'))
+    print('   ' + 'config'.ljust(20) + ''.join(c[1].rjust(13) for c in cols))
+    for name in names or CONFIGS:
         r = res[name]
-        print('   ' + name.ljust(20) + ''.join(str(r.get(c, '-')).rjust(15) for c in cols))
+        print('   ' + name.ljust(20) + ''.join(str(r.get(c[0], '-')).rjust(13) for c in cols))
 
 
 if __name__ == '__main__':

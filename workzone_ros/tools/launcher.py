@@ -276,6 +276,7 @@ class _TopicCount:
     last: float = 0.0
     payload_errors: int = 0
     nonempty_stamps: set = field(default_factory=set)
+    publishers: int = 0          # most publishers seen on the topic during the run
 
     def hit(self) -> None:
         now = time.monotonic()
@@ -369,6 +370,12 @@ class ReportCollector:
         for topic, types in names:
             if topic.startswith('/workzone/') and topic not in self.topics and types:
                 self._subscribe(topic, types[0])
+        with self._lock:
+            for topic, entry in self.topics.items():
+                try:
+                    entry.publishers = max(entry.publishers, self.node.count_publishers(topic))
+                except Exception:  # noqa: BLE001 - graph queries fail during shutdown
+                    return
 
     def render(self, header: str) -> str:
         """The report text (several lines)."""
@@ -380,7 +387,7 @@ class ReportCollector:
                     continue
                 note = f'{e.payload_errors} invalid payload(s)' if e.payload_errors else ''
                 if not e.count:
-                    note = 'no messages'
+                    note = 'no messages' if e.publishers else 'no publisher (node not in this run)'
                 lines.append(f'  {topic:<30} {e.count:>7} {e.rate:>7.2f}  {note}'.rstrip())
             if self.diag:
                 parts = []

@@ -79,9 +79,22 @@ class DetectorConfig:
         max_aspect: largest w/h or h/w of an orange blob.
         diamond_hull_fill: below this hull fill an orange blob is a diamond (warning sign).
         refine: refine boxes at full resolution.
-        border_scale: (w, h) factors from the orange blob's box to the sign face's box: a sign
-            has a black border and a thin orange margin outside it that the blob misses.  The
-            trainer measures them on its training faces (model extra ``box_scale``).
+        border_scale: extra (w, h) factors applied to every orange box (1 = none; the border
+            is handled by ``border_frac``).
+        smooth_px: box filter on the likelihood at the mask's resolution before thresholding.
+        weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it
+            at full resolution (the blended outer margin, shaded parts).
+        border_frac: a sign's black border plus its outer margin as a fraction of the sign's
+            size (MUTCD borders are a fixed fraction; our art: 3.5 % margin + 3 % line).
+            When the ring just outside the orange hull is dark (the border), the hull is
+            grown by this fraction of its size on every side.
+        border_dark: share of dark pixels in that ring that means "border found".
+        min_solidity: smallest orange pixels / convex-hull area of an orange blob.
+        min_dark_inside: smallest share of dark (legend, border) pixels inside the hull of an
+            orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
+            patches, drums, vehicle panels mostly do not).
+        dark_rel: dark = value below this fraction of the blob's median orange value.
+        structure_min_px: blobs smaller than this (shorter side) skip the legend test.
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
         extension: regulatory two-colour extension on/off.
@@ -116,6 +129,14 @@ class DetectorConfig:
     diamond_hull_fill: float = 0.72
     refine: bool = True
     border_scale: tuple[float, float] = (1.0, 1.0)
+    smooth_px: int = 3
+    weak_threshold: float = 0.3
+    border_frac: float = 0.065
+    border_dark: float = 0.3
+    min_solidity: float = 0.45
+    min_dark_inside: float = 0.02
+    dark_rel: float = 0.6
+    structure_min_px: float = 18.0
     nms_iou: float = 0.3
     nms_contain: float = 0.7
     extension: bool = True
@@ -495,9 +516,14 @@ class ColorDetector:
             idx = cv2.merge([sat, h]).view(np.uint16)[..., 0]      # h * 256 + s
             for color in self.colors:
                 prob = np.take(self._lut_u8[color], idx)
-                mask = cv2.compare(prob, thr, cv2.CMP_GE)
                 if self._vmin[color] > 0:
-                    mask &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
+                    # brightness gate outside the table: too dark for a reliable hue
+                    prob &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
+                if cfg.smooth_px > 1:
+                    # denoise at the mask's resolution before thresholding: isolated
+                    # orange-hued pixels (dusk sky, sensor noise) are averaged away
+                    prob = cv2.blur(prob, (cfg.smooth_px, cfg.smooth_px))
+                mask = cv2.compare(prob, thr, cv2.CMP_GE)
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
         elif cfg.method == 'hsv':
             for color in self.colors:

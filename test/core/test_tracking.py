@@ -322,3 +322,34 @@ def test_bad_inputs_are_rejected():
     # a detection outside the image is published but starts no track
     out = MultiTracker().step(background(), [det((-100.0, -100.0, 30.0, 30.0))])
     assert len(out) == 1 and out[0].track_id == 0
+
+
+# --- the association rule -------------------------------------------------------------------
+
+def test_fuse_keeps_the_tracked_box_against_a_poor_detection_and_overwrite_does_not():
+    """A confident track meets a detection that holds only part of the sign (a blob cut in
+    two): ``fuse`` scores both boxes with the target model and keeps the tracked one;
+    seed 001's ``overwrite`` takes the detection.  A good detection is taken by both."""
+    bg = background(10)
+    results = {}
+    for assoc in ('fuse', 'overwrite'):
+        tracker = MultiTracker(TrackerConfig(association=assoc))
+        ious = []
+        for i in range(12):
+            img = bg.copy()
+            cx, cy, size = path(i)
+            gt = draw_diamond(img, cx, cy, size)
+            if i < 4 or i == 11:
+                d = gt                                         # good detections
+            else:                                              # the left 55 % of the sign
+                d = (gt[0], gt[1] + 0.2 * gt[3], 0.55 * gt[2], 0.6 * gt[3])
+            out = tracker.step(img, [det(d)])
+            assert [t.track_id for t in out] == [1] and out[0].source == 'detection'
+            b = out[0].box
+            ious.append(box_iou((b.x, b.y, b.w, b.h), gt))
+            if i >= 4 and i < 11:
+                assert box_iou(d, gt) < 0.5                    # a detector miss at tau 0.5
+        results[assoc] = ious
+    assert min(results['fuse'][4:11]) > 0.7, np.round(results['fuse'], 2)
+    assert max(results['overwrite'][4:11]) < 0.5, np.round(results['overwrite'], 2)
+    assert results['fuse'][11] > 0.9 and results['overwrite'][11] > 0.9

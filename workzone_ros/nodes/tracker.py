@@ -15,7 +15,9 @@ from typing import Any, Optional
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
-from workzone_ros.core.tracking import METHODS, MODES, SCALES, MultiTracker, TrackerConfig
+from workzone_ros.core.tracking import (
+    ASSOCIATIONS, METHODS, MODES, OUR_SCALES, MultiTracker, TrackerConfig,
+)
 from workzone_ros.interfaces import Detections, Tracks
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
@@ -35,7 +37,8 @@ _CORE_PARAMS = (
     Param('hue_bins', _D.hue_bins, 'hue bins nh of the target histogram', min=2, max=180),
     Param('sat_bins', _D.sat_bins, 'saturation bins ns of the target histogram', min=2,
           max=256),
-    Param('scales', list(SCALES), 'candidate kernel sizes relative to the previous box'),
+    Param('scales', list(OUR_SCALES), 'candidate kernel sizes relative to the previous box '
+          '(seed 001: 1.0 1.02 1.05 1.07 1.10)'),
     Param('max_iterations', _D.max_iterations, 'mean-shift iterations per candidate', min=1,
           max=100),
     Param('shift_threshold_px', _D.shift_threshold_px, 'stop when the centre moves less',
@@ -77,6 +80,23 @@ _CORE_PARAMS = (
     Param('surround_weight', _D.surround_weight, 'penalty of sign colour around a '
           'candidate in the scale choice (0 = seed)', min=0.0, max=5.0),
     Param('surround_size', _D.surround_size, 'outer size of that band', min=1.0, max=3.0),
+    Param('association', _D.association, 'fuse (ours) or overwrite (seed 001): how an '
+          'associated detection updates a confident track', choices=ASSOCIATIONS),
+    Param('fuse_temperature', _D.fuse_temperature, 'score scale of the fusion weights',
+          min=1e-3, max=1000.0),
+    Param('size_sigma', _D.size_sigma, 'log-size tolerance of the size-consistency factor',
+          min=1e-3, max=10.0),
+    Param('fuse_iou', _D.fuse_iou, 'anchor IoU at which tracked and detected boxes are '
+          'averaged rather than chosen', min=0.0, max=1.0),
+    Param('fuse_bias', _D.fuse_bias, 'added to the detection\'s score in the fusion',
+          min=-1.0, max=1.0),
+    Param('fuse_min_px', _D.fuse_min_px, 'smaller tracks are overwritten, not fused',
+          min=0.0, max=1000.0),
+    Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
+          'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
+    Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '
+          'detections\' perspective trend that ends a coasting track (0 = off)', min=0.0,
+          max=10.0),
 )
 
 

@@ -27,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--signs', type=int, default=4, help='signs in view (default 4)')
     parser.add_argument('--repeats', type=int, default=3, help='runs per method (default 3)')
     parser.add_argument('--seed', type=int, default=0, help='sequence seed')
+    parser.add_argument('--cpu-time', action='store_true',
+                        help='time with the thread CPU clock (for a loaded machine)')
 
 
 def _background(rng: np.random.Generator, w: int = 640, h: int = 480) -> np.ndarray:
@@ -114,9 +116,14 @@ def run(args: argparse.Namespace) -> dict:
         core = 'pinned to one core'
     except (AttributeError, OSError):
         core = 'not pinned'
+    from workzone_ros.core import tracking
+    clock = 'wall (perf_counter)'
+    if getattr(args, 'cpu_time', False):
+        tracking._clock = time.thread_time
+        clock = 'thread CPU time'
     images, boxes = make_sequence(args.frames, args.signs, args.seed)
     out = {'frames': args.frames, 'signs': args.signs, 'repeats': args.repeats,
-           'image': '640x480', 'cpu': core, 'opencv_threads': cv2.getNumThreads()}
+           'image': '640x480', 'cpu': core, 'opencv_threads': cv2.getNumThreads(), 'clock': clock}
     for method in ('meanshift', 'camshift'):
         _measure(method, images[:6], boxes[:6], 1)         # warm-up
         tr, fr, iou = _measure(method, images, boxes, args.repeats)

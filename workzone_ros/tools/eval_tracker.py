@@ -9,27 +9,33 @@ boxes with simulated misses and jitter), and the same detections feed several tr
 lockstep, all from the same starts on the same frames:
 
 * ``detection_only``: seed 001's baseline (detections are the output);
-* ``meanshift``: our tracker (``TrackerConfig()`` defaults);
-* ``meanshift_seed``: seed 001's exact rule (plain ``sqrt(t_u / c_u)`` weights, scale by the
-  best Bhattacharyya coefficient alone);
+* ``meanshift``: our tracker (``TrackerConfig()`` defaults: fusion of tracked and detected
+  boxes, shrinking scales, drift guards);
+* ``meanshift_overwrite``: ours with seed 001's association (the detection overwrites);
+* ``meanshift_seed``: seed 001's exact rule (``tracking.seed_config``: plain
+  ``sqrt(t_u / c_u)`` weights, five only-larger kernels, best Bhattacharyya coefficient,
+  previous centre as start, overwrite, no drift guards; the two-colour guard stays);
 * ``meanshift_no_guard``: ours without the regulatory two-colour guard (whole-box model);
-* ``camshift``: OpenCV's ``cv2.CamShift`` on a hue back-projection (same track life).
+* ``camshift``: OpenCV's ``cv2.CamShift`` on a hue back-projection (our track life).
 
-Quantities (seed 001, IV and Table II), per bag and per configuration:
+Quantities (seed 001, IV and Table II; tau = 0.5; see :func:`evaluate_bag`):
 
 * evaluable signs: work-zone signs (``category == 'workzone'``) at least ``--min-size`` px on
   both sides and at least half visible;
-* ``tracked_frames``: sign-frames from the first frame where the detector found the sign
-  (IoU >= tau) onward -- "the frames which were executed on the tracking"; precision and
-  recall are computed on these only, for every configuration alike;
+* ``run`` sign-frames: from the first frame where a detection matched the sign (IoU >= tau)
+  on -- "the frames which were executed on the tracking"; everything is counted on these;
+* ``misses``: run sign-frames with no detection at IoU >= tau; ``covered``: those where an
+  output of the configuration (any source) has IoU >= tau (also as distinct signs);
 * ``precision`` / ``recall`` (area-based, seed 001: Area(o n g) / Area(o) and / Area(g)) of
-  the best output box with IoU > tau, averaged over matched sign-frames; ``match_rate`` is
-  the share of tracked frames with such a box;
-* ``missed_by_detector`` / ``covered``: tracked sign-frames with no matching detection, and
-  those of them that a ``tracking`` output matched (also as distinct signs);
-* ``false_tracking``: ``tracking`` outputs that overlap no work-zone sign (IoU < 0.3 with
-  every one, whatever its size), of which ``on_drums``: overlapping a GT drum;
-* ``ms_per_track_frame``: p50 / p99 localisation time per track and frame.
+  the best output box with IoU >= tau, averaged over matched run sign-frames; ``match``
+  is the share of run sign-frames with such a box;
+* false outputs: boxes overlapping no work-zone sign (IoU < 0.3 with each), on drums/cones
+  (GT distractors ``drum``/``cone``) or on other non-signs; ``ftrk.*`` are the ``tracking``
+  outputs among them (what the tracker adds; ``.ids`` distinct tracks), ``fout.*`` all;
+* ``ms.p50``: p50 per track and frame of the localisation (plus the fusion scoring on
+  frames where a detection is fused).
+
+Detections can be cached (``--det-cache``) per bag and model file (size, mtime).
 """
 from __future__ import annotations
 

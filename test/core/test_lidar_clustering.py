@@ -3,8 +3,14 @@ import numpy as np
 import pytest
 
 from workzone_ros.core.lidar_clustering import (
-    CANDIDATE_DTYPE, CandidateTracker, Candidates, ClusterParams, LidarClusterError,
-    candidates_to_array, cluster_cloud, region_grow,
+    CANDIDATE_DTYPE,
+    Candidates,
+    CandidateTracker,
+    ClusterParams,
+    LidarClusterError,
+    candidates_to_array,
+    cluster_cloud,
+    region_grow,
 )
 from workzone_ros.core.pointcloud import make_points
 

@@ -2,12 +2,21 @@
 import numpy as np
 import pytest
 
+from workzone_ros.core.lidar_clustering import CANDIDATE_DTYPE
 from workzone_ros.core.projection import (
-    CameraModel, ProjectionError, RoiParams, candidates_to_rois, compensate, crop_boxes,
-    euler_matrix, extrinsics_from_list, forward_time_offset, invert, point_times,
+    CameraModel,
+    ProjectionError,
+    RoiParams,
+    candidates_to_rois,
+    compensate,
+    crop_boxes,
+    euler_matrix,
+    extrinsics_from_list,
+    forward_time_offset,
+    invert,
+    point_times,
     project_points,
 )
-from workzone_ros.core.lidar_clustering import CANDIDATE_DTYPE
 
 K = np.array([[554.26, 0, 320.0], [0, 554.26, 240.0], [0, 0, 1]])
 D = np.array([-0.08, 0.02, 0.0005, -0.0003, 0.001])

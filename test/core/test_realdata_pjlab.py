@@ -17,7 +17,6 @@ import importlib.util
 
 import numpy as np
 import pytest
-
 from conftest import REALDATA
 
 PJLAB = REALDATA / 'lidar_camera_pjlab'

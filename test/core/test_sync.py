@@ -8,8 +8,14 @@ import numpy as np
 import pytest
 
 from workzone_ros.core.sync import (
-    ApproximateTimeSync, LatestSync, NearestSync, PoseBuffer, SyncError, matrix_to_quat,
-    quat_to_matrix, slerp,
+    ApproximateTimeSync,
+    LatestSync,
+    NearestSync,
+    PoseBuffer,
+    SyncError,
+    matrix_to_quat,
+    quat_to_matrix,
+    slerp,
 )
 
 S = 1_000_000_000

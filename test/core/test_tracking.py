@@ -11,7 +11,12 @@ import numpy as np
 import pytest
 
 from workzone_ros.core.tracking import (
-    MultiTracker, TrackerConfig, TrackingError, bhattacharyya, box_iou, build_target,
+    MultiTracker,
+    TrackerConfig,
+    TrackingError,
+    bhattacharyya,
+    box_iou,
+    build_target,
     shape_mask,
 )
 from workzone_ros.interfaces import Box, Detection

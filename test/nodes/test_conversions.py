@@ -16,10 +16,24 @@ from std_msgs.msg import String
 from workzone_ros import interfaces
 from workzone_ros.core.pointcloud import FLOAT32, FLOAT64, INT16, UINT8, xyz_array
 from workzone_ros.nodes.conversions import (
-    CameraInfoData, ConversionError, InputError, array_to_pointcloud2, camera_info_to_numpy,
-    compressed_to_numpy, header_to_payload, image_to_numpy, make_header, numpy_to_camera_info,
-    numpy_to_compressed, numpy_to_image, payload_to_header, payload_to_string,
-    pointcloud2_to_array, stamp_to_time, string_to_payload, time_to_stamp,
+    CameraInfoData,
+    ConversionError,
+    InputError,
+    array_to_pointcloud2,
+    camera_info_to_numpy,
+    compressed_to_numpy,
+    header_to_payload,
+    image_to_numpy,
+    make_header,
+    numpy_to_camera_info,
+    numpy_to_compressed,
+    numpy_to_image,
+    payload_to_header,
+    payload_to_string,
+    pointcloud2_to_array,
+    stamp_to_time,
+    string_to_payload,
+    time_to_stamp,
 )
 
 RNG = np.random.default_rng(7)

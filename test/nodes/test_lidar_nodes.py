@@ -19,7 +19,10 @@ from std_msgs.msg import String
 from workzone_ros import interfaces
 from workzone_ros.core.pointcloud import make_points
 from workzone_ros.nodes.conversions import (
-    CameraInfoData, array_to_pointcloud2, numpy_to_camera_info, numpy_to_image,
+    CameraInfoData,
+    array_to_pointcloud2,
+    numpy_to_camera_info,
+    numpy_to_image,
     pointcloud2_to_array,
 )
 from workzone_ros.nodes.lidar_cluster import LidarClusterNode

@@ -15,7 +15,14 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
 from workzone_ros.interfaces import (
-    Box, Detection, Detections, Header, Time, Tracks, decode, encode,
+    Box,
+    Detection,
+    Detections,
+    Header,
+    Time,
+    Tracks,
+    decode,
+    encode,
 )
 from workzone_ros.nodes.conversions import numpy_to_image, time_to_stamp
 from workzone_ros.nodes.tracker import TrackerNode

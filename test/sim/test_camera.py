@@ -8,7 +8,13 @@ import pytest
 from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult
 from workzone_ros.sim.sheet import ego_pose, make_sign
 from workzone_ros.sim.world import (
-    BASE_TO_CAMERA_ROT, CAMERA_IN_BASE, DEFAULT_CAMERA, Box, Cylinder, Road, Scene,
+    BASE_TO_CAMERA_ROT,
+    CAMERA_IN_BASE,
+    DEFAULT_CAMERA,
+    Box,
+    Cylinder,
+    Road,
+    Scene,
 )
 
 

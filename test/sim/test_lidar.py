@@ -4,7 +4,15 @@ import pytest
 
 from workzone_ros.sim.lidar import LidarError, LidarModel, Scan, cast_scan, sign_shape_contains
 from workzone_ros.sim.world import (
-    LIDAR_IN_BASE, SIGN_BOTTOM_HEIGHT, SIGN_LATERAL, Box, Cone, Cylinder, Pose, Road, Scene,
+    LIDAR_IN_BASE,
+    SIGN_BOTTOM_HEIGHT,
+    SIGN_LATERAL,
+    Box,
+    Cone,
+    Cylinder,
+    Pose,
+    Road,
+    Scene,
     SignPanel,
 )
 

@@ -8,8 +8,15 @@ import pytest
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.sim.scenario import (
-    ADVANCE_DEFAULT, LaneVehicle, ScenarioError, build_scene, lane_profile, list_scenarios,
-    load_scenario, parse_scenario, random_scenario,
+    ADVANCE_DEFAULT,
+    LaneVehicle,
+    ScenarioError,
+    build_scene,
+    lane_profile,
+    list_scenarios,
+    load_scenario,
+    parse_scenario,
+    random_scenario,
 )
 from workzone_ros.sim.world import SIGN_BOTTOM_HEIGHT, Box, Cylinder
 

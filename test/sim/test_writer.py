@@ -7,7 +7,6 @@ import filecmp
 import cv2
 import numpy as np
 import pytest
-
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
@@ -17,7 +16,12 @@ from workzone_ros.sim import cli
 from workzone_ros.sim.scenario import build_scene, load_scenario
 from workzone_ros.sim.world import LIDAR_TO_CAMERA, rot_zyx
 from workzone_ros.sim.writer import (
-    EPOCH_NS, SynthError, SynthOptions, frame_times, scan_times, write_bag,
+    EPOCH_NS,
+    SynthError,
+    SynthOptions,
+    frame_times,
+    scan_times,
+    write_bag,
 )
 
 SCENARIO = """

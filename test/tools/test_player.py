@@ -3,19 +3,25 @@ import threading
 import time
 
 import pytest
-from wz_tools_helpers import (N_CHATTER, PERIOD_NS, T0, run_cli, spin_until, write_ros1_bag,
-                      write_ros2_bag)
+from wz_tools_helpers import (
+    N_CHATTER,
+    PERIOD_NS,
+    T0,
+    run_cli,
+    spin_until,
+    write_ros1_bag,
+    write_ros2_bag,
+)
 
 from workzone_ros.tools.player import BagPlayer, parse_remaps
 
 
 def _play_and_receive(ros_context, bag, rate, remap=None):
+    import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import QoSProfile
     from rosgraph_msgs.msg import Clock
     from std_msgs.msg import String
-
-    import rclpy
     topic = (remap or {}).get('/chatter', '/chatter')
     node = rclpy.create_node('player_test_sub', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)

@@ -28,7 +28,10 @@ from std_msgs.msg import String
 
 from workzone_ros import interfaces
 from workzone_ros.core.pointcloud import (
-    FieldSpec, PointCloudError, cloud_view, dtype_to_fields,
+    FieldSpec,
+    PointCloudError,
+    cloud_view,
+    dtype_to_fields,
 )
 
 __all__ = [

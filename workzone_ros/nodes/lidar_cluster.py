@@ -16,7 +16,11 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 
 from workzone_ros.core.lidar_clustering import (
-    CandidateTracker, ClusterParams, LidarClusterError, candidates_to_array, cluster_cloud,
+    CandidateTracker,
+    ClusterParams,
+    LidarClusterError,
+    candidates_to_array,
+    cluster_cloud,
 )
 from workzone_ros.core.pointcloud import make_points
 from workzone_ros.core.projection import euler_matrix

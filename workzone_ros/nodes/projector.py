@@ -35,16 +35,30 @@ from std_msgs.msg import String
 
 from workzone_ros import interfaces
 from workzone_ros.core.projection import (
-    CameraModel, ProjectionError, RoiParams, candidates_to_rois, euler_matrix,
-    extrinsics_from_list, forward_time_offset,
+    CameraModel,
+    ProjectionError,
+    RoiParams,
+    candidates_to_rois,
+    euler_matrix,
+    extrinsics_from_list,
+    forward_time_offset,
 )
 from workzone_ros.core.sync import (
-    ApproximateTimeSync, LatestSync, NearestSync, PoseBuffer, SyncError,
+    ApproximateTimeSync,
+    LatestSync,
+    NearestSync,
+    PoseBuffer,
+    SyncError,
 )
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
-    camera_info_to_numpy, header_to_payload, image_to_numpy, numpy_to_image,
-    payload_to_string, pointcloud2_to_array, stamp_to_time,
+    camera_info_to_numpy,
+    header_to_payload,
+    image_to_numpy,
+    numpy_to_image,
+    payload_to_string,
+    pointcloud2_to_array,
+    stamp_to_time,
 )
 
 __all__ = ['ProjectorNode', 'NODE_CLASS', 'main']

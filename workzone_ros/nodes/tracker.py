@@ -16,12 +16,20 @@ from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
 from workzone_ros.core.tracking import (
-    ASSOCIATIONS, METHODS, MODES, OUR_SCALES, MultiTracker, TrackerConfig,
+    ASSOCIATIONS,
+    METHODS,
+    MODES,
+    OUR_SCALES,
+    MultiTracker,
+    TrackerConfig,
 )
 from workzone_ros.interfaces import Detections, Tracks
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
-    image_to_numpy, payload_to_string, stamp_to_time, string_to_payload,
+    image_to_numpy,
+    payload_to_string,
+    stamp_to_time,
+    string_to_payload,
 )
 
 __all__ = ['TrackerNode', 'NODE_CLASS', 'main']
@@ -88,14 +96,14 @@ _CORE_PARAMS = (
           min=1e-3, max=10.0),
     Param('fuse_iou', _D.fuse_iou, 'anchor IoU at which tracked and detected boxes are '
           'averaged rather than chosen', min=0.0, max=1.0),
-    Param('fuse_bias', _D.fuse_bias, 'added to the detection\'s score in the fusion',
+    Param('fuse_bias', _D.fuse_bias, "added to the detection's score in the fusion",
           min=-1.0, max=1.0),
     Param('fuse_min_px', _D.fuse_min_px, 'smaller tracks are overwritten, not fused',
           min=0.0, max=1000.0),
     Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
           'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
     Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '
-          'detections\' perspective trend that ends a coasting track (0 = off)', min=0.0,
+          "detections' perspective trend that ends a coasting track (0 = off)", min=0.0,
           max=10.0),
 )
 

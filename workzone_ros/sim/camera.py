@@ -31,8 +31,20 @@ import numpy as np
 from workzone_ros.core import signs as catalogue
 from workzone_ros.sim import signart
 from workzone_ros.sim.world import (
-    BASE_TO_CAMERA_ROT, CAMERA_IN_BASE, DEFAULT_CAMERA, LEFT_SHOULDER, MATERIALS,
-    RIGHT_SHOULDER, ROAD_HALF_WIDTH, Box, CameraModel, Cone, Cylinder, Pose, Quad, Scene,
+    BASE_TO_CAMERA_ROT,
+    CAMERA_IN_BASE,
+    DEFAULT_CAMERA,
+    LEFT_SHOULDER,
+    MATERIALS,
+    RIGHT_SHOULDER,
+    ROAD_HALF_WIDTH,
+    Box,
+    CameraModel,
+    Cone,
+    Cylinder,
+    Pose,
+    Quad,
+    Scene,
     SignPanel,
 )
 

@@ -58,8 +58,18 @@ import numpy as np
 from ..core.pointcloud import make_points
 from ..core.signs import BY_KEY
 from .world import (
-    LEFT_SHOULDER, MATERIALS, RIGHT_SHOULDER, ROAD_HALF_WIDTH, Box, Cone, Cylinder, Pose, Quad,
-    Road, Scene, SignPanel,
+    LEFT_SHOULDER,
+    MATERIALS,
+    RIGHT_SHOULDER,
+    ROAD_HALF_WIDTH,
+    Box,
+    Cone,
+    Cylinder,
+    Pose,
+    Quad,
+    Road,
+    Scene,
+    SignPanel,
 )
 
 __all__ = ['LidarError', 'LidarModel', 'Scan', 'cast_scan', 'sign_shape_contains']

@@ -45,8 +45,23 @@ import yaml
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import GtEvent
 from workzone_ros.sim.world import (
-    CAMERA_IN_BASE, LANE_CENTERS, LANE_WIDTH, LEFT_SHOULDER, LIDAR_IN_BASE, RIGHT_SHOULDER,
-    ROAD_HALF_WIDTH, SIGN_BOTTOM_HEIGHT, SIGN_LATERAL, Box, Cone, Cylinder, Pose, Quad, Road, Scene, SignPanel,
+    CAMERA_IN_BASE,
+    LANE_CENTERS,
+    LANE_WIDTH,
+    LEFT_SHOULDER,
+    LIDAR_IN_BASE,
+    RIGHT_SHOULDER,
+    ROAD_HALF_WIDTH,
+    SIGN_BOTTOM_HEIGHT,
+    SIGN_LATERAL,
+    Box,
+    Cone,
+    Cylinder,
+    Pose,
+    Quad,
+    Road,
+    Scene,
+    SignPanel,
 )
 
 __all__ = [

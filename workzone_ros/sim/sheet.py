@@ -16,8 +16,19 @@ from workzone_ros.core import signs as catalogue
 from workzone_ros.sim import signart
 from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer
 from workzone_ros.sim.world import (
-    LANE_CENTERS, ROAD_HALF_WIDTH, RIGHT_SHOULDER, SIGN_BOTTOM_HEIGHT, SIGN_LATERAL,
-    Box, Cone, Cylinder, Pose, Quad, Road, Scene, SignPanel,
+    LANE_CENTERS,
+    RIGHT_SHOULDER,
+    ROAD_HALF_WIDTH,
+    SIGN_BOTTOM_HEIGHT,
+    SIGN_LATERAL,
+    Box,
+    Cone,
+    Cylinder,
+    Pose,
+    Quad,
+    Road,
+    Scene,
+    SignPanel,
 )
 
 __all__ = ['make_sign', 'ego_pose', 'demo_scene', 'catalogue_scene', 'make_contact_sheet',

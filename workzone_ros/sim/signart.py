@@ -340,7 +340,7 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
 
 @lru_cache(maxsize=512)
 def _cached(key: str, size_px: int, speed: int, variant: str) -> np.ndarray:
-    mirror = {r: l for l, r in MIRROR_PAIRS}
+    mirror = {right: left for left, right in MIRROR_PAIRS}
     if key in mirror:           # exact mirror image of the left variant
         face = np.ascontiguousarray(_cached(mirror[key], size_px, speed, variant)[:, ::-1])
         face.flags.writeable = False

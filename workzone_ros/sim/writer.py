@@ -45,12 +45,28 @@ import numpy as np
 from workzone_ros.core import signs as catalogue
 from workzone_ros.core.pointcloud import dtype_to_fields
 from workzone_ros.interfaces import (
-    Box as GtBox, Extrinsics, GtLidar, GtLidarSign, GtObject, GtSign, GtSigns, GtWorkzone,
-    Header, Time, encode,
+    Box as GtBox,
+)
+from workzone_ros.interfaces import (
+    Extrinsics,
+    GtLidar,
+    GtLidarSign,
+    GtObject,
+    GtSign,
+    GtSigns,
+    GtWorkzone,
+    Header,
+    Time,
+    encode,
 )
 from workzone_ros.sim.scenario import FPS, LaneVehicle, ScenarioSpec, build_scene
 from workzone_ros.sim.world import (
-    BASE_TO_CAMERA_ROT, CAMERA_IN_BASE, DEFAULT_CAMERA, LIDAR_IN_BASE, LIDAR_TO_CAMERA, Pose,
+    BASE_TO_CAMERA_ROT,
+    CAMERA_IN_BASE,
+    DEFAULT_CAMERA,
+    LIDAR_IN_BASE,
+    LIDAR_TO_CAMERA,
+    Pose,
     Scene,
 )
 

@@ -107,7 +107,11 @@ def _same_partition(a: np.ndarray, b: np.ndarray) -> bool:
 def run(args) -> dict:
     """Measure and return the figures."""
     from workzone_ros.core.lidar_clustering import (
-        CandidateTracker, ClusterParams, candidates_to_array, cluster_cloud, prefilter,
+        CandidateTracker,
+        ClusterParams,
+        candidates_to_array,
+        cluster_cloud,
+        prefilter,
         region_grow,
     )
     from workzone_ros.core.pointcloud import cloud_view

@@ -51,12 +51,21 @@ from typing import Optional
 import numpy as np
 
 from workzone_ros.core.lidar_clustering import (
-    CandidateTracker, ClusterParams, candidates_to_array, cluster_cloud,
+    CandidateTracker,
+    ClusterParams,
+    candidates_to_array,
+    cluster_cloud,
 )
 from workzone_ros.core.pcd import read_pcd
 from workzone_ros.core.projection import (
-    CameraModel, RoiParams, candidates_to_rois, compensate, extrinsics_from_list,
-    forward_time_offset, point_times, project_points,
+    CameraModel,
+    RoiParams,
+    candidates_to_rois,
+    compensate,
+    extrinsics_from_list,
+    forward_time_offset,
+    point_times,
+    project_points,
 )
 from workzone_ros.core.sync import ApproximateTimeSync, LatestSync, NearestSync
 

@@ -471,7 +471,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='evaluable signs: smallest side in px (default 12)')
     p.add_argument('--max-frames', type=int, default=0, help='stop after N frames per bag')
     p.add_argument('--json', help='write the figures here')
-    p.add_argument('--overlay', help='write a tracking overlay strip PNG per bag (a bag\'s '
+    p.add_argument('--overlay', help="write a tracking overlay strip PNG per bag (a bag's "
                    'name is appended when there are several)')
     p.add_argument('--det-cache', default=None,
                    help='directory for cached detections (one file per bag and model file)')

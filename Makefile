@@ -6,7 +6,7 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 DEMO_BAG := bags/demo
 
-.PHONY: all install demo test bench contact-sheet clean
+.PHONY: all install demo test lint bench contact-sheet clean
 
 all: test
 
@@ -26,6 +26,9 @@ demo: $(DEMO_BAG)/metadata.yaml
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q test
+
+lint: $(STAMP)
+	$(BIN)/ruff check workzone_ros test
 
 bench: $(STAMP)
 	$(BIN)/workzone-ros bench all --json bags/bench.json

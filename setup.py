@@ -50,6 +50,7 @@ setup(
         'test': [
             'pytest>=7',
             'pytest-timeout>=2',
+            'ruff>=0.4',
             # LZF decompression for binary_compressed PCD files (the real PJLab LiDAR scenes
             # in the tests); workzone_ros.core.pcd says how to install it when missing.
             'python-lzf>=0.2.6',

@@ -574,6 +574,8 @@ class ColorDetector:
                  blob_fill: float = 1.0) -> Optional[Candidate]:
         """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
+        if cfg.method == 'learned' and color == 'orange':
+            return self._measure_orange(bgr, comp, box, s, thr_base, lboxes)
         H, W = bgr.shape[:2]
         fx, fy, fw, fh = box
         m = 2 * s + 1
@@ -645,6 +647,101 @@ class ColorDetector:
         if (color == 'orange' and cfg.method == 'learned' and cfg.extension
                 and kind == 'regulatory' and aspect >= cfg.ext_min_aspect):
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
+        return cand
+
+    def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
+                        thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
+        """The learned orange path: hysteresis region, sign structure, shape-derived box.
+
+        1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
+           blob's location) near the blob are the face; pixels >= ``weak_threshold`` next to
+           them join (hysteresis); a closing bridges the thin black border line.
+        2. Structure: solidity (pixels / hull area), hull fill (diamond ~0.5, rectangle ~1),
+           aspect, and for blobs of ``structure_min_px`` or more a dark legend or border
+           inside the hull.
+        3. Box: the orange hull's bounding box; if the ring just outside it is dark (the
+           sign's black border, with the thin outer orange margin lost to blending), the
+           box grows by ``border_frac`` of the hull's size on every side.
+        """
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        fx, fy, fw, fh = box
+        m = 2 * s + 1 + int(0.2 * max(fw, fh))
+        x0, y0 = max(0, fx - m), max(0, fy - m)
+        x1, y1 = min(W, fx + fw + m), min(H, fy + fh + m)
+        win = bgr[y0:y1, x0:x1]
+        hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
+        i = self._idx['orange']
+        like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
+        vch = hsv[..., 2]
+        like[vch < self.model.v_min[i]] = 0.0
+        cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
+        cy, cx = min(cy, thr_base.shape[0] - 1), min(cx, thr_base.shape[1] - 1)
+        t = thr_base[cy, cx] / _P_SCALE
+        for bx0, by0, bx1, by1 in lboxes:
+            if bx0 <= cx < bx1 and by0 <= cy < by1:
+                t = min(t, cfg.roi_threshold / cfg.roi_prior)
+        region = np.zeros(win.shape[:2], np.uint8)
+        up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
+        region[fy - y0:fy - y0 + fh, fx - x0:fx - x0 + fw] = up
+        if s > 1:
+            region = cv2.dilate(region, np.ones((2 * s + 1, 2 * s + 1), np.uint8))
+        strong = ((like >= t - 1e-6) & (region > 0)).astype(np.uint8)
+        if not strong.any():
+            return None
+        weak = (like >= min(cfg.weak_threshold, t)).astype(np.uint8)
+        grown = cv2.dilate(strong, np.ones((3, 3), np.uint8), iterations=2) & weak | strong
+        size = max(fw, fh)
+        k = max(3, int(round(0.08 * size)) | 1)
+        pix = cv2.morphologyEx(grown, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
+        pix &= weak | strong
+        n, lab, st, _ = cv2.connectedComponentsWithStats(pix, connectivity=8)
+        if n <= 1:
+            return None
+        j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+        pix = (lab == j).astype(np.uint8)
+        area = float(st[j, cv2.CC_STAT_AREA])
+        if area < cfg.min_area_px:
+            return None
+        bx0, by0, bw, bh = (int(v) for v in st[j, :4])
+        if bw < 2 or bh < 2:
+            return None
+        pts = cv2.findNonZero(pix)
+        hull = cv2.convexHull(pts)
+        hull_area = max(float(cv2.contourArea(hull)), 1.0)
+        hull_fill = hull_area / (bw * bh)
+        solidity = area / hull_area
+        aspect = bw / bh
+        if (hull_fill < cfg.min_hull_fill or solidity < cfg.min_solidity
+                or max(aspect, 1 / aspect) > cfg.max_aspect):
+            return None
+        hmask = np.zeros_like(pix)
+        cv2.fillConvexPoly(hmask, hull, 1)
+        v_ref = float(np.median(vch[pix > 0]))
+        dark = vch < cfg.dark_rel * v_ref
+        if min(bw, bh) >= cfg.structure_min_px:
+            inside = hmask > 0
+            if np.count_nonzero(dark & inside) < cfg.min_dark_inside * np.count_nonzero(inside):
+                return None
+        kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
+        conf = _mode(like[pix > 0])
+        # the ring just outside the hull: dark = the border, orange margin lost
+        r = max(1, int(round(cfg.border_frac * min(bw, bh))))
+        ring = (cv2.dilate(hmask, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) & (hmask == 0)
+        nr = np.count_nonzero(ring)
+        grow = nr > 0 and np.count_nonzero(dark & ring) >= cfg.border_dark * nr
+        cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
+        if grow:
+            gx, gy = cfg.border_frac * bw, cfg.border_frac * bh
+            cand.x, cand.y = cand.x - gx, cand.y - gy
+            cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
+        sx, sy = cfg.border_scale
+        if sx != 1.0 or sy != 1.0:
+            cand.x -= 0.5 * (sx - 1.0) * cand.w
+            cand.y -= 0.5 * (sy - 1.0) * cand.h
+            cand.w, cand.h = sx * cand.w, sy * cand.h
+        if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
+            self._extend(bgr, cand, hsv[pix > 0])
         return cand
 
     def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:

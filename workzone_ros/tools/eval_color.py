@@ -270,8 +270,8 @@ def evaluate_pixels(model: cm.ColorModel, folder: str, threshold: float) -> dict
                                                               root / row['mask']))
     lut = model.lut('orange')
     v = model.v_min[model.index('orange')]
-    out = {w: pixel_metrics(lut, v, pairs, 40, threshold) for w, pairs in by_weather.items()}
-    out['all'] = pixel_metrics(lut, v, [p for ps in by_weather.values() for p in ps], 40,
+    out = {w: pixel_metrics(lut, v, pairs, threshold) for w, pairs in by_weather.items()}
+    out['all'] = pixel_metrics(lut, v, [p for ps in by_weather.values() for p in ps],
                                threshold)
     return out
 

@@ -145,3 +145,24 @@ def test_hsv_range_tables():
     bgr = np.full((4, 4, 3), (40, 35, 195), np.uint8)
     assert np.all(m.likelihood(bgr, 'red') > 0.9) and np.all(m.likelihood(bgr, 'orange') == 0)
     assert json.dumps(dict(m.metadata)) == '{}'
+
+
+def test_gray_world_removes_a_tint_and_is_clipped():
+    grey = np.full((8, 8, 3), 120, np.uint8)
+    tinted = cm.apply_gains(grey, (0.7, 0.9, 1.3))             # dusk: orange cast
+    back = cm.apply_gains(tinted, cm.gray_world_gains(tinted))
+    b, g, r = back[0, 0].astype(int)
+    assert max(b, g, r) - min(b, g, r) <= 2                   # neutral again, same brightness
+    assert abs(int(back.mean()) - int(tinted.mean())) <= 2
+    orange = np.full((8, 8, 3), ORANGE, np.uint8)              # a frame filled by one truck
+    gains = cm.gray_world_gains(orange)
+    assert min(gains) >= 0.6 and max(gains) <= 1.6
+
+
+def test_prior_saturation():
+    boxes = [(400, 100, 40, 40)] * 10 + [(200, 120, 40, 40)]
+    peaked = cm.fit_prior(boxes, (640, 480))
+    flat = cm.fit_prior(boxes, (640, 480), saturate=0.05)
+    assert peaked.prior_image(640, 480)[140, 220] < 0.6
+    assert flat.prior_image(640, 480)[140, 220] > 0.99
+    assert flat.prior_image(640, 480)[470, 10] == pytest.approx(flat.floor, abs=1e-3)

@@ -86,8 +86,13 @@ def test_diamond_at_known_box(detector, r):
     assert d.color == 'orange' and d.kind == 'warning' and d.sources == ['color']
     assert 0.5 <= d.confidence <= 1.0
     _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
-    assert precision > 0.9 and recall > 0.9
+    # the orange hull's box grows by border_frac (4 %) per side for the border / outer margin
+    # that renders and cameras blend away; this drawn sign is sharp to its edge
+    assert recall > 0.97 and precision > 0.8
     assert len(dets) == 1
+    exact = _one(detector.with_config(border_frac=0.0).detect(img), gt, 0.85)
+    _, precision, recall = dt.box_metrics(exact.box, Box(*map(float, gt)))
+    assert precision > 0.9 and recall > 0.9
 
 
 def test_every_sign_is_kept(detector):
@@ -239,3 +244,36 @@ def test_config_validation():
         dt.DetectorConfig(colors=('blue',))
     with pytest.raises(ValueError):
         dt.DetectorConfig(threshold=1.5)
+
+
+def test_regulatory_extension_under_overcast_light(detector):
+    """Flat, hazy light: the legend is grey, not black; the white part is judged relative."""
+    img = _background()
+    gt = _regulatory(img, 400, 80, 72, 90)
+    hazy = cv2.addWeighted(img, 0.55, np.full_like(img, 70), 0.45, 0)
+    d = _one(detector.detect(hazy), gt, 0.75)
+    assert d.kind == 'regulatory' and d.box.h > 80
+
+
+def test_plain_orange_panel_is_not_a_sign(detector):
+    """Sign faces carry a legend and border; a plain orange panel (a truck side) does not."""
+    img = _background()
+    cv2.rectangle(img, (380, 100), (459, 159), ORANGE, -1)
+    assert detector.detect(img) == []
+    _diamond(img, 200, 120, 30)
+    assert len(detector.detect(img)) == 1
+
+
+def test_geometry_rejects_orange_things_on_the_road(model):
+    """With the trained mounting geometry, a blob whose bottom is far below the mid row
+    (a drum, a cone) is not a sign; the same blob up at sign height is."""
+    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
+                        {'geometry': np.array([0.5, 0.26])})
+    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False))
+    img = _background()
+    low = _diamond(img, 300, 400, 30)
+    high = _diamond(img, 500, 150, 30)
+    dets = det.detect(img)
+    _one(dets, high)
+    assert not [d for d in dets if d.box.iou(Box(*map(float, low))) > 0.3]
+    assert len(det.with_config(use_geometry=False).detect(img)) == 2

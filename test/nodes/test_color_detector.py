@@ -29,6 +29,9 @@ def _frame(sign=True):
     if sign:
         pts = np.array([[420, 110], [460, 150], [420, 190], [380, 150]], np.int32)
         cv2.fillConvexPoly(img, pts, ORANGE)
+        inner = np.array([[420, 114], [456, 150], [420, 186], [384, 150]], np.int32)
+        cv2.polylines(img, [inner], True, (22, 22, 22), 2)            # border and legend:
+        cv2.putText(img, 'RW', (404, 157), cv2.FONT_HERSHEY_DUPLEX, 0.6, (22, 22, 22), 2)
     return img
 
 

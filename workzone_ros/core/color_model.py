@@ -38,7 +38,7 @@ __all__ = [
     'ModelError', 'SCHEMA', 'VERSION', 'H_BINS', 'S_BINS', 'HSV_RANGES', 'ColorModel',
     'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
     'boosted_lut', 'hsv_range_lut', 'histogram_from_pixels', 'fit_prior', 'save_model',
-    'load_model', 'default_model',
+    'load_model', 'default_model', 'gray_world_gains', 'apply_gains',
 ]
 
 SCHEMA = 'workzone_ros/ColorModel'
@@ -189,6 +189,25 @@ def hsv_range_lut(ranges: Sequence[tuple[int, int, int, int]],
     return lut, int(min(r[3] for r in ranges))
 
 
+# --- colour constancy (outside the table) -------------------------------------------------
+
+def gray_world_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6) -> tuple:
+    """Per-channel gains that make the frame's mean grey (grey-world white balance).
+
+    Dusk light tints a whole frame orange (sky, lane paint); after the gains the tint is gone
+    and only truly orange surfaces stay orange.  Clipped to [lo, hi] so a frame filled by one
+    orange truck is not turned blue.  Returns (b, g, r) gains.
+    """
+    m = cv2.mean(bgr)[:3]
+    grey = (m[0] + m[1] + m[2]) / 3.0
+    return tuple(float(np.clip(grey / max(c, 1.0), lo, hi)) for c in m)
+
+
+def apply_gains(bgr: np.ndarray, gains: tuple) -> np.ndarray:
+    """``bgr`` times per-channel ``gains``, saturated to uint8."""
+    return cv2.transform(bgr, np.diag(np.asarray(gains, np.float64)))
+
+
 # --- the spatial prior -------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -226,7 +245,8 @@ class SpatialPrior:
 
 def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tuple[int, int],
               cell: int = 8, sigma_cells: float = 2.5, roi_level: float = 0.02,
-              roi_margin: int = 16, floor: float = 0.2) -> SpatialPrior:
+              roi_margin: int = 16, floor: float = 0.2,
+              saturate: float = 1.0) -> SpatialPrior:
     """Project every ground-truth box onto one image and smooth it (seed 000, Fig. 1).
 
     Args:
@@ -237,6 +257,11 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
         roi_level: the ROI is the bounding rectangle of cells with heat >= this level.
         roi_margin: pixels added around the ROI.
         floor: prior outside the training signs' locations.
+        saturate: the heat is the smoothed box density divided by this fraction of its
+            maximum and clipped to 1: with 1 only the single densest cell has P(sign) = 1;
+            with e.g. 0.1 every location with a tenth of the peak density is a full-prior
+            location (P(sign) multiplies the likelihood, so a peaked prior would demand
+            likelihoods near 1 everywhere but at the peak).
 
     Returns:
         The :class:`SpatialPrior`; uniform if ``boxes`` is empty.
@@ -253,7 +278,8 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
         if x1 > x0 and y1 > y0:
             acc[y0:y1, x0:x1] += 1.0
     acc = cv2.GaussianBlur(acc, (0, 0), sigma_cells)
-    heat = (acc / acc.max()).astype(np.float32) if acc.max() > 0 else np.ones_like(acc, np.float32)
+    heat = (np.clip(acc / (saturate * acc.max()), 0.0, 1.0).astype(np.float32)
+            if acc.max() > 0 else np.ones_like(acc, np.float32))
     ys, xs = np.nonzero(heat >= roi_level)
     x0 = max(0, int(xs.min()) * cell - roi_margin)
     y0 = max(0, int(ys.min()) * cell - roi_margin)
@@ -307,8 +333,18 @@ class ColorModel:
         """The (180, 256) float32 table of ``color``."""
         return self.luts[self.index(color)]
 
+    @property
+    def gray_world(self) -> bool:
+        """True when the tables were trained on grey-world balanced frames."""
+        return bool(self.metadata.get('gray_world', False))
+
     def likelihood(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
-        """P(x | colour) for every pixel of a BGR image (value gate applied), float32."""
+        """P(x | colour) for every pixel of a BGR image (value gate applied), float32.
+
+        The frame is grey-world balanced first when the model was trained that way.
+        """
+        if self.gray_world:
+            bgr = apply_gains(bgr, gray_world_gains(bgr))
         hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
         i = self.index(color)
         p = self.luts[i][hsv[..., 0], hsv[..., 1]]

@@ -13,12 +13,21 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
 3. Erosion then dilation (opening, seed 004 3.4.2) and a closing, connected components
    (``cv2.connectedComponentsWithStats``), radius filters (seed 000 footnote 2: centroid to
    side distance, here half the smaller box side).
-4. Each blob's box is refined at full resolution inside a small window (so the half-
-   resolution mask costs no box accuracy), its shape measured (convex-hull fill: ~0.5 for a
-   diamond, ~1 for a rectangle) and its confidence computed as the mode of its pixels'
-   posterior probabilities (eq. 2: mode of g(f(x_j))).  The seed takes the mode over all
-   pixels of the box; we take it over the blob's pixels, because on a diamond half of the
-   box is background and the mode would be the background's.
+   Before the table the frame is grey-world balanced when the model was trained so
+   (colour constancy outside the table: a dusk cast no longer turns sky and lane paint
+   orange), and the likelihood is box-filtered at the mask's resolution before the
+   threshold (isolated orange-hued pixels are averaged away).
+4. Each blob is measured at full resolution inside a small window (so the half-resolution
+   mask costs no box accuracy): hysteresis (pixels >= ``weak_threshold`` next to the blob
+   join it) and a closing sized to the blob bridge the border line and legend strokes; the
+   face must look like a sign: solidity, convex-hull fill (~0.5 diamond, ~1 rectangle),
+   aspect, a dark legend / border inside the hull, and a bottom edge no lower than the
+   training signs' mounting geometry allows (model extra ``geometry``; drums, cones and
+   vehicles stand on the road).  The box is the orange hull's, grown by ``border_frac``
+   of its size per side for the border and outer margin that blend away.  The confidence
+   is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
+   takes the mode over all pixels of the box; we take it over the blob's pixels, because
+   on a diamond half of the box is background and the mode would be the background's.
 5. The regulatory two-colour extension (seed 000): a wide orange rectangle with white rows
    under it (orange top, white bottom: R22-1, R2-1 + G20-5aP) is extended down over the
    white part; the aspect ratio selects the candidates, the white rows decide how far.
@@ -47,7 +56,12 @@ import cv2
 import numpy as np
 
 from workzone_ros.core.color_model import (
-    H_BINS, HSV_RANGES, S_BINS, ColorModel, ModelError, SpatialPrior,
+    HSV_RANGES,
+    ColorModel,
+    ModelError,
+    SpatialPrior,
+    apply_gains,
+    gray_world_gains,
 )
 from workzone_ros.interfaces import Box, Detection, Roi
 
@@ -81,14 +95,23 @@ class DetectorConfig:
         refine: refine boxes at full resolution.
         border_scale: extra (w, h) factors applied to every orange box (1 = none; the border
             is handled by ``border_frac``).
+        use_geometry: reject orange blobs whose bottom edge lies lower than the training
+            signs' (model extra ``geometry``: reference row as a fraction of the image
+            height, largest (bottom - row) / height seen in training plus a margin).
         smooth_px: box filter on the likelihood at the mask's resolution before thresholding.
+        close_frac: closing kernel at full resolution as a fraction of the blob's size
+            (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it
             at full resolution (the blended outer margin, shaded parts).
-        border_frac: a sign's black border plus its outer margin as a fraction of the sign's
-            size (MUTCD borders are a fixed fraction; our art: 3.5 % margin + 3 % line).
-            When the ring just outside the orange hull is dark (the border), the hull is
-            grown by this fraction of its size on every side.
-        border_dark: share of dark pixels in that ring that means "border found".
+        border_frac: the part of a sign outside its orange hull as a fraction of the sign's
+            size (MUTCD borders are a fixed fraction of the size; our art: 3.5 % orange
+            margin + 3 % black line, the margin blending into the background).  When the
+            ring just outside the orange hull is dark enough (``border_dark``), the hull's
+            box grows by this fraction of its size on every side.
+        border_dark: share of dark pixels in that ring that means "border found" (0: always
+            grow; on our development renders the ring test did not separate the cases where
+            the blended outer margin is already inside the hull, so the default grows always
+            by the art's outer margin + half the line, 4 %).
         min_solidity: smallest orange pixels / convex-hull area of an orange blob.
         min_dark_inside: smallest share of dark (legend, border) pixels inside the hull of an
             orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
@@ -130,9 +153,11 @@ class DetectorConfig:
     refine: bool = True
     border_scale: tuple[float, float] = (1.0, 1.0)
     smooth_px: int = 3
+    use_geometry: bool = True
+    close_frac: float = 0.12
     weak_threshold: float = 0.3
-    border_frac: float = 0.065
-    border_dark: float = 0.3
+    border_frac: float = 0.04
+    border_dark: float = 0.0
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
     dark_rel: float = 0.6
@@ -440,6 +465,10 @@ class ColorDetector:
             for c, i in self._idx.items()}
         self._vmin = {c: model.v_min[i] for c, i in self._idx.items()}
         self._cache: dict[tuple, Any] = {}
+        self.debug: Optional[list] = None      # a list: rejected / measured blobs land here
+        self._gains: Optional[tuple] = None
+        g = model.extras.get('geometry')
+        self._geometry = (float(g[0]), float(g[1])) if g is not None and len(g) >= 2 else None
 
     def with_config(self, **changes) -> 'ColorDetector':
         """A detector sharing the model with some parameters changed."""
@@ -499,7 +528,13 @@ class ColorDetector:
         for x0, y0, x1, y1 in lboxes:
             cx0, cy0, cx1, cy1 = min(cx0, x0), min(cy0, y0), max(cx1, x1), max(cy1, y1)
         small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_AREA) if s > 1 else bgr
+        self._gains = None
+        if cfg.method == 'learned' and self.model.gray_world and small.size:
+            # colour constancy outside the table (the model was trained this way)
+            self._gains = gray_world_gains(small)
         crop = small[cy0:cy1, cx0:cx1]
+        if self._gains is not None and crop.size:
+            crop = apply_gains(crop, self._gains)
         if crop.size == 0:
             return []
         thr = thr_base
@@ -670,6 +705,8 @@ class ColorDetector:
         x0, y0 = max(0, fx - m), max(0, fy - m)
         x1, y1 = min(W, fx + fw + m), min(H, fy + fh + m)
         win = bgr[y0:y1, x0:x1]
+        if self._gains is not None:
+            win = apply_gains(win, self._gains)
         hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
         i = self._idx['orange']
         like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
@@ -689,18 +726,20 @@ class ColorDetector:
         strong = ((like >= t - 1e-6) & (region > 0)).astype(np.uint8)
         if not strong.any():
             return None
-        weak = (like >= min(cfg.weak_threshold, t)).astype(np.uint8)
-        grown = cv2.dilate(strong, np.ones((3, 3), np.uint8), iterations=2) & weak | strong
+        weak = (like >= min(cfg.weak_threshold, t)).astype(np.uint8) | strong
         size = max(fw, fh)
-        k = max(3, int(round(0.08 * size)) | 1)
-        pix = cv2.morphologyEx(grown, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
-        pix &= weak | strong
-        n, lab, st, _ = cv2.connectedComponentsWithStats(pix, connectivity=8)
+        k = max(3, int(round(cfg.close_frac * size)) | 1)
+        kern = np.ones((k, k), np.uint8)
+        # weak pixels near the blob join it; the closing bridges border and legend strokes
+        # (the face as one region; its orange pixels are ``weak`` inside it)
+        face = cv2.morphologyEx(cv2.dilate(strong, kern) & weak, cv2.MORPH_CLOSE, kern)
+        n, lab, st, _ = cv2.connectedComponentsWithStats(face, connectivity=8)
         if n <= 1:
             return None
         j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
-        pix = (lab == j).astype(np.uint8)
-        area = float(st[j, cv2.CC_STAT_AREA])
+        region_j = lab == j
+        pix = (region_j & (weak > 0)).astype(np.uint8)
+        area = float(np.count_nonzero(pix))
         if area < cfg.min_area_px:
             return None
         bx0, by0, bw, bh = (int(v) for v in st[j, :4])
@@ -712,16 +751,28 @@ class ColorDetector:
         hull_fill = hull_area / (bw * bh)
         solidity = area / hull_area
         aspect = bw / bh
+        if self.debug is not None:
+            self.debug.append(dict(box=(x0 + bx0, y0 + by0, bw, bh), fill=hull_fill,
+                                   sol=solidity, aspect=aspect, t=t))
         if (hull_fill < cfg.min_hull_fill or solidity < cfg.min_solidity
                 or max(aspect, 1 / aspect) > cfg.max_aspect):
             return None
+        geo = self._geometry
+        if geo is not None and cfg.use_geometry:
+            # signs are mounted high: their bottom edge is above the prior's reference row
+            # (drums, cones and vehicles stand on the road below it); in units of box height
+            if (y0 + by0 + bh - geo[0] * H) / bh > geo[1]:
+                return None
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(np.median(vch[pix > 0]))
         dark = vch < cfg.dark_rel * v_ref
         if min(bw, bh) >= cfg.structure_min_px:
             inside = hmask > 0
-            if np.count_nonzero(dark & inside) < cfg.min_dark_inside * np.count_nonzero(inside):
+            dfrac = np.count_nonzero(dark & inside) / max(np.count_nonzero(inside), 1)
+            if self.debug is not None:
+                self.debug[-1]['dark'] = dfrac
+            if dfrac < cfg.min_dark_inside:
                 return None
         kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
         conf = _mode(like[pix > 0])
@@ -729,7 +780,11 @@ class ColorDetector:
         r = max(1, int(round(cfg.border_frac * min(bw, bh))))
         ring = (cv2.dilate(hmask, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) & (hmask == 0)
         nr = np.count_nonzero(ring)
-        grow = nr > 0 and np.count_nonzero(dark & ring) >= cfg.border_dark * nr
+        ring_dark = np.count_nonzero(dark & ring) / max(nr, 1)
+        grow = nr > 0 and ring_dark >= cfg.border_dark
+        if self.debug is not None:
+            self.debug[-1].update(ring=ring_dark, hull_box=(x0 + bx0, y0 + by0, bw, bh),
+                                  vref=v_ref)
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
         if grow:
             gx, gy = cfg.border_frac * bw, cfg.border_frac * bh
@@ -753,7 +808,12 @@ class ColorDetector:
         y_max = min(H, int(y_top + cfg.ext_max_ratio * cand.h))
         if y_max - y_top < 2:
             return
-        strip = cv2.cvtColor(bgr[y_top:y_max, x0:x1], cv2.COLOR_BGR2HSV)
+        strip = bgr[y_top:y_max, max(0, x0):x1]
+        if strip.size == 0:
+            return
+        if self._gains is not None:
+            strip = apply_gains(strip, self._gains)
+        strip = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
         v_ref = float(np.median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
         white = (strip[..., 1] <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
         # black legend rows inside the white part: judge rows on a short running window
@@ -772,7 +832,10 @@ class ColorDetector:
         if run < 0.3 * cand.h or y_top + run >= y_max - 1:
             return              # too short, or no bottom edge found (sky, a white wall)
         # a sign's white part carries a black legend and border; sky and walls do not
-        dark = strip[:run, :, 2] < cfg.white_v_rel * 0.5 * v_ref
+        # (dark relative to the white part itself: under overcast light the legend is grey)
+        part = strip[:run]
+        v_white = float(np.median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
+        dark = part[..., 2] < cfg.dark_rel * v_white
         if dark.mean() < cfg.ext_min_dark:
             return
         cand.h = float(run + cand.h)

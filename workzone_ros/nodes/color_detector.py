@@ -32,7 +32,7 @@ DEFAULT_MODEL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',
          'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
-         'lidar_only_confidence')
+         'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -72,6 +72,12 @@ class ColorDetectorNode(WorkzoneNode):
         Param('lidar_only', False, 'report ROIs without a colour blob as lidar-only detections'),
         Param('lidar_only_confidence', 0.3, 'confidence of lidar-only detections', min=0.0,
               max=1.0),
+        Param('smooth_px', 3, 'likelihood box filter before thresholding (mask pixels)',
+              min=0, max=9),
+        Param('border_frac', 0.04, 'box growth per side for the sign border (fraction of size)',
+              min=0.0, max=0.3),
+        Param('use_geometry', True, "reject orange blobs lower than the training signs' "
+              'mounting height (model extra geometry)'),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
     )
     INPUT_TOPICS = ('image_topic', 'rois_topic')
@@ -113,9 +119,7 @@ class ColorDetectorNode(WorkzoneNode):
 
     def _make_detector(self) -> ColorDetector:
         p = self.params
-        bs = tuple(float(v) for v in self._model.extras.get('box_scale', (1.0, 1.0)))
-        cfg = DetectorConfig(colors=tuple(p.colors), border_scale=bs,
-                             **{k: getattr(p, k) for k in _CORE})
+        cfg = DetectorConfig(colors=tuple(p.colors), **{k: getattr(p, k) for k in _CORE})
         lp = None
         if 'rgb_lp_thresholds' in self._model.extras:
             lp = RgbLpModel(self._model.extras['rgb_lp_thresholds'])

@@ -4,22 +4,29 @@ Reads one or more folders with ``images/*.png`` and ``masks/*.png`` of the same 
 (``workzone-ros synth pixels -o DIR`` writes them; a user's own images and masks work the
 same way: nonzero mask = work-zone sign face), then
 
-1. counts sign / background pixels per (hue, saturation) bin (pixels darker than ``--v-min``
-   are left out: the detector gates them out too; with ``--ignore-s`` the achromatic parts of
-   the sign faces, i.e. black legend and white panels, are neither positive nor negative);
-2. fits AdaBoost over decision stumps (``--estimators`` = H weak learners) on those counts;
-3. bakes g(f) into the 180 x 256 table (seed 000 eq. 2);
-4. builds the spatial prior from the boxes of the mask's connected components (Fig. 1);
-5. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
-6. writes the versioned model file and prints training / validation pixel metrics.
+1. splits each face mask into its orange pixels (positives) and its black legend / border
+   and white panels (ignored: neither sign colour nor background, ``--orange-only``);
+2. adds ``--augment`` colour-jittered copies of every image (white balance, exposure,
+   saturation, hue) so the model transfers to other cameras and light;
+3. grey-world balances every frame (``--gray-world``; the detector does the same at run
+   time, outside the table);
+4. counts sign / background pixels per (hue, saturation) bin (pixels darker than ``--v-min``
+   are left out: the detector gates them out too) and fits AdaBoost over decision stumps
+   (``--estimators`` = H weak learners) on those counts;
+5. bakes g(f) into the 180 x 256 table (seed 000 eq. 2);
+6. builds the spatial prior from the boxes of the masks' connected components (Fig. 1) and
+   the mounting geometry (how low a sign's bottom edge gets, model extra ``geometry``);
+7. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
+8. writes the versioned model file and prints training / validation pixel metrics.
 
 Images whose name hashes into the validation share (``--val-frac``) are kept out of training
 and only scored.  Never point this at evaluation data (the real clips are evaluation only).
 
 Example::
 
-    workzone-ros synth pixels -o /tmp/pix --seed 1 --frames 240
-    workzone-ros train color /tmp/pix -o config/models/color_orange.npz --rgb-lp
+    workzone-ros synth pixels -o /tmp/pix --seed 11 --frames 240
+    workzone-ros train color /tmp/pix -o config/models/color_orange.npz --rgb-lp \
+        --pos-weight 0.6 --v-min 75 --val-frac 0
 """
 from __future__ import annotations
 
@@ -99,7 +106,8 @@ def augment(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
 
 
-def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5) -> dict:
+def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
+                  gray_world: bool = False) -> dict:
     """Pixel accuracy of P(x | sign) >= threshold (and the value gate) against the masks.
 
     Positives are the orange pixels of the sign faces (:func:`orange_mask`); the black legend
@@ -111,6 +119,8 @@ def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5) ->
     tp = fp = fn = tn = 0
     for ip, mp in pairs:
         img, face = _read(ip, mp)
+        if gray_world:
+            img = cm.apply_gains(img, cm.gray_world_gains(img))
         hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
         mask, use = orange_mask(hsv, face)
         pred = (lut[hsv[..., 0], hsv[..., 1]] >= threshold) & (hsv[..., 2] >= v_min)
@@ -147,6 +157,15 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='colour-jittered copies of each training image (hue, saturation, '
                         'white balance, exposure; default 2)')
     p.add_argument('--seed', type=int, default=0, help='augmentation seed')
+    p.add_argument('--geometry-margin', type=float, default=0.15,
+                   help='margin on the lowest sign bottom seen in training (sign heights)')
+    p.add_argument('--gray-world', action=argparse.BooleanOptionalAction, default=True,
+                   help='grey-world balance every frame before the table (the detector then '
+                        'does the same; default on)')
+    p.add_argument('--prior-saturate', type=float, default=0.1,
+                   help='prior heat = box density / (this x its maximum), clipped to 1')
+    p.add_argument('--prior-roi-level', type=float, default=0.02,
+                   help='the ROI covers heat >= this level')
     p.add_argument('--rgb-lp', action='store_true',
                    help='also choose the seed 002 RGB thresholds (Boolean LP)')
     p.add_argument('--lp-w', type=float, default=1.0,
@@ -179,8 +198,13 @@ def main(argv: Optional[list[str]] = None) -> int:
                   if stats[i, 4] >= 20]
         for a in range(1 + args.augment):
             img = img0 if a == 0 else augment(img0, rng)
+            if args.gray_world:
+                img = cm.apply_gains(img, cm.gray_world_gains(img))
             hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
-            mask, use = orange_mask(hsv, face) if args.orange_only else (face, np.ones_like(face))
+            if args.orange_only:
+                mask, use = orange_mask(hsv, face)
+            else:
+                mask, use = face, np.ones_like(face)
             if args.ignore_s > 0:
                 use &= ~mask | (hsv[..., 1] >= args.ignore_s)
             if args.erode > 0:
@@ -201,18 +225,25 @@ def main(argv: Optional[list[str]] = None) -> int:
     clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
     lut = cm.boosted_lut(clf)
     t_fit = time.perf_counter() - t0 - t_count
-    prior = cm.fit_prior(boxes, size or (640, 480))
+    prior = cm.fit_prior(boxes, size or (640, 480), saturate=args.prior_saturate,
+                         roi_level=args.prior_roi_level)
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
         'train_images': len(train), 'val_images': len(val),
         'sign_boxes': len(boxes), 'estimators': int(len(clf.estimators_)),
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
-        'orange_only': bool(args.orange_only), 'augment': args.augment, 'seed': args.seed,
+        'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
+        'augment': args.augment, 'seed': args.seed,
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
+    # mounting geometry: sign bottoms relative to the mid row, in units of the sign height
+    rel = [(y + h - 0.5 * size[1]) / h for x, y, w, h in boxes if h >= 8] if size else []
     extras: dict = {}
+    if rel:
+        extras['geometry'] = np.array([0.5, float(np.max(rel)) + args.geometry_margin])
+        meta['geometry'] = extras['geometry'].tolist()
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)
@@ -220,9 +251,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['rgb_lp'] = lp.metadata
     model = cm.default_model(lut, args.v_min, prior, meta)
     model = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta, extras)
-    metrics = {'train': pixel_metrics(lut, args.v_min, train)}
+    metrics = {'train': pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world)}
     if val:
-        metrics['validation'] = pixel_metrics(lut, args.v_min, val)
+        metrics['validation'] = pixel_metrics(lut, args.v_min, val,
+                                              gray_world=args.gray_world)
     meta['metrics'] = metrics
     cm.save_model(model, args.output)
     print(json.dumps({'output': args.output, 'bytes': Path(args.output).stat().st_size,

@@ -1,14 +1,11 @@
 """Tests of workzone_ros.nodes.base with real rclpy nodes over DDS (private contexts)."""
 import array
 import dataclasses
-import time
 
 import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
@@ -43,49 +40,6 @@ class ProbeNode(WorkzoneNode):
         if img.shape[1] == 13:
             raise KeyError('unlucky width')          # a bug in the node, not bad input
         self.shapes.append(img.shape)
-
-
-class Ros:
-    """A private context and executor with spin-until-condition."""
-
-    def __init__(self):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def node(self, name):
-        return self.add(rclpy.create_node(name, context=self.context))
-
-    def spin_until(self, condition, timeout=10.0, each=None):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if each is not None:
-                each()
-            self.executor.spin_once(timeout_sec=0.1)
-            if condition():
-                return True
-        return False
-
-    def close(self):
-        self.executor.shutdown()
-        for node in self.nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-@pytest.fixture
-def ros():
-    r = Ros()
-    try:
-        yield r
-    finally:
-        r.close()
 
 
 def _values(status: DiagnosticStatus) -> dict:

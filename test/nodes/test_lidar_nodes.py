@@ -4,14 +4,11 @@ A hand-made cloud with one sign, CameraInfo and images go in on real topics; can
 ``Rois`` come out.  Also: bad input is dropped with a reason and the nodes keep running; a
 projector without CameraInfo says so instead of guessing.
 """
-import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
 import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import CameraInfo, Image, PointCloud2
 from std_msgs.msg import String
@@ -34,46 +31,6 @@ FAST = dict(diagnostics_period_s=0.2, silent_input_warn_s=5.0)
 SIGN = (25.0, -7.0, 0.8)
 SMALL_CAMERA = replace(DEFAULT_CAMERA, width=160, height=120, fx=138.6, fy=138.6, cx=80.0,
                        cy=60.0)
-
-
-class Ros:
-    """A private context and executor with spin-until-condition."""
-
-    def __init__(self):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def spin_until(self, condition, timeout=15.0, each=None):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if each is not None:
-                each()
-            self.executor.spin_once(timeout_sec=0.1)
-            if condition():
-                return True
-        return False
-
-    def close(self):
-        self.executor.shutdown()
-        for node in self.nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-@pytest.fixture
-def ros():
-    r = Ros()
-    try:
-        yield r
-    finally:
-        r.close()
 
 
 def _sign_cloud(with_intensity=True):

@@ -1,14 +1,9 @@
 """Tests of the ``tracker`` node with real topics (private rclpy context, DDS isolation)."""
 from __future__ import annotations
 
-import time
-
 import cv2
 import numpy as np
-import pytest
 import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
@@ -28,44 +23,6 @@ from workzone_ros.nodes.conversions import numpy_to_image, time_to_stamp
 from workzone_ros.nodes.tracker import TrackerNode
 
 W, H = 640, 480
-
-
-class Ros:
-    """A private context and executor with spin-until-condition."""
-
-    def __init__(self):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def spin_until(self, condition, timeout=10.0):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.1)
-            if condition():
-                return True
-        return False
-
-    def close(self):
-        self.executor.shutdown()
-        for node in self.nodes:
-            node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-@pytest.fixture
-def ros():
-    r = Ros()
-    try:
-        yield r
-    finally:
-        r.close()
 
 
 def _background():

@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 import sys
 
-__all__ = ['SUBCOMMANDS', 'main']
+__all__ = ['SUBCOMMANDS', 'main', 'dispatch']
 
 #: name -> (module, one-line help)
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
@@ -28,6 +28,23 @@ def _usage() -> str:
     lines += [f'  {name:<9} {text}' for name, (_, text) in SUBCOMMANDS.items()]
     lines += ['', "'workzone-ros <subcommand> --help' for its options."]
     return '\n'.join(lines)
+
+
+def dispatch(prog: str, what: str, table: dict[str, str], module_prefix: str,
+             argv: list[str]) -> int:
+    """Run ``<module_prefix><name>.main(rest)`` for ``argv = [name, *rest]``.
+
+    Used by ``workzone-ros train`` and ``workzone-ros evaluate``: usage (exit 0 for --help,
+    2 otherwise) when the name is missing or unknown.
+    """
+    if not argv or argv[0] in ('-h', '--help') or argv[0] not in table:
+        if argv and argv[0] not in ('-h', '--help'):
+            print(f'{prog}: unknown {what} {argv[0]!r}', file=sys.stderr)
+        print(f'usage: {prog} <{what}> [options]\n\n{what}s:')
+        for name, text in table.items():
+            print(f'  {name:<8} {text}')
+        return 0 if argv and argv[0] in ('-h', '--help') else 2
+    return int(importlib.import_module(module_prefix + argv[0]).main(argv[1:]) or 0)
 
 
 def main(argv: list[str] | None = None) -> int:

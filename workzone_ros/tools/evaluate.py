@@ -4,8 +4,9 @@ Each evaluation is a module ``workzone_ros.tools.eval_<stage>`` with ``main(argv
 """
 from __future__ import annotations
 
-import importlib
 import sys
+
+from workzone_ros.cli import dispatch
 
 __all__ = ['EVALUATIONS', 'main']
 
@@ -17,13 +18,7 @@ EVALUATIONS: dict[str, str] = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Dispatch to an evaluation."""
+    """Dispatch to the named module's ``main``."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ('-h', '--help') or argv[0] not in EVALUATIONS:
-        if argv and argv[0] not in ('-h', '--help'):
-            print(f'workzone-ros evaluate: unknown stage {argv[0]!r}', file=sys.stderr)
-        print('usage: workzone-ros evaluate <stage> [options]\n\nstages:')
-        for name, text in EVALUATIONS.items():
-            print(f'  {name:<8} {text}')
-        return 0 if argv and argv[0] in ('-h', '--help') else 2
-    return int(importlib.import_module(f'workzone_ros.tools.eval_{argv[0]}').main(argv[1:]) or 0)
+    return dispatch('workzone-ros evaluate', 'stage', EVALUATIONS, 'workzone_ros.tools.eval_',
+                    argv)

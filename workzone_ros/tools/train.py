@@ -4,8 +4,9 @@ Each trainer is a module ``workzone_ros.tools.train_<model>`` with ``main(argv) 
 """
 from __future__ import annotations
 
-import importlib
 import sys
+
+from workzone_ros.cli import dispatch
 
 __all__ = ['TRAINERS', 'main']
 
@@ -15,13 +16,6 @@ TRAINERS: dict[str, str] = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Dispatch to a trainer."""
+    """Dispatch to the named module's ``main``."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ('-h', '--help') or argv[0] not in TRAINERS:
-        if argv and argv[0] not in ('-h', '--help'):
-            print(f'workzone-ros train: unknown model {argv[0]!r}', file=sys.stderr)
-        print('usage: workzone-ros train <model> [options]\n\nmodels:')
-        for name, text in TRAINERS.items():
-            print(f'  {name:<8} {text}')
-        return 0 if argv and argv[0] in ('-h', '--help') else 2
-    return int(importlib.import_module(f'workzone_ros.tools.train_{argv[0]}').main(argv[1:]) or 0)
+    return dispatch('workzone-ros train', 'model', TRAINERS, 'workzone_ros.tools.train_', argv)

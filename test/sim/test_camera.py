@@ -5,7 +5,9 @@ import cv2
 import numpy as np
 import pytest
 
+from workzone_ros.sim import signart
 from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult
+from workzone_ros.sim.scenario import sign_bottom, stand_parts
 from workzone_ros.sim.sheet import ego_pose, make_sign
 from workzone_ros.sim.world import (
     BASE_TO_CAMERA_ROT,
@@ -185,3 +187,79 @@ def test_sign_height_in_image_matches_geometry():
     want_h = DEFAULT_CAMERA.fy * sign.height / cam_dist
     assert h == pytest.approx(want_h, abs=2.5)
     assert math.isclose(x + w / 2, 320, abs_tol=3)
+
+
+def _stand_sign(object_id, key, road, s, bottom, flags=True, objects=None):
+    """A sign on a portable stand: face bottom ``bottom`` m above the road."""
+    sign = make_sign(object_id, key, road, s, d=-8.4)
+    sign.center[2] = bottom + sign.height / 2
+    if objects is not None:
+        ids = iter(range(object_id * 100, object_id * 100 + 10))
+        objects += stand_parts(sign, flags, lambda: next(ids))
+    return sign
+
+
+@pytest.mark.parametrize('bottom,s_ego', [(0.3, 0.0), (0.3, 15.0), (1.5, 5.0)])
+def test_stand_mounted_sign_corners_project_onto_ground_truth_box(bottom, s_ego):
+    road = Road([(600.0, 0.0)])
+    objs = []
+    low = _stand_sign(7, 'road_work_ahead', road, 40.0, bottom, objects=objs)
+    post = make_sign(8, 'lane_shift_left', road, 55.0, objects=objs)      # a post behind
+    assert sign_bottom(low) == pytest.approx(bottom)
+    pose = ego_pose(road, s_ego)
+    res = CameraRenderer(_scene([low, post], objs, road=road), seed=1).render(0.0, pose, 0)
+    for sign in (low, post):
+        hit = next(h for h in res.signs if h.sign_id == sign.object_id)
+        c = sign.corners()
+        c = (c + np.roll(c, -1, axis=0)) / 2         # a diamond's extreme points
+        uv = _project(c, pose)
+        want = np.array([uv[:, 0].min(), uv[:, 1].min(), uv[:, 0].max(), uv[:, 1].max()])
+        x, y, w, h = hit.box
+        got = np.array([x - 0.5, y - 0.5, x + w - 0.5, y + h - 0.5])
+        assert np.abs(got - want).max() <= 2.0, (sign.object_id, got, want)
+        assert hit.visible_fraction > 0.9            # mast, legs and flags stay behind it
+    # the stand's mast and legs are drawn below the face, down to the ground
+    x, y, w, h = next(h for h in res.signs if h.sign_id == 7).box
+    foot = _project(objs[0].base[None], pose)[0]
+    assert foot[1] > y + h + 2
+    below = res.image[y + h + 1:int(foot[1]) - 1, int(foot[0]) - 1:int(foot[0]) + 2]
+    ground = res.image[y + h + 1:int(foot[1]) - 1, int(foot[0]) + 8:int(foot[0]) + 11]
+    assert np.abs(below.astype(int) - ground.astype(int)).sum(-1).mean() > 10
+
+
+def test_orange_sheeting_varies_per_sign_but_keeps_the_art():
+    h0, s0, v0 = signart.ORANGE_HSV
+    cols = [signart.sheeting_orange(i, 0) for i in range(300)]
+    hsv = cv2.cvtColor(np.uint8([cols]), cv2.COLOR_BGR2HSV)[0].astype(int)
+    assert hsv[:, 0].min() == h0 - 4 and hsv[:, 0].max() == h0 + 4      # yellow / red-orange
+    assert hsv[:, 1].min() < 0.75 * s0 and hsv[:, 2].min() < 0.85 * v0  # faded, weathered
+    assert len(set(cols)) > 50
+    assert signart.sheeting_orange(17, 3) == signart.sheeting_orange(17, 3)
+    assert signart.sheeting_orange(17, 3) != signart.sheeting_orange(17, 4) or \
+        signart.sheeting_orange(18, 3) != signart.sheeting_orange(18, 4)
+    a = signart.sign_face('road_work_ahead', 128, orange=cols[0])
+    b = signart.sign_face('road_work_ahead', 128)
+    black = cv2.erode(((b[..., :3].max(-1) < 40) & (b[..., 3] == 255)).astype(np.uint8),
+                      np.ones((3, 3), np.uint8)) > 0          # legend strokes, not their edges
+    assert black.sum() > 300 and (a[black] == b[black]).all()           # legend unchanged
+    assert (a[..., 3] == b[..., 3]).all()
+    assert not (a == b).all()
+    left = signart.sign_face('lane_shift_left', 96, orange=cols[1])
+    right = signart.sign_face('lane_shift_right', 96, orange=cols[1])
+    assert (left[:, ::-1] == right).all() and not (left == right).all()
+    white = signart.sign_face('stop', 96, orange=cols[2])               # no orange: ignored
+    assert white is signart.sign_face('stop', 96)
+
+
+def test_rendered_orange_differs_between_signs():
+    road = Road([(600.0, 0.0)])
+    hues = []
+    for oid in range(1, 9):
+        sign = make_sign(oid, 'road_work_ahead', road, 35.0)
+        res = CameraRenderer(_scene([sign], road=road), seed=1).render(0.0, ego_pose(road, 0), 0)
+        x, y, w, h = res.signs[0].box
+        patch = res.image[y + h // 3:y + 2 * h // 3, x + w // 3:x + 2 * w // 3]
+        hsv = cv2.cvtColor(patch, cv2.COLOR_BGR2HSV).reshape(-1, 3)
+        hues.append(np.median(hsv[hsv[:, 1] > 100, 0]))
+    assert max(hues) - min(hues) >= 3
+    assert all(5 <= h <= 21 for h in hues)

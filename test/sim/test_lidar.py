@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from workzone_ros.sim.lidar import LidarError, LidarModel, Scan, cast_scan, sign_shape_contains
+from workzone_ros.sim.scenario import sign_bottom, sign_mount, stand_parts
 from workzone_ros.sim.world import (
     LIDAR_IN_BASE,
     SIGN_BOTTOM_HEIGHT,
@@ -255,3 +256,28 @@ def test_bad_model():
         LidarModel(n_beams=0)
     with pytest.raises(LidarError):
         LidarModel(fov_up_deg=-30.0)
+
+
+@pytest.mark.parametrize('bottom', [0.3, 1.5])
+def test_stand_mounted_sign_hits_lie_on_its_face(bottom):
+    centre = np.array([20.0, -8.4, bottom + DIAMOND / 2])
+    sign = SignPanel(21, 'road_work_ahead', centre, np.pi, DIAMOND, DIAMOND)
+    assert sign_mount(sign) == 'stand' and sign_bottom(sign) == pytest.approx(bottom)
+    ids = iter(range(100, 110))
+    parts = stand_parts(sign, True, lambda: next(ids))
+    scene = scene_with(sign, *parts)
+    scan = cast_scan(scene, 0.0, static_pose())
+    idx = scan.sign_hits[21]
+    assert idx.size >= 40
+    p = world_xyz(scan, static_pose()(0.0))[idx]
+    rel = p - sign.center
+    assert np.all(np.abs(rel @ sign.normal) <= 5 * SIGMA)
+    u, v = -rel[:, 1], rel[:, 2]          # the face looks along -x: its right is world -y
+    assert sign_shape_contains('diamond', u, v, DIAMOND / 2 + 0.03, DIAMOND / 2 + 0.03).all()
+    assert p[:, 2].min() >= bottom - 0.03
+    assert (scan.points['intensity'][idx] > 150).all()
+    # the stand's parts are hit too, but never reported as the sign
+    part_ids = {o.object_id for o in parts}
+    on_parts = np.isin(scan.object_ids, list(part_ids))
+    assert on_parts.sum() > 0 and not np.isin(idx, np.nonzero(on_parts)[0]).any()
+    assert (scan.points['intensity'][on_parts] < 150).all()

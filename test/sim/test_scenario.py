@@ -2,13 +2,18 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.sim.scenario import (
     ADVANCE_DEFAULT,
+    RANDOM_STAND_PROBABILITY,
+    STAND_BOTTOM_RANGE,
+    STAND_LATERAL_RANGE,
     LaneVehicle,
     ScenarioError,
     build_scene,
@@ -17,8 +22,10 @@ from workzone_ros.sim.scenario import (
     load_scenario,
     parse_scenario,
     random_scenario,
+    sign_bottom,
+    sign_mount,
 )
-from workzone_ros.sim.world import SIGN_BOTTOM_HEIGHT, Box, Cylinder
+from workzone_ros.sim.world import SIGN_BOTTOM_HEIGHT, SIGN_LATERAL, Box, Cylinder, Quad
 
 PRESETS = ('demo', 'paper_a', 'paper_b', 'paper_c', 'paper_d', 'paper_e', 'curve_dusk',
            'distractors')
@@ -79,8 +86,12 @@ def test_layout_rules(name):
     scene, ego, events = build_scene(spec, 0)
     road = scene.road
     for sp in scene.signs:
-        # face bottom at 2.1 m, face turned towards the ego traffic (a few degrees of jitter)
-        assert sp.center[2] - sp.height / 2 == pytest.approx(SIGN_BOTTOM_HEIGHT)
+        # face bottom at 2.1 m on a post or 0.3-1.5 m on a portable stand, face turned
+        # towards the ego traffic (a few degrees of jitter)
+        if sign_mount(sp) == 'post':
+            assert sign_bottom(sp) == pytest.approx(SIGN_BOTTOM_HEIGHT)
+        else:
+            assert STAND_BOTTOM_RANGE[0] <= sign_bottom(sp) <= STAND_BOTTOM_RANGE[1]
         s, _ = road.to_frenet(np.array([sp.center[0]]), np.array([sp.center[1]]))
         h = float(np.interp(s[0], road.s, road.heading))
         assert sp.normal @ np.array([math.cos(h), math.sin(h), 0.0]) < -0.9
@@ -89,8 +100,8 @@ def test_layout_rules(name):
             assert sp.width == pytest.approx(1.2 * math.sqrt(2))
         else:
             assert (sp.width, sp.height) == pytest.approx((c.width_m, c.height_m))
-    # each sign stands on a post reaching up to its face
-    posts = [o for o in scene.objects if isinstance(o, Cylinder) and o.kind == 'post']
+    # each sign stands on a post or a stand's mast reaching up to its face
+    posts = [o for o in scene.objects if isinstance(o, Cylinder) and o.kind in ('post', 'stand')]
     assert len(posts) >= len(scene.signs)
     wz = spec.workzone
     if wz is None:
@@ -254,3 +265,121 @@ def test_lane_profile_closed_lane_merges():
     d = lane_profile(wz, 'left', s)
     assert d[0] == pytest.approx(3.7) and d[1] == pytest.approx(0.0, abs=1e-6)
     assert lane_profile(wz, 'right', s)[1] == pytest.approx(-3.7)
+
+
+# --- sign mounts ----------------------------------------------------------------------------
+
+def _stand_of(scene, sp):
+    """The mast Cylinder under a stand-mounted sign (within 0.1 m of its face, horizontally)."""
+    masts = [o for o in scene.objects if isinstance(o, Cylinder) and o.kind == 'stand'
+             and np.hypot(*(o.base[:2] - sp.center[:2])) < 0.1]
+    assert len(masts) == 1, sp.object_id
+    return masts[0]
+
+
+@pytest.mark.parametrize('name', ['demo', 'paper_c', 'paper_d'])
+def test_presets_have_both_mounts(name):
+    spec = load_scenario(name)
+    scene, _, events = build_scene(spec, 0)
+    stands = [sp for sp in scene.signs if sign_mount(sp) == 'stand']
+    posts = [sp for sp in scene.signs if sign_mount(sp) == 'post']
+    assert posts and {sp.class_key for sp in stands} == {k for k, m in spec.workzone.mounts}
+    for sp in stands:
+        bottom = sign_bottom(sp)
+        assert STAND_BOTTOM_RANGE[0] <= bottom <= STAND_BOTTOM_RANGE[1]
+        mast = _stand_of(scene, sp)
+        assert mast.base[2] == 0.0 and bottom < mast.height          # reaches the face
+        legs = [o for o in scene.objects if isinstance(o, Quad) and o.kind == 'stand_leg'
+                and np.hypot(*(o.corners[:, :2].mean(0) - mast.base[:2])) < 0.5]
+        assert len(legs) == 2 and min(c[:, 2].min() for c in (g.corners for g in legs)) < 0.01
+        # on the right shoulder's edge, not 1.2 m beyond it like a post
+        _, d = scene.road.to_frenet(np.array([sp.center[0]]), np.array([sp.center[1]]))
+        assert STAND_LATERAL_RANGE[0] - 1e-6 <= d[0] <= STAND_LATERAL_RANGE[1] + 1e-6
+        # ... and stays there as the event's sign
+        assert any(e.sign_id == sp.object_id for e in events) or \
+            sp.class_key == 'other_workzone'
+
+
+@pytest.mark.parametrize('name', ['paper_a', 'paper_b', 'paper_e'])
+def test_other_presets_keep_posts(name):
+    scene, _, _ = build_scene(load_scenario(name), 0)
+    assert all(sign_mount(sp) == 'post' for sp in scene.signs)
+    assert not any(o.kind.startswith('stand') for o in scene.objects)
+
+
+def test_stands_do_not_move_the_rest_of_the_layout():
+    spec = load_scenario('paper_c')
+    data = yaml.safe_load(Path(spec.source).read_text())
+    posts_only = parse_scenario({**data, 'workzone': {**data['workzone'], 'mounts': {}}},
+                                'paper_c')
+    a, _, ev_a = build_scene(spec, 3)
+    b, _, ev_b = build_scene(posts_only, 3)
+    assert [(e.kind, e.x_m, e.value) for e in ev_a] == [(e.kind, e.x_m, e.value) for e in ev_b]
+    for sa, sb in zip(a.signs, b.signs):
+        assert (sa.class_key, sa.yaw, sa.tilt, sa.fade) == (sb.class_key, sb.yaw, sb.tilt, sb.fade)
+        if sign_mount(sa) == 'post':
+            assert sa.center.tolist() == sb.center.tolist()
+    keep = ('drum', 'cone', 'vehicle', 'truck', 'tree', 'tree_line', 'guardrail', 'overpass')
+    def where(scene):
+        return [(o.kind, np.round(getattr(o, 'base', getattr(o, 'center', None)), 9).tolist()
+                 if not isinstance(o, Quad) else o.corners.round(9).tolist())
+                for o in scene.objects if o.kind in keep]
+    assert where(a) == where(b)
+
+
+def test_random_scenarios_put_warning_signs_on_stands():
+    warning = [c.key for c in catalogue.CATALOGUE
+               if c.category == 'workzone' and c.shape == 'diamond']
+    n = stands = 0
+    bottoms = []
+    for seed in range(40):
+        spec = random_scenario(seed)
+        assert spec.workzone.stand_probability == RANDOM_STAND_PROBABILITY
+        scene, _, _ = build_scene(spec, seed)
+        for sp in scene.signs:
+            if sign_mount(sp) == 'stand':
+                assert sp.class_key in warning
+                _stand_of(scene, sp)
+                bottoms.append(sign_bottom(sp))
+            if sp.class_key in warning:
+                n += 1
+                stands += sign_mount(sp) == 'stand'
+    assert 0.25 < stands / n < 0.55, (stands, n)
+    assert STAND_BOTTOM_RANGE[0] <= min(bottoms) < 0.6 and 1.2 < max(bottoms) <= 1.5
+    a, b = build_scene(random_scenario(7), 7), build_scene(random_scenario(7), 7)
+    assert [s.center.tolist() for s in a[0].signs] == [s.center.tolist() for s in b[0].signs]
+
+
+def test_explicit_sign_mounts():
+    spec = parse_scenario({'duration': 10, 'signs': [
+        {'class': 'road_work_ahead', 's': 100, 'mount': 'stand', 'bottom': 0.3},
+        {'class': 'end_road_work', 's': 150, 'mount': 'stand'},
+        {'class': 'warning_diamond', 's': 200},
+        {'class': 'stop', 's': 250, 'side': 'side_road', 'mount': 'stand', 'bottom': 1.5}]})
+    scene, _, _ = build_scene(spec, 0)
+    by_key = {sp.class_key: sp for sp in scene.signs}
+    assert sign_bottom(by_key['road_work_ahead']) == pytest.approx(0.3)
+    assert sign_mount(by_key['end_road_work']) == 'stand'
+    assert sign_bottom(by_key['warning_diamond']) == pytest.approx(SIGN_BOTTOM_HEIGHT)
+    assert sign_bottom(by_key['stop']) == pytest.approx(1.5)
+    _, d = scene.road.to_frenet(np.array([by_key['stop'].center[0]]),
+                                np.array([by_key['stop'].center[1]]))
+    assert d[0] < SIGN_LATERAL - 3                   # a side-road stand stays on the side road
+    for sp in scene.signs:
+        if sign_mount(sp) == 'stand':
+            _stand_of(scene, sp)
+
+
+@pytest.mark.parametrize('data, needle', [
+    ({'signs': [{'class': 'stop', 's': 10, 'mount': 'pole'}]}, 'mount must be one of'),
+    ({'signs': [{'class': 'stop', 's': 10, 'bottom': 0.5}]}, 'bottom is for mount: stand'),
+    ({'signs': [{'class': 'stop', 's': 10, 'mount': 'stand', 'bottom': 0.1}]}, 'bottom must'),
+    ({'workzone': {'taper_s': 500, 'mounts': {'road_work': 'stand'}}}, "unknown sign class"),
+    ({'workzone': {'taper_s': 500, 'mounts': {'road_work_ahead': 'tripod'}}},
+     'road_work_ahead must be one of'),
+    ({'workzone': {'taper_s': 500, 'stand_probability': 1.5}}, 'stand_probability'),
+])
+def test_mount_errors_are_one_line(data, needle):
+    with pytest.raises(ScenarioError) as exc:
+        parse_scenario(data, 'bad')
+    assert needle in str(exc.value) and '\n' not in str(exc.value)

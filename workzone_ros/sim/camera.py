@@ -10,8 +10,10 @@ Pipeline per frame (all deterministic in (scene, seed, t, pose, frame_index)):
    algorithm): box faces and quads with ``cv2.fillConvexPoly`` after clipping against the
    near plane, cylinders and cones as projected convex silhouettes with their bands, sign
    faces warped from the procedural art (sim/signart.py) by the plane homography on their
-   bounding ROI only and alpha-blended.  A label canvas records which sign (or distractor)
-   owns each pixel; nearer objects overwrite it, so occlusion is exact.
+   bounding ROI only and alpha-blended, each sign in its own orange
+   (:func:`~workzone_ros.sim.signart.sheeting_orange` of its id and the scene seed).  A
+   label canvas records which sign (or distractor) owns each pixel; nearer objects overwrite
+   it, so occlusion is exact.
 3. The lens: a precomputed ``cv2.remap`` applies the plumb_bob distortion of the
    :class:`~workzone_ros.sim.world.CameraModel` to the image and (nearest) to the labels, so
    ground-truth boxes are measured in the distorted image.
@@ -672,7 +674,9 @@ class CameraRenderer:
         size = next((a for a in _ART_SIZES if a >= 1.5 * extent), _ART_SIZES[-1])
         variant = signart.OTHER_VARIANTS[sp.object_id % len(signart.OTHER_VARIANTS)] \
             if sp.class_key == 'other_workzone' else None
-        art = signart.sign_face(sp.class_key, size, sp.speed_value, variant)
+        orange = signart.sheeting_orange(sp.object_id, self.scene.seed) \
+            if signart.uses_orange(sp.class_key) else None
+        art = signart.sign_face(sp.class_key, size, sp.speed_value, variant, orange)
         ah, aw = art.shape[:2]
         ex = R_cw @ (corners[1] - corners[0]) / aw
         ey = R_cw @ (corners[3] - corners[0]) / ah
@@ -842,7 +846,9 @@ class CameraRenderer:
                 if is_distractor(o):
                     entries.append(('obj', o, dist))
                     lab = len(entries)
-                post = isinstance(o, Cylinder) and 'post' in (o.kind + o.material)
+                # posts and portable stands (mast, legs, flags) stand behind their face
+                post = (isinstance(o, Cylinder) and 'post' in (o.kind + o.material)) or \
+                    str(getattr(o, 'kind', '')).startswith('stand')
                 items.append((dist + (0.5 if post else 0.0), dist, 'obj', o, lab))
         items.sort(key=lambda it: -it[0])
         for _, dist, what, o, lab in items:

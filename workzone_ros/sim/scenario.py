@@ -22,14 +22,30 @@ Schema (every key optional except where noted; unknown keys are errors)::
     workzone: {taper_s: 600, length: 500, advance: 450, speed_limit: 45,
                lane_closed: left|right|null, taper_length: 150, drum_spacing: 15,
                lane_shifts: [{at: 200, direction: left|right|unknown, offset: 1.85}],
-               other_signs: 1, work_vehicles: 1}
+               other_signs: 1, work_vehicles: 1,
+               mounts: {road_work_ahead: stand},   # class key -> post | stand
+               stand_probability: 0.0}             # other orange warning diamonds
     signs: [{class: stop, s: 300, side: right|left|side_road, d: null, speed_value: null,
-             fade: null, tilt_deg: null}]
+             fade: null, tilt_deg: null, mount: post|stand, bottom: null}]
     distractors: {vehicles: 4, orange_vehicles: 1, yellow_vehicles: 1, cones: 2, drums: 1,
                   general_signs: 3, mile_markers: true}
 
 Positions are arc lengths ``s`` (m) along the route; the ego starts at ``ego.start_s`` and
 drives at constant speed, so an event at ``s`` happens at ``t = (s - start_s) / speed``.
+
+Sign mounts.  ``post`` (default): a fixed post, the face's bottom
+:data:`~workzone_ros.sim.world.SIGN_BOTTOM_HEIGHT` = 2.1 m above the road (MUTCD 2009,
+Section 2A.18: 7 ft).  ``stand``: a portable sign stand as on real work zones (Section 6F.03
+allows 1 ft = 0.3 m for temporary signs on portable supports): the face's bottom
+:data:`STAND_BOTTOM_RANGE` 0.3-1.5 m above the ground (``bottom:`` or drawn per sign), a thin
+mast behind the face and two splayed legs, and on some stands two small orange flags above
+the face.  A right-shoulder stand stands on the shoulder edge or slightly beyond
+(:data:`STAND_LATERAL_RANGE`) instead of 1.2 m past it, pulled in so a low face clears the
+guardrail line.  Work-zone signs the builder places (W20-1, W20-5, W4-2, W1-4, R22-1, ...)
+take their mount from ``workzone.mounts`` by class key; the other orange warning diamonds go
+on a stand with probability ``workzone.stand_probability`` (0 in the presets, 0.4 in
+``random`` scenarios).  Mount draws and stand heights come from their own generator, so a
+stand never moves anything else in the layout.  :func:`sign_mount` tells a built sign's mount.
 """
 from __future__ import annotations
 
@@ -68,7 +84,8 @@ __all__ = [
     'ScenarioError', 'FPS', 'WEATHERS', 'LaneShift', 'WorkzoneSpec', 'SignSpec', 'RoadSpec',
     'EgoSpec', 'DistractorSpec', 'ScenarioSpec', 'EgoTrajectory', 'LaneVehicle',
     'scenario_dir', 'list_scenarios', 'load_scenario', 'parse_scenario', 'random_scenario',
-    'build_scene', 'lateral_offset',
+    'build_scene', 'lateral_offset', 'MOUNTS', 'STAND_BOTTOM_RANGE', 'STAND_LATERAL_RANGE',
+    'RANDOM_STAND_PROBABILITY', 'sign_bottom', 'sign_mount', 'stand_parts',
 ]
 
 FPS = 15.0
@@ -85,6 +102,17 @@ SHIFT_LENGTH = 80.0             # length of a lane-shift transition
 MIN_SIGN_GAP = 30.0             # right-shoulder signs at least this far apart
 SIDE_ROAD_LATERAL = SIGN_LATERAL - 11.0
 LEFT_SIGN_LATERAL = ROAD_HALF_WIDTH + 1.5 + 1.0
+MOUNTS = ('post', 'stand')
+#: Face bottom above the ground (m) of a sign on a portable stand: MUTCD minimum 1 ft .. 1.5 m.
+STAND_BOTTOM_RANGE = (0.3, 1.5)
+#: Lateral offset (m) of a right-shoulder stand: shoulder edge (-8.55) -0.35 .. +0.25 m.
+STAND_LATERAL_RANGE = (-(ROAD_HALF_WIDTH + RIGHT_SHOULDER) - 0.35,
+                       -(ROAD_HALF_WIDTH + RIGHT_SHOULDER) + 0.25)
+#: Chance that an orange work-zone warning diamond stands on a stand in random scenarios.
+RANDOM_STAND_PROBABILITY = 0.4
+STAND_FLAG_PROBABILITY = 0.35
+_GUARDRAIL_D = -(ROAD_HALF_WIDTH + RIGHT_SHOULDER + 0.4)      # as build_roadside places them
+_GUARDRAIL_TOP = 0.8
 
 
 class ScenarioError(ValueError):
@@ -121,6 +149,8 @@ class WorkzoneSpec:
     lane_shifts: tuple[LaneShift, ...] = ()
     other_signs: int = 0
     work_vehicles: int = 1
+    mounts: tuple[tuple[str, str], ...] = ()       # (class key, 'post' | 'stand')
+    stand_probability: float = 0.0
 
     @property
     def end_s(self) -> float:
@@ -139,6 +169,8 @@ class SignSpec:
     speed_value: Optional[int] = None
     fade: Optional[float] = None
     tilt_deg: Optional[float] = None
+    mount: str = 'post'
+    bottom: Optional[float] = None                 # stand only: face bottom above ground (m)
 
 
 @dataclass(frozen=True)
@@ -270,6 +302,22 @@ def _sign_class(key: Any, where: str) -> str:
     return key
 
 
+def _mounts(d: Any, where: str) -> tuple[tuple[str, str], ...]:
+    """``workzone.mounts``: a mapping class key -> post | stand."""
+    if d is None:
+        return ()
+    if not isinstance(d, dict):
+        raise _err(where, f'mounts must be a mapping class -> post|stand, got {d!r}')
+    out = []
+    for key, mount in d.items():
+        _sign_class(key, f'{where}.mounts')
+        if mount not in MOUNTS:
+            raise _err(f'{where}.mounts', f'{key} must be one of {", ".join(MOUNTS)}, '
+                       f'got {mount!r}')
+        out.append((str(key), str(mount)))
+    return tuple(sorted(out))
+
+
 def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> ScenarioSpec:
     """Validate a scenario mapping (as loaded from YAML).
 
@@ -331,7 +379,8 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
         ww = f'{w}: workzone'
         z = _check_keys(top['workzone'], ('taper_s', 'length', 'advance', 'speed_limit',
                                           'lane_closed', 'taper_length', 'drum_spacing',
-                                          'lane_shifts', 'other_signs', 'work_vehicles'), ww)
+                                          'lane_shifts', 'other_signs', 'work_vehicles',
+                                          'mounts', 'stand_probability'), ww)
         if 'taper_s' not in z:
             raise _err(ww, 'taper_s (arc length of the taper start) is required')
         shifts = []
@@ -363,7 +412,9 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
             drum_spacing=_num(z, 'drum_spacing', ww, 15.0, lo=12.0, hi=20.0),
             lane_shifts=tuple(sorted(shifts, key=lambda x: x.at)),
             other_signs=_num(z, 'other_signs', ww, 0, lo=0, hi=20, integer=True),
-            work_vehicles=_num(z, 'work_vehicles', ww, 1, lo=0, hi=10, integer=True))
+            work_vehicles=_num(z, 'work_vehicles', ww, 1, lo=0, hi=10, integer=True),
+            mounts=_mounts(z.get('mounts'), ww),
+            stand_probability=_num(z, 'stand_probability', ww, 0.0, lo=0.0, hi=1.0))
         if wz.taper_length > wz.length:
             raise _err(ww, f'taper_length {wz.taper_length} exceeds length {wz.length}')
         for sh in wz.lane_shifts:
@@ -377,15 +428,21 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
     sign_specs = []
     for i, sg in enumerate(raw_signs):
         sw = f'{w}: signs[{i}]'
-        sg = _check_keys(sg, ('class', 's', 'side', 'd', 'speed_value', 'fade', 'tilt_deg'), sw)
+        sg = _check_keys(sg, ('class', 's', 'side', 'd', 'speed_value', 'fade', 'tilt_deg',
+                              'mount', 'bottom'), sw)
         if 'class' not in sg or 's' not in sg:
             raise _err(sw, 'class and s are required')
+        mount = _choice(sg, 'mount', sw, 'post', MOUNTS)
+        bottom = _num(sg, 'bottom', sw, None, lo=STAND_BOTTOM_RANGE[0],
+                      hi=STAND_BOTTOM_RANGE[1])
+        if bottom is not None and mount != 'stand':
+            raise _err(sw, 'bottom is for mount: stand (a post puts the face at 2.1 m)')
         sign_specs.append(SignSpec(
             _sign_class(sg['class'], sw), _num(sg, 's', sw, None, lo=0.0, hi=1e5),
             _choice(sg, 'side', sw, 'right', SIDES), _num(sg, 'd', sw, None, lo=-60, hi=60),
             _num(sg, 'speed_value', sw, None, lo=5, hi=85, integer=True),
             _num(sg, 'fade', sw, None, lo=0.0, hi=1.0),
-            _num(sg, 'tilt_deg', sw, None, lo=-15.0, hi=15.0)))
+            _num(sg, 'tilt_deg', sw, None, lo=-15.0, hi=15.0), mount, bottom))
 
     ds = _check_keys(top.get('distractors'), ('vehicles', 'orange_vehicles', 'yellow_vehicles',
                                              'cones', 'drums', 'general_signs',
@@ -484,7 +541,8 @@ def random_scenario(seed: int) -> ScenarioSpec:
                      'lane_closed': None if closed is None else str(closed),
                      'taper_length': float(min(150.0, length / 3)),
                      'drum_spacing': float(rng.uniform(12.0, 20.0)),
-                     'lane_shifts': shifts, 'other_signs': int(rng.integers(0, 3))},
+                     'lane_shifts': shifts, 'other_signs': int(rng.integers(0, 3)),
+                     'stand_probability': RANDOM_STAND_PROBABILITY},
         'distractors': {'vehicles': int(rng.integers(1, 6)),
                         'orange_vehicles': int(rng.integers(0, 3)),
                         'yellow_vehicles': int(rng.integers(0, 3)),
@@ -492,6 +550,76 @@ def random_scenario(seed: int) -> ScenarioSpec:
                         'general_signs': int(rng.integers(1, 6))},
     }
     return parse_scenario(data, name=data['name'], source=f'random:{seed}')
+
+
+# --- sign mounts ----------------------------------------------------------------------------
+
+STAND_FOOT = 0.3          # lateral reach of a stand's legs from the mast (m)
+_STAND_BACK = 0.06        # mast and legs this far behind the face
+_FLAG_BACK = 0.09         # flags this far behind the face
+_FLAG_SIDE = 0.36         # flag size (m); real ones are 16 in = 0.41 m
+
+
+def sign_bottom(sign: SignPanel) -> float:
+    """Height (m) of the bottom of the face's untilted bounding rectangle above the road."""
+    return float(sign.center[2] - sign.height / 2)
+
+
+def sign_mount(sign: SignPanel) -> str:
+    """``'stand'`` for a face whose bottom is in :data:`STAND_BOTTOM_RANGE`, else ``'post'``."""
+    return 'stand' if sign_bottom(sign) <= STAND_BOTTOM_RANGE[1] + 1e-9 else 'post'
+
+
+def stand_parts(sign: SignPanel, flags: bool, new_id) -> list:
+    """The portable stand under ``sign``: a mast, two splayed legs and optionally two flags.
+
+    The mast is a thin vertical :class:`Cylinder` (kind ``stand``, behind the face up to near
+    its top, or just above it when the stand carries flags); the legs are thin slanted
+    :class:`Quad` strips (kind ``stand_leg``) in a plane behind the face, from feet
+    :data:`STAND_FOOT` to either side up to the mast; the flags are two orange squares (kind
+    ``stand_flag``) leaning out above the face.  Nothing covers the face from the front.
+
+    Args:
+        sign: the face (its ``center`` z already at bottom + height / 2).
+        flags: add the two flags.
+        new_id: callable returning fresh object ids.
+
+    Returns:
+        The objects, to append to ``Scene.objects``.
+    """
+    yaw, w, h = sign.yaw, sign.width, sign.height
+    right = np.array([-math.sin(yaw), math.cos(yaw), 0.0])     # viewer's right
+    up = np.array([0.0, 0.0, 1.0])
+    bottom = sign_bottom(sign)
+    top = bottom + h
+    base = np.asarray(sign.center, float) - sign.normal * _STAND_BACK
+    base[2] = 0.0
+
+    def at(origin, u, z):
+        return origin + u * right + z * up
+
+    mast_top = top + 0.1 if flags else bottom + 0.85 * h
+    out: list = [Cylinder(new_id(), 'stand', base, 0.022, mast_top, 'post')]
+    join = min(0.45, 0.8 * bottom)
+    for side in (-1.0, 1.0):
+        foot, knee = np.array([side * STAND_FOOT, 0.0]), np.array([0.0, join])
+        n = np.array([knee[1] - foot[1], foot[0] - knee[0]])
+        n *= 0.018 / np.linalg.norm(n)
+        out.append(Quad(new_id(), 'stand_leg', np.array(
+            [at(base, *(knee + n)), at(base, *(knee - n)), at(base, *(foot - n)),
+             at(base, *(foot + n))]), 'post'))
+    if flags:
+        fb = np.asarray(sign.center, float) - sign.normal * _FLAG_BACK
+        fb[2] = 0.0
+        c30, s30 = math.cos(math.radians(30)), math.sin(math.radians(30))
+        for side in (-1.0, 1.0):
+            a = np.array([side * 0.2, top + 0.06])
+            e1 = _FLAG_SIDE * np.array([side * c30, s30])
+            e2 = _FLAG_SIDE * np.array([-side * s30, c30])
+            out.append(Quad(new_id(), 'stand_flag', np.array(
+                [at(fb, *(a + e2)), at(fb, *(a + e1 + e2)), at(fb, *(a + e1)), at(fb, *a)]),
+                'cone_orange'))
+    return out
 
 
 # --- lateral profiles -----------------------------------------------------------------------
@@ -659,6 +787,8 @@ class _Placed:
     fade: Optional[float] = None
     tilt_deg: Optional[float] = None
     event: Optional[tuple[str, Any]] = None
+    mount: Optional[str] = None         # None: the work zone's mounts / stand probability
+    bottom: Optional[float] = None
 
 
 class _Builder:
@@ -666,6 +796,9 @@ class _Builder:
         self.spec = spec
         self.seed = int(seed)
         self.rng = np.random.default_rng([self.seed, zlib.crc32(spec.name.encode())])
+        # mounts draw from their own stream: a stand never moves anything else
+        self.mount_rng = np.random.default_rng([self.seed, zlib.crc32(spec.name.encode()),
+                                                0x57a4d])
         self.ego_end_s = spec.ego.start_s + spec.ego.speed * spec.duration
         need = self.ego_end_s + 700.0
         wz = spec.workzone
@@ -730,7 +863,8 @@ class _Builder:
             d = sg.d if sg.d is not None else {'right': SIGN_LATERAL,
                                                 'left': LEFT_SIGN_LATERAL,
                                                 'side_road': SIDE_ROAD_LATERAL}[sg.side]
-            p = _Placed(sg.class_key, sg.s, d, 'explicit', sg.speed_value, sg.fade, sg.tilt_deg)
+            p = _Placed(sg.class_key, sg.s, d, 'explicit', sg.speed_value, sg.fade, sg.tilt_deg,
+                        mount=sg.mount, bottom=sg.bottom)
             (right if sg.side == 'right' and sg.d is None else other).append(p)
         # random general signs (hard negatives) and mile markers, outside the sign sequence
         gen_keys = ('warning_diamond', 'speed_limit', 'guide', 'stop', 'yield', 'do_not_enter')
@@ -764,6 +898,36 @@ class _Builder:
                 kept.append(p)
         return sorted(kept + other, key=lambda p: (p.s, p.d))
 
+    def mount_of(self, p: _Placed, c: catalogue.SignClass, w: float, h: float
+                 ) -> tuple[str, float, float, bool]:
+        """``(mount, face bottom, lateral offset, flags)`` of a planned sign (module docstring).
+
+        Four draws from the mount generator per sign whatever the outcome, so one sign's
+        mount never changes another's.
+        """
+        u_mount, u_bottom, u_lat, u_flags = (float(v) for v in self.mount_rng.random(4))
+        wz = self.spec.workzone
+        mount = p.mount
+        if mount is None:
+            mounts = dict(wz.mounts) if wz is not None else {}
+            warning = c.category == 'workzone' and c.shape == 'diamond'
+            mount = mounts.get(p.class_key) or (
+                'stand' if warning and wz is not None and u_mount < wz.stand_probability
+                else 'post')
+        if mount == 'post':
+            return 'post', SIGN_BOTTOM_HEIGHT, p.d, False
+        lo, hi = STAND_BOTTOM_RANGE
+        bottom = p.bottom if p.bottom is not None else lo + (hi - lo) * u_bottom
+        d = p.d
+        if p.d == SIGN_LATERAL:                        # right shoulder: on its edge
+            lo, hi = STAND_LATERAL_RANGE
+            d = lo + (hi - lo) * u_lat
+            # keep the face and the legs on the road side of a guardrail line
+            y = min(max(_GUARDRAIL_TOP + 0.05 - bottom, 0.0), h)
+            reach = (min(y, h / 2) * w / h) if c.shape == 'diamond' else (w / 2 if y else 0.0)
+            d = max(d, _GUARDRAIL_D + 0.05 + max(reach, STAND_FOOT))
+        return 'stand', float(bottom), float(d), u_flags < STAND_FLAG_PROBABILITY
+
     def add_sign(self, p: _Placed) -> SignPanel:
         c = catalogue.get(p.class_key)
         rng = self.rng
@@ -780,7 +944,10 @@ class _Builder:
             math.radians(float(rng.uniform(-3.0, 3.0))) if rng.random() < 0.25 else 0.0)
         fade = p.fade if p.fade is not None else (
             float(rng.uniform(0.1, 0.45)) if rng.random() < 0.2 else 0.0)
-        center = np.array([float(x), float(y), SIGN_BOTTOM_HEIGHT + h / 2])
+        mount, bottom, d_stand, flags = self.mount_of(p, c, w, h)
+        if mount == 'stand' and d_stand != p.d:          # stands on the shoulder edge
+            x, y, _ = self.road.pose_at(p.s, d_stand)
+        center = np.array([float(x), float(y), bottom + h / 2])
         speed_value = p.speed_value
         if speed_value is None and p.class_key == 'work_zone_speed_limit':
             speed_value = 45
@@ -789,6 +956,9 @@ class _Builder:
         panel = SignPanel(self.new_id(), p.class_key, center, yaw, w, h, tilt, fade,
                           speed_value)
         self.signs.append(panel)
+        if mount == 'stand':
+            self.objects += stand_parts(panel, flags, self.new_id)
+            return panel
         # posts behind the face; guide signs stand on two
         back = -panel.normal * 0.06
         offsets = [-w * 0.33, w * 0.33] if w > 2.0 else [0.0]

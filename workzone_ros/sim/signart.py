@@ -5,7 +5,11 @@ face's bounding rectangle; alpha is 0 outside the shape (diamond, octagon, trian
 rectangle, square).  Legends and symbols are exaggerated (thick strokes, few large words) so a
 person can tell every class apart at 64 px, and mirrored variants (``*_left`` / ``*_right``)
 are exact mirror images of each other.  Faces are drawn 2x supersampled and cached per
-(key, size, speed value, variant): they are static.
+(key, size, speed value, variant, sheeting colour): they are static.
+
+Orange sheeting varies per sign (:func:`sheeting_orange`): real work-zone signs are more
+yellow- or red-orange, paler and darker (weathered, faded) than the MUTCD colour, so each sign
+gets its own orange drawn from (sign id, salt), with the legend, border and layout unchanged.
 """
 from __future__ import annotations
 
@@ -18,7 +22,8 @@ from workzone_ros.core import signs
 
 __all__ = [
     'ORANGE', 'YELLOW', 'RED', 'GREEN', 'WHITE', 'BLACK', 'OTHER_VARIANTS', 'MIRROR_PAIRS',
-    'face_aspect', 'face_size', 'sign_face', 'outline', 'drum_texture',
+    'face_aspect', 'face_size', 'sign_face', 'outline', 'drum_texture', 'ORANGE_HSV',
+    'ORANGE_VARIATION', 'sheeting_orange', 'uses_orange',
 ]
 
 # Sheeting colours (BGR).  MUTCD fluorescent orange, yellow, red, green, white, black.
@@ -28,6 +33,11 @@ RED = (40, 35, 195)
 GREEN = (60, 110, 0)
 WHITE = (238, 240, 240)
 BLACK = (22, 22, 22)
+#: ORANGE in OpenCV HSV (H 0-180): (13, 255, 245).
+ORANGE_HSV = tuple(int(v) for v in cv2.cvtColor(np.uint8([[ORANGE]]), cv2.COLOR_BGR2HSV)[0, 0])
+#: Per-sign orange variation: hue offset (+-, OpenCV units), saturation and value scales.
+#: Real clips (charlotte, denver) measure H 12-16, S 200-225 on the orange of the diamonds.
+ORANGE_VARIATION = {'hue': 4, 'saturation': (0.70, 1.0), 'value': (0.80, 1.03)}
 
 #: Variants of ``other_workzone`` (W20-7 flagger, W20-4 one lane road, W21-5 shoulder work).
 OTHER_VARIANTS = ('flagger', 'one_lane', 'shoulder_work')
@@ -37,6 +47,37 @@ MIRROR_PAIRS = (('lane_shift_left', 'lane_shift_right'), ('left_lane_ends', 'rig
 _SS = 2   # supersampling factor
 _FONT = cv2.FONT_HERSHEY_DUPLEX
 _FONT_BOLD = cv2.FONT_HERSHEY_TRIPLEX
+
+
+def uses_orange(class_key: str) -> bool:
+    """True for classes drawn with orange sheeting (the orange work-zone faces)."""
+    return class_key != 'background' and 'orange' in signs.get(class_key).colors
+
+
+def sheeting_orange(sign_id: int, salt: int = 0) -> tuple[int, int, int]:
+    """The orange (BGR) of one sign's sheeting: hue, saturation and value jittered.
+
+    Hue moves by an integer in [-4, 4] OpenCV units around :data:`ORANGE_HSV` (towards
+    yellow-orange or red-orange), saturation is scaled by 0.70-1.0 and value by 0.80-1.03
+    (faded and weathered sheeting), all drawn from ``(sign_id, salt)`` so a sign keeps its
+    colour in every frame and run.  Quantised (hue integer, saturation and value in steps of
+    8) so the face cache stays small.
+
+    Args:
+        sign_id: the sign's object id.
+        salt: e.g. the scene seed, so the same id differs between random scenarios.
+
+    Returns:
+        A BGR tuple of ints.
+    """
+    rng = np.random.default_rng([abs(int(salt)), abs(int(sign_id)), 0x0a4e])
+    v = ORANGE_VARIATION
+    dh = int(rng.integers(-v['hue'], v['hue'] + 1))
+    sat = ORANGE_HSV[1] * float(rng.uniform(*v['saturation']))
+    val = ORANGE_HSV[2] * float(rng.uniform(*v['value']))
+    hsv = np.uint8([[[ORANGE_HSV[0] + dh, min(255, 8 * round(sat / 8)),
+                      min(255, 8 * round(val / 8))]]])
+    return tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
 
 
 def face_aspect(class_key: str) -> float:
@@ -216,7 +257,9 @@ def _sym_flagger(img, S: float, color) -> None:
 
 
 # ------------------------------------------------------------------ faces
-def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
+def _draw(key: str, W: int, H: int, speed: int, variant: str,
+          orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
+    ORANGE = orange  # noqa: N806 - the sheeting colour of this face
     img = np.zeros((H, W, 3), np.uint8)
     mask = np.zeros((H, W), np.uint8)
     c = signs.get(key)
@@ -338,22 +381,25 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str) -> np.ndarray:
     return np.dstack([img, mask])
 
 
-@lru_cache(maxsize=512)
-def _cached(key: str, size_px: int, speed: int, variant: str) -> np.ndarray:
+@lru_cache(maxsize=1024)
+def _cached(key: str, size_px: int, speed: int, variant: str,
+            orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
     mirror = {right: left for left, right in MIRROR_PAIRS}
     if key in mirror:           # exact mirror image of the left variant
-        face = np.ascontiguousarray(_cached(mirror[key], size_px, speed, variant)[:, ::-1])
+        face = np.ascontiguousarray(_cached(mirror[key], size_px, speed, variant,
+                                            orange)[:, ::-1])
         face.flags.writeable = False
         return face
     W, H = face_size(key, size_px)
-    big = _draw(key, W * _SS, H * _SS, speed, variant)
+    big = _draw(key, W * _SS, H * _SS, speed, variant, orange)
     face = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)
     face.flags.writeable = False
     return face
 
 
 def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None,
-              variant: str | None = None) -> np.ndarray:
+              variant: str | None = None,
+              orange: tuple[int, int, int] | None = None) -> np.ndarray:
     """Procedural art of one catalogue class.
 
     Args:
@@ -362,6 +408,8 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
         speed_value: number on speed-limit faces (default 45 for the work-zone limit, 65 for
             the general limit) or the mile of a mile marker (default 123).
         variant: ``other_workzone`` only: one of :data:`OTHER_VARIANTS` (default flagger).
+        orange: BGR of the orange sheeting (e.g. :func:`sheeting_orange`); default
+            :data:`ORANGE`.  Ignored for classes without orange.
 
     Returns:
         Read-only BGRA uint8 image (H, W, 4) of the bounding rectangle; alpha is 0 outside
@@ -382,7 +430,10 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
         variant = OTHER_VARIANTS[0]
     elif variant not in OTHER_VARIANTS:
         raise ValueError(f'unknown other_workzone variant {variant!r}; known: {OTHER_VARIANTS}')
-    return _cached(class_key, int(max(8, size_px)), int(speed_value), variant)
+    if orange is None or not uses_orange(class_key):
+        orange = ORANGE
+    return _cached(class_key, int(max(8, size_px)), int(speed_value), variant,
+                   tuple(int(c) for c in orange))
 
 
 @lru_cache(maxsize=4)

@@ -173,10 +173,52 @@ def test_lidar_support_and_unsupported_blobs(detector):
     assert da.sources == ['color'] and da.confidence == plain[da.box.x]
     assert db.sources == ['color', 'lidar'] and db.roi_id == 3
     assert db.confidence > plain[db.box.x]
-    assert len(dets) == 2                       # lidar-only reports are off by default
-    lo = detector.with_config(lidar_only=True).detect(img, [_roi((40, 300, 30, 30), 4)])
-    only = [d for d in lo if d.sources == ['lidar']]
-    assert len(only) == 1 and only[0].roi_id == 4 and only[0].color == 'white'
+    assert len(dets) == 2       # an ROI on plain asphalt is no sign: no lidar-only report
+    assert ['color', 'lidar'] in [d.sources for d in detector.with_config(
+        lidar_only=False).detect(img, [_roi(b, 3)])]
+
+
+def test_lidar_only_detection_needs_sign_colour(model):
+    """An ROI whose sign the colour pass cannot report (here: where the prior says signs never
+    are, with the in-ROI threshold out of reach) gives a lidar-only detection with its own
+    box when the ROI holds a sign-coloured region; an ROI with no sign colour gives nothing."""
+    prior = cm.fit_prior([(380, 60, 80, 80)] * 5, (640, 480), floor=0.2)
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(roi_threshold=0.99,
+                                                                        roi_prior=0.2))
+    img = _background()
+    gt = _diamond(img, 120, 330, 25)
+    roi = _roi((gt[0] - 25, gt[1] - 25, gt[2] + 50, gt[3] + 50), 9)
+    assert det.detect(img) == []
+    d = _one(det.detect(img, [roi]), gt, 0.75)
+    assert d.sources == ['lidar'] and d.roi_id == 9 and d.color == 'orange'
+    assert det.with_config(lidar_only=False).detect(img, [roi]) == []
+    assert det.detect(_background(), [roi]) == []
+
+
+def test_lidar_supported_blob_needs_less_evidence(detector):
+    """A plain orange diamond (no legend: fails the legend test on colour alone) is accepted
+    inside a LiDAR ROI."""
+    img = _background()
+    gt = (390, 120, 61, 61)
+    pts = np.array([[420, 120], [450, 150], [420, 180], [390, 150]], np.int32)
+    cv2.fillConvexPoly(img, pts, ORANGE)
+    assert detector.detect(img) == []
+    d = _one(detector.detect(img, [_roi((365, 95, 110, 110), 2)]), gt, 0.75)
+    assert d.sources == ['color', 'lidar']
+
+
+def test_lidar_roi_relaxes_the_height_filter(model):
+    """A low sign (on a portable stand) fails the learned mounting-height test on colour
+    alone; a LiDAR ROI on it lifts that test."""
+    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
+                        {'geometry': np.array([0.5, 0.26])})
+    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
+    img = _background()
+    low = _diamond(img, 300, 400, 30)
+    assert det.detect(img) == []
+    d = _one(det.detect(img, [_roi((low[0] - 20, low[1] - 20, low[2] + 40, low[3] + 40))]),
+             low)
+    assert 'lidar' in d.sources
 
 
 def test_prior_suppresses_unlikely_locations(model):
@@ -269,7 +311,7 @@ def test_geometry_rejects_orange_things_on_the_road(model):
     (a drum, a cone) is not a sign; the same blob up at sign height is."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False))
+    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
     img = _background()
     low = _diamond(img, 300, 400, 30)
     high = _diamond(img, 500, 150, 30)

@@ -152,3 +152,58 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node.set_parameters([Parameter('method', value='hsv')])[0].successful
     assert node._detector.config.method == 'hsv'
     assert not node.set_parameters([Parameter('method', value='cnn')])[0].successful
+
+
+def test_image_waits_for_late_rois(ros, model_path):
+    """The projector publishes an image's ROIs after the image: the node holds the image
+    (bounded by rois_wait) and the detection is LiDAR-supported."""
+    node = _node(ros, model_path, image_topic='w/image', rois_topic='w/rois',
+                 detections_topic='w/dets', rois_wait=2.0)
+    peer = ros.add(rclpy.create_node('peer3', context=ros.context))
+    img_pub = peer.create_publisher(Image, 'w/image', QoSProfile(
+        depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    rois_pub = peer.create_publisher(String, 'w/rois', 10)
+    got = []
+    peer.create_subscription(String, 'w/dets', got.append, 10)
+    assert ros.spin_until(lambda: node.count_publishers('w/rois') > 0
+                          and img_pub.get_subscription_count() > 0
+                          and rois_pub.get_subscription_count() > 0)
+    t = interfaces.Time(sec=20, nanosec=0)
+    img_pub.publish(numpy_to_image(_frame(), 'bgr8', make_header(stamp=t)))
+    assert ros.spin_until(lambda: node._pending, timeout=5.0)       # held, not processed
+    sent = time.monotonic()
+    ros.spin_until(lambda: False, timeout=0.1)                       # ROIs 100 ms later
+    assert not got
+    roi = Roi(candidate_id=5, box=Box(370, 100, 100, 100), center=(420, 150), range_m=30.0,
+              radius_m=0.6, position=(2.0, -1.0, 30.0))
+    rois_pub.publish(payload_to_string(Rois(header=interfaces.Header(stamp=t), rois=[roi])))
+    assert ros.spin_until(lambda: got, timeout=5.0)
+    assert time.monotonic() - sent < 2.0                  # on ROI arrival, not on expiry
+    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    assert d.header.stamp == t and len(d.detections) == 1
+    assert 'lidar' in d.detections[0].sources and d.detections[0].roi_id == 5
+
+    # ROIs that never come: the image goes on colour alone once rois_wait expires
+    node.set_parameters([Parameter('rois_wait', value=0.3)])
+    t2 = interfaces.Time(sec=21, nanosec=0)
+    img_pub.publish(numpy_to_image(_frame(), 'bgr8', make_header(stamp=t2)))
+
+    def late():
+        ds = [interfaces.decode(m.data, interfaces.Detections) for m in got]
+        return [x for x in ds if x.header.stamp == t2]
+    assert ros.spin_until(lambda: late(), timeout=5.0)
+    assert late()[0].detections[0].sources == ['color']
+
+
+def test_no_rois_publisher_means_no_wait(ros, model_path):
+    node = _node(ros, model_path, image_topic='v/image', rois_topic='v/rois',
+                 detections_topic='v/dets', rois_wait=5.0)
+    peer = ros.add(rclpy.create_node('peer4', context=ros.context))
+    img_pub = peer.create_publisher(Image, 'v/image', QoSProfile(
+        depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    got = []
+    peer.create_subscription(String, 'v/dets', got.append, 10)
+    msg = numpy_to_image(_frame(), 'bgr8', make_header(stamp=interfaces.Time(sec=3)))
+    start = time.monotonic()
+    assert ros.spin_until(lambda: got, timeout=4.0, each=lambda: img_pub.publish(msg))
+    assert time.monotonic() - start < 4.0 and not node._pending

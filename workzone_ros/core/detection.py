@@ -158,6 +158,9 @@ class DetectorConfig:
     weak_threshold: float = 0.3
     border_frac: float = 0.04
     border_dark: float = 0.0
+    border_mode: str = 'profile'
+    blur_like: float = 0.08
+    blur_max_frac: float = 0.15
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
     dark_rel: float = 0.6
@@ -171,10 +174,14 @@ class DetectorConfig:
     white_v_rel: float = 0.8
     ext_min_dark: float = 0.03
     roi_prior: float = 1.0
-    roi_threshold: float = 0.5
+    roi_threshold: float = 0.3
     roi_margin: float = 0.25
+    roi_relax: float = 0.75
     lidar_confidence: float = 0.5
-    lidar_only: bool = False
+    lidar_only: bool = True
+    lidar_only_threshold: float = 0.25
+    lidar_only_min_share: float = 0.12
+    lidar_only_max_share: float = 0.9
     lidar_only_confidence: float = 0.3
     general_max_aspect: float = 1.6
     general_min_fill: float = 0.35
@@ -570,7 +577,7 @@ class ColorDetector:
             count = self.rgb_lp.mask(crop)
             cands += self._mser_blobs(count, bgr, (cx0, cy0), s)
         cands = nms(cands, cfg.nms_iou, cfg.nms_contain)
-        return self._fuse(cands, rois, hsv, (cx0, cy0), s)
+        return self._fuse(cands, rois, bgr, thr_base)
 
     # -- seed 000 / 004 blob path --
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
@@ -610,7 +617,8 @@ class ColorDetector:
         """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
         if cfg.method == 'learned' and color == 'orange':
-            return self._measure_orange(bgr, comp, box, s, thr_base, lboxes)
+            return self._measure_orange(bgr, comp, box, s, thr_base, lboxes,
+                                        relaxed=self._in_roi(box, s, lboxes))
         H, W = bgr.shape[:2]
         fx, fy, fw, fh = box
         m = 2 * s + 1
@@ -684,8 +692,15 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
         return cand
 
+    @staticmethod
+    def _in_roi(box: tuple, s: int, lboxes: list) -> bool:
+        """True when the centre of a full-resolution box lies in an (expanded) LiDAR ROI."""
+        cx, cy = (box[0] + box[2] / 2) / s, (box[1] + box[3] / 2) / s
+        return any(x0 <= cx < x1 and y0 <= cy < y1 for x0, y0, x1, y1 in lboxes)
+
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
-                        thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
+                        thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
+                        t_override: Optional[float] = None) -> Optional[Candidate]:
         """The learned orange path: hysteresis region, sign structure, shape-derived box.
 
         1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
@@ -715,9 +730,10 @@ class ColorDetector:
         cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
         cy, cx = min(cy, thr_base.shape[0] - 1), min(cx, thr_base.shape[1] - 1)
         t = thr_base[cy, cx] / _P_SCALE
-        for bx0, by0, bx1, by1 in lboxes:
-            if bx0 <= cx < bx1 and by0 <= cy < by1:
-                t = min(t, cfg.roi_threshold / cfg.roi_prior)
+        if relaxed:
+            t = min(t, cfg.roi_threshold / cfg.roi_prior)
+        if t_override is not None:
+            t = t_override
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
         region[fy - y0:fy - y0 + fh, fx - x0:fx - x0 + fw] = up
@@ -754,11 +770,14 @@ class ColorDetector:
         if self.debug is not None:
             self.debug.append(dict(box=(x0 + bx0, y0 + by0, bw, bh), fill=hull_fill,
                                    sol=solidity, aspect=aspect, t=t))
-        if (hull_fill < cfg.min_hull_fill or solidity < cfg.min_solidity
-                or max(aspect, 1 / aspect) > cfg.max_aspect):
+        # a LiDAR-supported blob needs less colour evidence: looser shape filters, no legend
+        # test and no mounting-height test (the LiDAR found a flat retro-reflective panel)
+        relax = cfg.roi_relax if relaxed else 1.0
+        if (hull_fill < relax * cfg.min_hull_fill or solidity < relax * cfg.min_solidity
+                or max(aspect, 1 / aspect) > cfg.max_aspect / relax):
             return None
         geo = self._geometry
-        if geo is not None and cfg.use_geometry:
+        if geo is not None and cfg.use_geometry and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height
             if (y0 + by0 + bh - geo[0] * H) / bh > geo[1]:
@@ -767,27 +786,24 @@ class ColorDetector:
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(np.median(vch[pix > 0]))
         dark = vch < cfg.dark_rel * v_ref
-        if min(bw, bh) >= cfg.structure_min_px:
+        if min(bw, bh) >= cfg.structure_min_px and not relaxed:
             inside = hmask > 0
             dfrac = np.count_nonzero(dark & inside) / max(np.count_nonzero(inside), 1)
             if self.debug is not None:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
                 return None
-        kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
+        # diamonds are about square; a wide blob is a rectangle (or the orange top of one)
+        kind = ('warning' if hull_fill < cfg.diamond_hull_fill
+                and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
         conf = _mode(like[pix > 0])
-        # the ring just outside the hull: dark = the border, orange margin lost
-        r = max(1, int(round(cfg.border_frac * min(bw, bh))))
-        ring = (cv2.dilate(hmask, np.ones((2 * r + 1, 2 * r + 1), np.uint8)) > 0) & (hmask == 0)
-        nr = np.count_nonzero(ring)
-        ring_dark = np.count_nonzero(dark & ring) / max(nr, 1)
-        grow = nr > 0 and ring_dark >= cfg.border_dark
+        grow, feats = self._border_growth(hmask, dark, like, min(bw, bh))
         if self.debug is not None:
-            self.debug[-1].update(ring=ring_dark, hull_box=(x0 + bx0, y0 + by0, bw, bh),
-                                  vref=v_ref)
+            self.debug[-1].update(hull_box=(x0 + bx0, y0 + by0, bw, bh), vref=v_ref,
+                                  relaxed=relaxed, **feats)
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
-        if grow:
-            gx, gy = cfg.border_frac * bw, cfg.border_frac * bh
+        if grow > 0:
+            gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
         sx, sy = cfg.border_scale
@@ -798,6 +814,44 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    def _border_growth(self, hmask: np.ndarray, dark: np.ndarray, like: np.ndarray,
+                       size: int) -> tuple[float, dict]:
+        """Per-side box growth of one blob from its own edge profile (fraction of its size).
+
+        The sign art has a thin outer orange margin and a black border line inside it.  Two
+        bands of ``border_frac`` x size are compared: just inside the orange hull and just
+        outside it.  If the black line lies outside the hull (the outer band is darker than
+        the inner one) the hull stops at the line's inner edge, the margin and line are
+        missing and the box grows by ``border_frac``; if the line is inside the hull (the
+        margin was found, or bright light pulled the surroundings in) it does not grow.
+        ``border_dark`` > 0 replaces the comparison by "outer band dark share >= it";
+        ``border_mode='always'`` always grows (the old behaviour).
+        """
+        cfg = self.config
+        r = max(1, int(round(cfg.border_frac * size)))
+        k = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+        outer = (cv2.dilate(hmask, k) > 0) & (hmask == 0)
+        inner = (hmask > 0) & (cv2.erode(hmask, k) == 0)
+        no, ni = np.count_nonzero(outer), np.count_nonzero(inner)
+        out_dark = np.count_nonzero(dark & outer) / max(no, 1)
+        in_dark = np.count_nonzero(dark & inner) / max(ni, 1)
+        # blur width: 1-px rings outside the hull whose mean likelihood still shows the
+        # sign's colour blended with the background (soft edges: rain, fog, small signs)
+        blur, prev, ring_k = 0, hmask, np.ones((3, 3), np.uint8)
+        for _ in range(int(cfg.blur_max_frac * size) + 2):
+            nxt = cv2.dilate(prev, ring_k)
+            ring = (nxt > 0) & (prev == 0)
+            if not ring.any() or float(like[ring].mean()) < cfg.blur_like:
+                break
+            blur, prev = blur + 1, nxt
+        feats = dict(ring=out_dark, inner=in_dark, blur=blur)
+        if cfg.border_mode == 'always':
+            return cfg.border_frac, feats
+        if no == 0:
+            return 0.0, feats
+        line_out = (out_dark >= cfg.border_dark) if cfg.border_dark > 0 else out_dark >= in_dark
+        return (cfg.border_frac if line_out else 0.0) + blur / float(size), feats
 
     def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:
         """Seed 000's regulatory two-colour extension: grow the box over a white bottom."""
@@ -862,8 +916,14 @@ class ColorDetector:
         return out
 
     # -- LiDAR fusion --
-    def _fuse(self, cands: list[Candidate], rois: Sequence[Roi], hsv: np.ndarray,
-              off: tuple[int, int], s: int) -> list[Candidate]:
+    def _fuse(self, cands: list[Candidate], rois: Sequence[Roi], bgr: np.ndarray,
+              thr_base: np.ndarray) -> list[Candidate]:
+        """Mark LiDAR-supported blobs; add LiDAR-only detections (seed 004, as fusion).
+
+        A colour blob whose centre lies in an (expanded) ROI gets the ROI's id, both sources
+        and a noisy-OR confidence; an unsupported blob keeps its own.  An ROI that no colour
+        blob explains is examined at full resolution (``_lidar_only``).
+        """
         cfg = self.config
         used = set()
         for c in cands:
@@ -881,15 +941,56 @@ class ColorDetector:
                 c.sources = ['color', 'lidar']
                 c.roi_id = int(rois[best].candidate_id)
                 c.confidence = 1.0 - (1.0 - c.confidence) * (1.0 - cfg.lidar_confidence)
-        if cfg.lidar_only:
+        if cfg.lidar_only and cfg.method == 'learned' and 'orange' in self._idx:
             for j, r in enumerate(rois):
-                if j in used or r.box.w < 2 or r.box.h < 2:
+                if j in used:
                     continue
-                x0 = int(r.box.x // s) - off[0]
-                y0 = int(r.box.y // s) - off[1]
-                patch = hsv[max(0, y0):max(0, y0 + int(r.box.h // s)),
-                            max(0, x0):max(0, x0 + int(r.box.w // s))]
-                cands.append(Candidate(r.box.x, r.box.y, r.box.w, r.box.h, dominant_color(patch),
-                                       cfg.lidar_only_confidence, 'unknown',
-                                       sources=['lidar'], roi_id=int(r.candidate_id)))
+                c = self._lidar_only(bgr, r, thr_base)
+                if c is not None and all(_iou((c.x, c.y, c.w, c.h), (k.x, k.y, k.w, k.h))[1]
+                                         <= cfg.nms_contain for k in cands):
+                    cands.append(c)
         return cands
+
+    def _lidar_only(self, bgr: np.ndarray, roi: Roi, thr_base: np.ndarray
+                    ) -> Optional[Candidate]:
+        """A detection from a LiDAR ROI whose colour evidence alone was too weak.
+
+        Inside the ROI (full resolution) the pixels with likelihood >= ``lidar_only_threshold``
+        are grouped; the largest group must span ``lidar_only_min_share`` ..
+        ``lidar_only_max_share`` of the ROI's larger side (the projector sizes ROIs from the
+        candidate's radius and range, so a sign is a predictable share of it: a few orange
+        pixels or a whole orange ROI are not a sign) and pass the relaxed shape filters.
+        The box is measured like a colour blob's; sources ``lidar`` only.
+        """
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        x0, y0 = max(0, int(roi.box.x)), max(0, int(roi.box.y))
+        x1, y1 = min(W, int(math.ceil(roi.box.x2))), min(H, int(math.ceil(roi.box.y2)))
+        if x1 - x0 < 4 or y1 - y0 < 4:
+            return None
+        win = bgr[y0:y1, x0:x1]
+        if self._gains is not None:
+            win = apply_gains(win, self._gains)
+        hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
+        i = self._idx['orange']
+        like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
+        like[hsv[..., 2] < self.model.v_min[i]] = 0.0
+        mask = (cv2.blur(like, (3, 3)) >= cfg.lidar_only_threshold).astype(np.uint8)
+        n, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if n <= 1:
+            return None
+        j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+        bx, by, bw, bh, area = (int(v) for v in st[j])
+        share = max(bw, bh) / float(max(x1 - x0, y1 - y0))
+        if area < cfg.min_area_px or not (cfg.lidar_only_min_share <= share
+                                          <= cfg.lidar_only_max_share):
+            return None
+        comp = (lab[by:by + bh, bx:bx + bw] == j).astype(np.uint8)
+        c = self._measure_orange(bgr, comp, (x0 + bx, y0 + by, bw, bh), 1, thr_base, [],
+                                 relaxed=True, t_override=cfg.lidar_only_threshold)
+        if c is None:
+            return None
+        c.sources = ['lidar']
+        c.roi_id = int(roi.candidate_id)
+        c.confidence = cfg.lidar_only_confidence
+        return c

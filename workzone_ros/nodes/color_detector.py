@@ -4,14 +4,22 @@ Thin wrapper around :mod:`workzone_ros.core.detection` (seed 000 section III.A, 
 seed 002 / seed 004 alternatives selectable by ``method``).  Each image is converted, handed
 to the core detector together with the ROIs of the same image stamp (the projector stamps
 its ``Rois`` with the image it projected into; a short ring buffer matches them exactly), and
-the ``Detections`` payload is published with the image's header.  Without LiDAR the node
-works on colour alone; ROIs that arrive after their image are too late and are not waited
-for (latest frame wins, no queueing).
+the ``Detections`` payload is published with the image's header.
+
+The projector publishes an image's ROIs after the image (it waits for the LiDAR scan nearest
+in time, typically 50-150 ms).  So when the ROI topic has a publisher, each image is held
+(at most ``rois_queue`` images, at most ``rois_wait`` seconds of wall time) until its ROIs
+arrive; it is then processed at once, in the ROI callback.  An image whose ROIs do not come
+is processed on colour alone when the wait expires (a timer), when ROIs of a newer image
+arrive (the projector answers in stamp order, so its ROIs will not come), or when the queue
+overflows.  Nothing blocks the executor.  Without an ROI publisher (no LiDAR) every image is
+processed at once.
 """
 from __future__ import annotations
 
 import collections
 import os
+import time
 from typing import Any, Optional
 
 from sensor_msgs.msg import CompressedImage, Image
@@ -32,7 +40,8 @@ DEFAULT_MODEL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
 _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',
          'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
-         'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry')
+         'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
+         'lidar_only_threshold')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -65,20 +74,28 @@ class ColorDetectorNode(WorkzoneNode):
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),
-        Param('roi_threshold', 0.5, 'posterior threshold inside LiDAR ROIs', min=0.01,
+        Param('roi_threshold', 0.3, 'posterior threshold inside LiDAR ROIs', min=0.01,
               max=0.99),
+        Param('roi_relax', 0.75, 'shape filters inside LiDAR ROIs are multiplied by this '
+              '(no legend and no mounting-height test there)', min=0.1, max=1.0),
         Param('roi_margin', 0.25, 'ROI growth (fraction of its size)', min=0.0, max=2.0),
         Param('lidar_confidence', 0.5, 'noisy-OR weight of LiDAR support', min=0.0, max=1.0),
-        Param('lidar_only', False, 'report ROIs without a colour blob as lidar-only detections'),
+        Param('lidar_only', True, 'an ROI without a colour blob but with a sign-coloured '
+              'region of plausible size is reported as a lidar-only detection'),
+        Param('lidar_only_threshold', 0.25, 'likelihood of the lidar-only region', min=0.01,
+              max=0.99),
         Param('lidar_only_confidence', 0.3, 'confidence of lidar-only detections', min=0.0,
               max=1.0),
         Param('smooth_px', 3, 'likelihood box filter before thresholding (mask pixels)',
               min=0, max=9),
         Param('border_frac', 0.04, 'box growth per side for the sign border (fraction of size)',
               min=0.0, max=0.3),
-        Param('use_geometry', True, "reject orange blobs lower than the training signs' "
+        Param('use_geometry', False, "reject orange blobs lower than the training signs' "
               'mounting height (model extra geometry)'),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
+        Param('rois_wait', 0.25, 'hold an image at most this long (wall time, s) for its '
+              'ROIs when the ROI topic has a publisher; 0 = never wait', min=0.0, max=5.0),
+        Param('rois_queue', 4, 'images held for their ROIs at most', min=1, max=50),
     )
     INPUT_TOPICS = ('image_topic', 'rois_topic')
 
@@ -104,6 +121,9 @@ class ColorDetectorNode(WorkzoneNode):
         self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
             collections.OrderedDict()
         self._frames = 0
+        self._held_counts = collections.Counter()
+        # images waiting for their ROIs: stamp ns -> (deadline monotonic s, image, header)
+        self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
         self._pub = self.reliable_publisher(String, p.detections_topic)
         if p.compressed:
             self._image_sub = self.sensor_subscription(
@@ -116,6 +136,7 @@ class ColorDetectorNode(WorkzoneNode):
         if p.rois_topic:
             self._rois_sub = self.reliable_subscription(String, p.rois_topic, self._on_rois,
                                                         depth=10)
+            self._timer = self.create_timer(0.02, self._expire)
 
     def _make_detector(self) -> ColorDetector:
         p = self.params
@@ -135,15 +156,57 @@ class ColorDetectorNode(WorkzoneNode):
     # -- callbacks --
     def _on_rois(self, msg: String) -> None:
         rois = conv.string_to_payload(msg, interfaces.Rois)
-        self._rois[rois.header.stamp.to_ns()] = list(rois.rois)
+        stamp = rois.header.stamp.to_ns()
+        self._rois[stamp] = list(rois.rois)
         while len(self._rois) > self.params.rois_buffer:
             self._rois.popitem(last=False)
+        # the held image of this stamp, and older ones whose ROIs will not come now
+        for t in [t for t in self._pending if t <= stamp]:
+            _, image, header = self._pending.pop(t)
+            self._held_counts['matched' if t == stamp else 'superseded'] += 1
+            self._detect(image, header)
 
     def _on_image(self, msg: Image) -> None:
-        self._process(conv.image_to_numpy(msg, 'bgr8'), msg.header)
+        self._hold_or_process(msg, msg.header)
 
     def _on_compressed(self, msg: CompressedImage) -> None:
-        self._process(conv.compressed_to_numpy(msg), msg.header)
+        self._hold_or_process(msg, msg.header)
+
+    def _waiting_for_rois(self) -> bool:
+        """True when ROIs can come: a topic is set, a publisher exists, waiting is on."""
+        p = self.params
+        return bool(self._rois_sub is not None and p.rois_wait > 0
+                    and self.count_publishers(p.rois_topic) > 0)
+
+    def _hold_or_process(self, msg: Any, header: Any) -> None:
+        stamp = conv.stamp_to_time(header.stamp).to_ns()
+        if stamp in self._rois or not self._waiting_for_rois():
+            self._detect(msg, header)
+            return
+        old = self._pending.get(stamp)            # a repeated stamp keeps its first deadline
+        deadline = old[0] if old else time.monotonic() + self.params.rois_wait
+        self._pending[stamp] = (deadline, msg, header)
+        while len(self._pending) > self.params.rois_queue:
+            _, (_, image, hdr) = self._pending.popitem(last=False)
+            self._held_counts['queue overflow'] += 1
+            self._detect(image, hdr)
+
+    def _expire(self) -> None:
+        """Timer: images whose ROIs did not come within ``rois_wait`` go on colour alone."""
+        now = time.monotonic()
+        for t in [t for t, (deadline, _, _) in self._pending.items() if deadline <= now]:
+            _, image, header = self._pending.pop(t)
+            self._held_counts['expired'] += 1
+            self._detect(image, header)
+
+    def _detect(self, msg: Any, header: Any) -> None:
+        try:
+            bgr = (conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
+                   else conv.image_to_numpy(msg, 'bgr8'))
+        except conv.ConversionError as exc:
+            self.drop(self.resolve_topic_name(self.params.image_topic), str(exc))
+            return
+        self._process(bgr, header)
 
     def _process(self, bgr, header) -> None:
         head = conv.header_to_payload(header)

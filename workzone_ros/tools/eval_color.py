@@ -14,10 +14,9 @@ frame is run through the detector and matched to ``/groundtruth/signs``:
   any kind, IoU < 0.1; drums, cones and orange vehicles are the usual ones).
 
 Methods: ``learned`` (seed 000), ``rgb_lp`` (seed 002), ``hsv`` (seed 004), each with LiDAR
-guidance off; ``learned`` also with it on.  LiDAR ROIs come from the ground-truth LiDAR sign
-hits (``/groundtruth/lidar``: the centroid of each sign's returns in the latest scan before
-the image) projected by the projector core (``core.projection.candidates_to_rois``); the
-report says so.
+guidance off; ``learned`` also with it on.  LiDAR ROIs come from the real LiDAR chain run
+offline on the bag's ``/lidar/points``, ``/odom`` and ``/camera/camera_info`` with the
+``lidar_cluster`` and ``projector`` defaults (:func:`lidar_chain_rois`; no ground truth).
 
 Pixel accuracy of the colour model: ``--pixels DIR`` (a held-out ``synth pixels`` folder).
 
@@ -182,26 +181,68 @@ def _stamp(header) -> int:
     return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
-def _gt_rois(gt_lidar, image_ns: int, camera) -> list:
-    """ROIs from the ground-truth LiDAR sign hits of the latest scan before the image."""
-    from workzone_ros.core import projection
-    from workzone_ros.sim.world import LIDAR_TO_CAMERA
-    if gt_lidar is None or not gt_lidar.signs:
-        return []
-    dtype = np.dtype([('x', 'f8'), ('y', 'f8'), ('z', 'f8'), ('radius', 'f8'), ('id', 'i8'),
-                      ('count', 'i8')])
-    cands = np.array([(s.center[0], s.center[1], s.center[2],
-                       0.5 * catalogue.get(s.class_key).height_m, s.sign_id, len(s.indices))
-                      for s in gt_lidar.signs if len(s.indices) >= 3], dtype)
-    rois, _ = projection.candidates_to_rois(cands, gt_lidar.header.stamp.to_ns(), image_ns,
-                                            camera, LIDAR_TO_CAMERA)
-    return rois
+def lidar_chain_rois(bag: str, config: Optional[str] = None) -> dict:
+    """ROIs per image stamp from the real LiDAR chain, as the live graph makes them.
+
+    ``lidar_cluster`` (core.lidar_clustering: ``cluster_cloud`` + ``CandidateTracker``
+    persistence with odometry at scan stamp + 50 ms) on ``/lidar/points``, then the
+    ``projector`` (core.sync.NearestSync with its defaults: slop 0.1 s, max_wait 0.15 s,
+    forward time; core.projection.candidates_to_rois with ego-motion compensation from
+    ``/odom`` and the ``/camera/camera_info`` intrinsics).  Candidates arrive 110 ms after
+    their scan stamp, images 5 ms after theirs (``eval_lidar sync``'s defaults).  The
+    parameters are the ``lidar_cluster`` / ``projector`` sections of ``config/workzone.yaml``.
+    No ground truth is used.
+
+    Returns:
+        ``{image_stamp_ns: [Roi, ...]}`` for the images the projector paired.
+    """
+    import yaml
+
+    from workzone_ros.core import lidar_clustering as lc
+    from workzone_ros.core import projection as pj
+    from workzone_ros.tools.eval_lidar import _load_bag, _Odom, pair_stream
+    data = yaml.safe_load(Path(config or REPO / 'config' / 'workzone.yaml').read_text()) or {}
+    ccfg = (data.get('lidar_cluster') or {}).get('ros__parameters', {}) or {}
+    pcfg = (data.get('projector') or {}).get('ros__parameters', {}) or {}
+    params = lc.ClusterParams.from_mapping(ccfg)
+    tracker = lc.CandidateTracker(int(ccfg.get('persistence_k', 2)),
+                                  int(ccfg.get('persistence_n', 3)))
+    frames: list = []
+    scans, _, odom, info = _load_bag(Path(bag), frames)
+    if info is None:
+        return {}
+    camera = pj.CameraModel(int(info.width), int(info.height),
+                            np.asarray(info.k, float).reshape(3, 3), np.asarray(info.d, float),
+                            info.distortion_model or 'plumb_bob')
+    l2c = pj.extrinsics_from_list(pcfg.get('lidar_to_camera', [
+        0.0, -1.0, 0.0, 0.0, 0.0, 0.0, -1.0, -0.5, 1.0, 0.0, 0.0, -0.6, 0, 0, 0, 1]))
+    lb = list(pcfg.get('lidar_in_base', [1.0, 0.0, 1.95, 0.0, 0.0, 0.0])) + [0.0] * 6
+    od = _Odom(odom, pj.euler_matrix(tuple(lb[:3]), tuple(lb[3:6])))
+    rp = pj.RoiParams(margin=pcfg.get('crop_margin', 1.5),
+                      min_radius=pcfg.get('crop_min_radius', 0.6),
+                      pad_px=pcfg.get('crop_pad_px', 6.0), pad_m=pcfg.get('crop_pad_m', 0.3))
+    events = []
+    for stamp, pts in scans:
+        res = lc.cluster_cloud(pts, params)
+        cands = tracker.update(res.candidates, od.lidar(stamp + 50_000_000))
+        events.append((stamp + 110_000_000, 0, 'cands', stamp, lc.candidates_to_array(cands)))
+    for stamp, _ in frames:
+        events.append((stamp + 5_000_000, 1, 'image', stamp, None))
+    events.sort(key=lambda e: (e[0], e[1], e[3]))
+    pairs = pair_stream([(a, k, t, p) for a, _, k, t, p in events], 'nearest',
+                        int(float(pcfg.get('slop', 0.1)) * 1e9), queue_size=5,
+                        age_penalty=0.1, period_ns=int(1e9 / rp.lidar_rate_hz),
+                        max_wait_ns=int(float(pcfg.get('max_wait', 0.15)) * 1e9),
+                        time_offset_ns=pj.forward_time_offset(rp))
+    out = {}
+    for t_img, (t_set, arr, _) in pairs.items():
+        out[t_img], _ = pj.candidates_to_rois(arr, t_set, t_img, camera, l2c, od.lidar, rp)
+    return out
 
 
 def evaluate_bags(bags: Sequence[str], detectors: dict, args, tiles: list) -> dict:
     """Table I per method and weather over ``bags``."""
     from workzone_ros.bagio import read_messages
-    from workzone_ros.core.projection import CameraModel
     tables = {name: TableI() for name in detectors}
     timing = defaultdict(list)
     for bag in bags:
@@ -209,21 +250,10 @@ def evaluate_bags(bags: Sequence[str], detectors: dict, args, tiles: list) -> di
         for topic, _, msg in read_messages(bag, ['/groundtruth/signs']):
             g = interfaces.decode(msg.data, interfaces.GtSigns)
             gts[g.header.stamp.to_ns()] = g
-        camera = None
-        last_lidar = None
+        chain = lidar_chain_rois(bag) if any(v[1] for v in detectors.values()) else {}
         n = 0
-        topics = ['/camera/image_raw', '/camera/image_raw/compressed', '/camera/camera_info',
-                  '/groundtruth/lidar']
+        topics = ['/camera/image_raw', '/camera/image_raw/compressed']
         for topic, _, msg in read_messages(bag, topics):
-            if topic == '/camera/camera_info':
-                if camera is None:
-                    camera = CameraModel(int(msg.width), int(msg.height),
-                                         np.asarray(msg.k, float).reshape(3, 3),
-                                         np.asarray(msg.d, float), msg.distortion_model)
-                continue
-            if topic == '/groundtruth/lidar':
-                last_lidar = interfaces.decode(msg.data, interfaces.GtLidar)
-                continue
             ns = _stamp(msg.header)
             g = gts.get(ns)
             if g is None:
@@ -238,11 +268,9 @@ def evaluate_bags(bags: Sequence[str], detectors: dict, args, tiles: list) -> di
                     and s.visible_fraction >= args.min_visible]
             all_boxes = [s.box for s in g.signs]
             # ineligible work-zone signs are "don't care": detections on them are not false
-            rois = None
+            rois = chain.get(ns, [])
             groups = ('all', g.weather or 'unknown')
             for name, (det, lidar) in detectors.items():
-                if lidar and rois is None:
-                    rois = _gt_rois(last_lidar, ns, camera) if camera is not None else []
                 t0 = time.perf_counter()
                 dets = [d for d in det.detect(img, rois if lidar else ())
                         if d.color == 'orange']
@@ -427,8 +455,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     report: dict[str, Any] = {'model': args.model, 'model_metadata': dict(model.metadata),
                               'tau': 0.5, 'min_px': args.min_px,
                               'min_visible': args.min_visible, 'threshold': args.threshold,
-                              'rois': 'ground-truth LiDAR sign hits (latest scan) projected by '
-                                      'core.projection.candidates_to_rois'}
+                              'rois': 'real LiDAR chain: core.lidar_clustering + persistence, '
+                                      'projector nearest sync + core.projection (no GT)'}
     report['model_metadata'].pop('metrics', None)
     detectors = build_detectors(model, args.methods, not args.no_lidar, args.threshold)
     if args.bags:

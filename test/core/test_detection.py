@@ -319,3 +319,19 @@ def test_geometry_rejects_orange_things_on_the_road(model):
     _one(dets, high)
     assert not [d for d in dets if d.box.iou(Box(*map(float, low))) > 0.3]
     assert len(det.with_config(use_geometry=False).detect(img)) == 2
+
+
+def test_soft_mounting_limit_keeps_low_sign_faces(model):
+    """Between the usual mounting (soft limit) and the lowest training sign (hard limit,
+    portable stands) a clear diamond face passes, a vehicle-like orange block does not."""
+    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
+                        {'geometry': np.array([0.5, 1.5, 0.26])})
+    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
+    img = _background()
+    low = _diamond(img, 200, 290, 30)
+    cv2.rectangle(img, (420, 250), (500, 320), ORANGE, -1)          # a truck's rear
+    cv2.rectangle(img, (432, 258), (488, 280), BLACK, -1)            # its window
+    dets = det.detect(img)
+    _one(dets, low)
+    assert len(dets) == 1
+    assert len(det.with_config(use_geometry=False).detect(img)) == 2

@@ -9,7 +9,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    precomputed per-pixel threshold tau / P(sign).  Only the prior's ROI is evaluated (Fig. 1).
    LiDAR ROIs (``/workzone/rois``) raise the prior inside them to ``roi_prior`` and use the
    lower ``roi_threshold``, so a sign the colour model half-sees is still found (seed 004's
-   two-layer idea, done as fusion).
+   two-layer idea, done as fusion).  A blob inside an ROI also needs less shape evidence
+   (``roi_relax``: looser hull-fill / solidity / aspect, no legend and no mounting-height
+   test) as long as it lies mostly inside the ROI (``roi_contain``); outside ROIs nothing
+   changes.
 3. Erosion then dilation (opening, seed 004 3.4.2) and a closing, connected components
    (``cv2.connectedComponentsWithStats``), radius filters (seed 000 footnote 2: centroid to
    side distance, here half the smaller box side).
@@ -23,8 +26,11 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    face must look like a sign: solidity, convex-hull fill (~0.5 diamond, ~1 rectangle),
    aspect, a dark legend / border inside the hull, and a bottom edge no lower than the
    training signs' mounting geometry allows (model extra ``geometry``; drums, cones and
-   vehicles stand on the road).  The box is the orange hull's, grown by ``border_frac``
-   of its size per side for the border and outer margin that blend away.  The confidence
+   vehicles stand on the road; lifted inside LiDAR ROIs).  The box is the orange hull's,
+   grown per blob from its own edge profile (``_border_growth``): by ``border_frac`` when the
+   black border line lies outside the hull (margin and line lost), plus the width of the
+   soft colour edge around it (blurred, small or rain-washed signs); a bright sign whose
+   margin is already inside the hull does not grow.  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.
@@ -35,7 +41,8 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    frame is kept.  Each detection lists its sources: ``color``, ``lidar`` or both.  A blob
    no LiDAR candidate supports keeps its own confidence (the LiDAR misses signs too); a
    supported one is raised by noisy-OR with ``lidar_confidence``; a LiDAR ROI with no
-   colour blob can be reported as a ``lidar``-only detection (``lidar_only``).
+   colour blob is examined at full resolution and reported as a ``lidar``-only detection
+   (``lidar_only``) when it holds a sign-coloured region of plausible size and shape.
 
 Alternatives, selectable with ``method``:
 
@@ -97,7 +104,12 @@ class DetectorConfig:
             is handled by ``border_frac``).
         use_geometry: reject orange blobs whose bottom edge lies lower than the training
             signs' (model extra ``geometry``: reference row as a fraction of the image
-            height, largest (bottom - row) / height seen in training plus a margin).
+            height, largest (bottom - row) / height seen in training plus a margin; trained
+            on renders with portable-stand signs it allows low signs).  A third entry is the
+            soft limit (the usual mounting): a blob lower than it passes only as a clear
+            diamond face (solidity >= ``low_min_solidity``, hull fill below
+            ``diamond_hull_fill``, aspect within ``low_max_aspect``).  Applies to
+            colour-only blobs; lifted inside LiDAR ROIs.
         smooth_px: box filter on the likelihood at the mask's resolution before thresholding.
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
@@ -108,10 +120,13 @@ class DetectorConfig:
             margin + 3 % black line, the margin blending into the background).  When the
             ring just outside the orange hull is dark enough (``border_dark``), the hull's
             box grows by this fraction of its size on every side.
-        border_dark: share of dark pixels in that ring that means "border found" (0: always
-            grow; on our development renders the ring test did not separate the cases where
-            the blended outer margin is already inside the hull, so the default grows always
-            by the art's outer margin + half the line, 4 %).
+        border_dark: share of dark pixels in the ring outside the hull that means "border
+            line outside" (0: compare with the band just inside the hull instead).
+        border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
+            ``border_frac`` whatever the blob looks like; the previous behaviour).
+        blur_like, blur_max_frac: the soft edge: 1-px rings outside the hull whose mean
+            likelihood is at least ``blur_like`` are added (at most ``blur_max_frac`` of
+            the size + 2).
         min_solidity: smallest orange pixels / convex-hull area of an orange blob.
         min_dark_inside: smallest share of dark (legend, border) pixels inside the hull of an
             orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
@@ -130,8 +145,16 @@ class DetectorConfig:
             white part must also end (a bottom edge) within ``ext_max_ratio``.
         roi_prior, roi_threshold, roi_margin: LiDAR ROIs: prior and posterior threshold
             inside them, and the fraction of their size added around them.
+        roi_relax: inside an ROI the hull-fill and solidity minima are multiplied (and the
+            aspect maximum divided) by this; the legend and mounting-height tests are off.
+        roi_contain: a relaxed blob (and a lidar-only one) must lie at least this share
+            inside its ROI, else it is judged like any other blob.
         lidar_confidence: noisy-OR weight of LiDAR support.
-        lidar_only: report LiDAR ROIs without a colour blob as ``lidar``-only detections.
+        lidar_only: report an ROI that no colour blob explains as a ``lidar``-only
+            detection when it holds a sign-coloured region (below).
+        lidar_only_threshold: likelihood of that region's pixels.
+        lidar_only_min_share, lidar_only_max_share: the region's larger side as a share of
+            the ROI's (the projector sizes ROIs from the candidate's radius and range).
         lidar_only_confidence: their confidence.
         general_max_aspect, general_min_fill: seed 004 filters for red / yellow blobs.
         mser_delta: MSER delta of the ``rgb_lp`` method.
@@ -154,6 +177,8 @@ class DetectorConfig:
     border_scale: tuple[float, float] = (1.0, 1.0)
     smooth_px: int = 3
     use_geometry: bool = True
+    low_min_solidity: float = 0.85
+    low_max_aspect: float = 1.4
     close_frac: float = 0.12
     weak_threshold: float = 0.3
     border_frac: float = 0.04
@@ -177,6 +202,7 @@ class DetectorConfig:
     roi_threshold: float = 0.3
     roi_margin: float = 0.25
     roi_relax: float = 0.75
+    roi_contain: float = 0.8
     lidar_confidence: float = 0.5
     lidar_only: bool = True
     lidar_only_threshold: float = 0.25
@@ -241,9 +267,27 @@ def _iou(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
     return inter / (aa + ab - inter), inter / max(min(aa, ab), 1e-9)
 
 
-def nms(cands: list[Candidate], iou: float, contain: float) -> list[Candidate]:
-    """Greedy non-maximum suppression, larger boxes first; every non-overlapping box stays."""
-    order = sorted(cands, key=lambda c: (c.w * c.h, c.confidence), reverse=True)
+def _contained(a: Sequence[float], b: Sequence[float]) -> float:
+    """Share of box ``a``'s area inside box ``b`` (both x, y, w, h)."""
+    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    return 0.0 if iw <= 0 or ih <= 0 else iw * ih / max(a[2] * a[3], 1e-9)
+
+
+def nms(cands: list[Candidate], iou: float, contain: float,
+        by: str = 'confidence') -> list[Candidate]:
+    """Greedy non-maximum suppression; every non-overlapping box stays.
+
+    ``by='confidence'``: most confident first (ties: larger first), so a large, weakly
+    orange region (sunlit asphalt, a vehicle) does not swallow a sign inside it.
+    ``by='area'``: larger first (the seed 002 MSER path, whose nested regions of one sign
+    share a confidence scale with their fill).
+    """
+    if by == 'area':
+        order = sorted(cands, key=lambda c: (c.w * c.h, c.confidence), reverse=True)
+    else:
+        order = sorted(cands, key=lambda c: (round(c.confidence, 2), c.w * c.h),
+                       reverse=True)
     kept: list[Candidate] = []
     for c in order:
         b = (c.x, c.y, c.w, c.h)
@@ -475,7 +519,8 @@ class ColorDetector:
         self.debug: Optional[list] = None      # a list: rejected / measured blobs land here
         self._gains: Optional[tuple] = None
         g = model.extras.get('geometry')
-        self._geometry = (float(g[0]), float(g[1])) if g is not None and len(g) >= 2 else None
+        self._geometry = ((float(g[0]), float(g[1]), float(g[2] if len(g) >= 3 else g[1]))
+                          if g is not None and len(g) >= 2 else None)
 
     def with_config(self, **changes) -> 'ColorDetector':
         """A detector sharing the model with some parameters changed."""
@@ -576,7 +621,8 @@ class ColorDetector:
         else:
             count = self.rgb_lp.mask(crop)
             cands += self._mser_blobs(count, bgr, (cx0, cy0), s)
-        cands = nms(cands, cfg.nms_iou, cfg.nms_contain)
+        cands = nms(cands, cfg.nms_iou, cfg.nms_contain,
+                    'area' if cfg.method == 'rgb_lp' else 'confidence')
         return self._fuse(cands, rois, bgr, thr_base)
 
     # -- seed 000 / 004 blob path --
@@ -617,8 +663,16 @@ class ColorDetector:
         """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
         if cfg.method == 'learned' and color == 'orange':
-            return self._measure_orange(bgr, comp, box, s, thr_base, lboxes,
-                                        relaxed=self._in_roi(box, s, lboxes))
+            # judged on colour alone first (LiDAR support never changes a box the colour
+            # evidence already makes); only a blob that fails is re-judged with relaxed
+            # filters inside its ROI, and must then lie mostly inside that ROI
+            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes)
+            roi = self._in_roi(box, s, lboxes) if c is None else None
+            if roi is not None:
+                c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True)
+                if c is not None and _contained((c.x, c.y, c.w, c.h), roi) < cfg.roi_contain:
+                    c = None
+            return c
         H, W = bgr.shape[:2]
         fx, fy, fw, fh = box
         m = 2 * s + 1
@@ -693,10 +747,13 @@ class ColorDetector:
         return cand
 
     @staticmethod
-    def _in_roi(box: tuple, s: int, lboxes: list) -> bool:
-        """True when the centre of a full-resolution box lies in an (expanded) LiDAR ROI."""
+    def _in_roi(box: tuple, s: int, lboxes: list) -> Optional[tuple]:
+        """The (expanded) LiDAR ROI, full-resolution (x, y, w, h), holding a box's centre."""
         cx, cy = (box[0] + box[2] / 2) / s, (box[1] + box[3] / 2) / s
-        return any(x0 <= cx < x1 and y0 <= cy < y1 for x0, y0, x1, y1 in lboxes)
+        for x0, y0, x1, y1 in lboxes:
+            if x0 <= cx < x1 and y0 <= cy < y1:
+                return (x0 * s, y0 * s, (x1 - x0) * s, (y1 - y0) * s)
+        return None
 
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                         thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
@@ -779,8 +836,15 @@ class ColorDetector:
         geo = self._geometry
         if geo is not None and cfg.use_geometry and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
-            # (drums, cones and vehicles stand on the road below it); in units of box height
-            if (y0 + by0 + bh - geo[0] * H) / bh > geo[1]:
+            # (drums, cones and vehicles stand on the road below it); in units of box height.
+            # Below the usual mounting (soft limit; portable stands stand low) only a clear
+            # diamond face passes; below the lowest training sign (hard limit) nothing does.
+            rel = (y0 + by0 + bh - geo[0] * H) / bh
+            if rel > geo[1]:
+                return None
+            if rel > geo[2] and not (solidity >= cfg.low_min_solidity
+                                     and hull_fill < cfg.diamond_hull_fill
+                                     and max(aspect, 1 / aspect) <= cfg.low_max_aspect):
                 return None
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
@@ -988,7 +1052,8 @@ class ColorDetector:
         comp = (lab[by:by + bh, bx:bx + bw] == j).astype(np.uint8)
         c = self._measure_orange(bgr, comp, (x0 + bx, y0 + by, bw, bh), 1, thr_base, [],
                                  relaxed=True, t_override=cfg.lidar_only_threshold)
-        if c is None:
+        if (c is None or _contained((c.x, c.y, c.w, c.h), (x0, y0, x1 - x0, y1 - y0))
+                < cfg.roi_contain or min(c.w, c.h) < 2 * cfg.min_radius_px + 4):
             return None
         c.sources = ['lidar']
         c.roi_id = int(roi.candidate_id)

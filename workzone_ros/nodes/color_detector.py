@@ -90,7 +90,7 @@ class ColorDetectorNode(WorkzoneNode):
               min=0, max=9),
         Param('border_frac', 0.04, 'box growth per side for the sign border (fraction of size)',
               min=0.0, max=0.3),
-        Param('use_geometry', False, "reject orange blobs lower than the training signs' "
+        Param('use_geometry', True, "reject orange blobs lower than the training signs' "
               'mounting height (model extra geometry)'),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
         Param('rois_wait', 0.25, 'hold an image at most this long (wall time, s) for its '

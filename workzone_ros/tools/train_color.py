@@ -15,7 +15,8 @@ same way: nonzero mask = work-zone sign face), then
    (``--estimators`` = H weak learners) on those counts;
 5. bakes g(f) into the 180 x 256 table (seed 000 eq. 2);
 6. builds the spatial prior from the boxes of the masks' connected components (Fig. 1) and
-   the mounting geometry (how low a sign's bottom edge gets, model extra ``geometry``);
+   the mounting geometry (model extra ``geometry``: how low a sign's bottom edge gets at
+   all, e.g. on a portable stand, and how low it usually gets, ``--geometry-quantile``);
 7. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
 8. writes the versioned model file and prints training / validation pixel metrics.
 
@@ -159,6 +160,9 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--seed', type=int, default=0, help='augmentation seed')
     p.add_argument('--geometry-margin', type=float, default=0.15,
                    help='margin on the lowest sign bottom seen in training (sign heights)')
+    p.add_argument('--geometry-quantile', type=float, default=0.9,
+                   help='soft mounting limit: this quantile of the sign bottoms (+ margin); '
+                        'blobs lower than it must look like a clear sign face')
     p.add_argument('--gray-world', action=argparse.BooleanOptionalAction, default=True,
                    help='grey-world balance every frame before the table (the detector then '
                         'does the same; default on)')
@@ -242,7 +246,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     rel = [(y + h - 0.5 * size[1]) / h for x, y, w, h in boxes if h >= 8] if size else []
     extras: dict = {}
     if rel:
-        extras['geometry'] = np.array([0.5, float(np.max(rel)) + args.geometry_margin])
+        # [reference row, hard limit (the lowest sign seen, e.g. on a portable stand),
+        #  soft limit (the usual mounting: below it only clear sign faces pass)]
+        extras['geometry'] = np.array([
+            0.5, float(np.max(rel)) + args.geometry_margin,
+            float(np.quantile(rel, args.geometry_quantile)) + args.geometry_margin])
         meta['geometry'] = extras['geometry'].tolist()
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,

@@ -374,7 +374,7 @@ def test_explicit_sign_mounts():
     ({'signs': [{'class': 'stop', 's': 10, 'mount': 'pole'}]}, 'mount must be one of'),
     ({'signs': [{'class': 'stop', 's': 10, 'bottom': 0.5}]}, 'bottom is for mount: stand'),
     ({'signs': [{'class': 'stop', 's': 10, 'mount': 'stand', 'bottom': 0.1}]}, 'bottom must'),
-    ({'workzone': {'taper_s': 500, 'mounts': {'road_work': 'stand'}}}, "unknown sign class"),
+    ({'workzone': {'taper_s': 500, 'mounts': {'road_work': 'stand'}}}, 'unknown sign class'),
     ({'workzone': {'taper_s': 500, 'mounts': {'road_work_ahead': 'tripod'}}},
      'road_work_ahead must be one of'),
     ({'workzone': {'taper_s': 500, 'stand_probability': 1.5}}, 'stand_probability'),

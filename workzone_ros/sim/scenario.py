@@ -587,7 +587,7 @@ def stand_parts(sign: SignPanel, flags: bool, new_id) -> list:
     Returns:
         The objects, to append to ``Scene.objects``.
     """
-    yaw, w, h = sign.yaw, sign.width, sign.height
+    yaw, h = sign.yaw, sign.height
     right = np.array([-math.sin(yaw), math.cos(yaw), 0.0])     # viewer's right
     up = np.array([0.0, 0.0, 1.0])
     bottom = sign_bottom(sign)

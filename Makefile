@@ -24,7 +24,7 @@ $(DEMO_BAG)/metadata.yaml: $(STAMP) $(wildcard config/scenarios/demo.yaml)
 demo: $(DEMO_BAG)/metadata.yaml
 	$(BIN)/workzone-ros launch --bag $(DEMO_BAG) --rate 1.0 --report
 
-test: $(STAMP)
+test: $(STAMP) lint
 	$(BIN)/python -m pytest -q test
 
 lint: $(STAMP)

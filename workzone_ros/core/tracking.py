@@ -145,6 +145,14 @@ class TrackerConfig:
             alone predicted poorly which box was better (correlation 0.1 with the IoU
             difference; the tracked box is the score's own optimum, the detection is not).
         fuse_min_px: tracks smaller than this (either side) are overwritten, not fused.
+        prefer_detection: with ``fuse``, a detection whose anchor overlaps the tracked anchor
+            (``fuse_iou``) gives the box outright unless it is truncated (the two-colour
+            guard fires): the colour detector's boxes (it extends regulatory boxes itself)
+            are better than the tracked box, and blending made them worse than detection
+            only on development bags.  The weights still decide between disjoint boxes and
+            how much of the detection's histogram enters the model; the box geometry
+            (``relation``) is the detection's own, so a track that then runs on its own
+            keeps the geometry of its last good detection.  False: PR 6a5d439's blend.
         max_ring_similarity: drift guard: a track running on its own whose surroundings
             (the ``surround_size`` ring) look like its target more than this sits in a
             region much larger than its box (an orange vehicle): it is lost (1 = off).
@@ -186,6 +194,7 @@ class TrackerConfig:
     fuse_iou: float = 0.3
     fuse_bias: float = 0.1
     fuse_min_px: float = 0.0
+    prefer_detection: bool = True
     max_ring_similarity: float = 0.6
     max_growth_excess: float = 0.3
 
@@ -966,8 +975,13 @@ class MultiTracker:
         top = -rel[1]                            # box above the anchor, in anchor heights
         bottom = rel[1] + rel[3] - 1.0           # box below the anchor: the white part
         two_colour = bottom >= 0.4 and bottom >= 3.0 * max(top, 0.02)
-        return two_colour and (new.relation[3] < 0.8 * rel[3]
-                               or new.relation[2] < 0.8 * rel[2])
+        if not two_colour:
+            return False
+        # Only a detection that is not already extended (its box does not reach well below
+        # the coloured part) is truncated: the colour detector now extends regulatory boxes
+        # itself, and replacing its extension by the track's older one lost accuracy.
+        new_bottom = new.relation[1] + new.relation[3] - 1.0
+        return new_bottom < 0.5 * bottom
 
     def _overgrown(self, tr: _Track) -> bool:
         """Drift guard: the tracked anchor grew past what perspective and the track's own
@@ -1019,13 +1033,17 @@ class MultiTracker:
         w_t = math.exp((s_t - top) / cfg.fuse_temperature) * size_factor(tr.pred_anchor)
         share = w_d / (w_d + w_t) if w_d + w_t > 0 else 1.0
         box_d = dm.box
-        if self._lost_white_part(tr.target, new):
+        truncated = self._lost_white_part(tr.target, new)
+        if truncated:
             box_d = tr.target.box_from_anchor(ad)        # two-colour guard (see _correct)
         at, bt = tr.pred_anchor, tr.pred_box
-        if box_iou(at, ad) < cfg.fuse_iou:
+        overlap = box_iou(at, ad) >= cfg.fuse_iou
+        if not overlap:
             share = 1.0 if share >= 0.5 else 0.0         # disjoint: one of them, not between
         anchor = _blend(at, ad, share)
         box = _blend(bt, box_d, share)
+        if overlap and cfg.prefer_detection and not truncated and share >= 0.5:
+            box = box_d                                  # agreeing and complete: its box
         base = new if share >= 0.5 else tr.target
         a = cfg.model_update * share
         q = (1 - a) * tr.target.q + a * new.q

@@ -160,13 +160,21 @@ class _GtDetector:
 # --- the run --------------------------------------------------------------------------------
 
 def _frames(bag: str):
-    """(image BGR, GtSigns) pairs by exact stamp, in order."""
+    """(image BGR, GtSigns) pairs by exact stamp, in order (raw or JPEG-compressed images)."""
     from workzone_ros.bagio import read_messages
     from workzone_ros.interfaces import GtSigns, decode
     images: dict[int, Any] = {}
     gts: dict[int, Any] = {}
-    for topic, _, msg in read_messages(bag, ['/camera/image_raw', '/groundtruth/signs']):
-        if topic == '/camera/image_raw':
+    topics = ['/camera/image_raw', '/camera/image_raw/compressed', '/groundtruth/signs']
+    for topic, _, msg in read_messages(bag, topics):
+        if topic == '/camera/image_raw/compressed':
+            import cv2
+            ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            img = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_COLOR)
+            if img is None:
+                raise SystemExit(f'{bag}: undecodable compressed image ({msg.format})')
+            images[ns] = img
+        elif topic == '/camera/image_raw':
             ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             if msg.encoding not in ('bgr8', 'rgb8'):
                 raise SystemExit(f'{bag}: unsupported image encoding {msg.encoding}')

@@ -358,3 +358,29 @@ def test_fuse_keeps_the_tracked_box_against_a_poor_detection_and_overwrite_does_
     assert min(results['fuse'][4:11]) > 0.7, np.round(results['fuse'], 2)
     assert max(results['overwrite'][4:11]) < 0.5, np.round(results['overwrite'], 2)
     assert results['fuse'][11] > 0.9 and results['overwrite'][11] > 0.9
+
+
+@pytest.mark.parametrize('association', ['fuse', 'overwrite'])
+def test_two_colour_guard_extends_only_truncated_detections(association):
+    """The guard restores the white part of a detection that holds only the orange top, but
+    a detection that is already extended (the detector extends regulatory boxes itself) is
+    taken as it is, even when its extension differs from the one the track knows."""
+    bg = background(11)
+    tracker = MultiTracker(TrackerConfig(association=association))
+    for i in range(14):
+        img = bg.copy()
+        gt = draw_regulatory(img, 330 + 2 * i, 220 - 0.6 * i, 40 * 1.02 ** i)
+        if i < 4:
+            d = gt                                             # full boxes: geometry learnt
+        elif i < 9:
+            d = (gt[0], gt[1], gt[2], 0.3 * gt[3])             # orange top only: truncated
+        else:
+            d = (gt[0], gt[1], gt[2], 0.7 * gt[3])             # extended, shorter than known
+        out = tracker.step(img, [det(d, kind='regulatory')])
+        assert [t.track_id for t in out] == [1]
+        b = out[0].box
+        got = (b.x, b.y, b.w, b.h)
+        if 4 <= i < 9:
+            assert box_iou(got, gt) > 0.8, (i, got, gt)        # white part restored
+        elif i >= 9:
+            assert box_iou(got, d) > 0.95, (i, got, d)         # the detection's own box

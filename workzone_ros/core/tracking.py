@@ -19,7 +19,10 @@ replaces the track's box.  Ours (``'fuse'``): for a confident track the detectio
 like a mean-shift candidate with the track's model (Bhattacharyya coefficient minus the
 surround term, plus ``fuse_bias``) and by its size consistency with the track's recent growth;
 the tracked box is scored the same way and the two are averaged (or, disjoint, chosen) with
-those weights, so a fragmentary detection box no longer overwrites a good tracked box.  When
+those weights, so a fragmentary detection box no longer overwrites a good tracked box; a
+detection that agrees (anchors overlapping, weight >= 1/2) and is complete gives the box
+outright (``prefer_detection``: the colour detector's boxes are now usually the better ones)
+and its geometry, which a track then running on its own keeps.  When
 the detector misses, the tracker runs on its own; the track ends when the similarity stays
 below a threshold, the box leaves the image or grows past a size limit, and (drift guards,
 not in the seed) when the target's colour continues all around the box (a large orange
@@ -37,7 +40,11 @@ relative to that anchor (offset and size ratios, refreshed by each agreeing dete
 the tracked anchor back to the full box.  For a diamond the anchor is the orange face inside
 the black border and the relation is close to identity; for a two-colour box it is the orange
 band and the relation restores the white part exactly as the detector saw it, scaled with the
-tracked anchor.  ``anchor_on_color=False`` tracks the whole box instead (the ablation).
+tracked anchor.  The guard acts only on a detection that is not already extended (its box
+does not reach well below the coloured part): the colour detector now extends regulatory
+boxes itself, and its extension is kept.  ``anchor_on_color=False`` tracks the whole box
+instead (the ablation).  A track is published on its own only when its target does not look
+like its surroundings nor has white bands (drums, cones): ``max_coast_*``.
 
 A CamShift peer (``method='camshift'``: ``cv2.CamShift`` on a hue back-projection of the same
 search window, same anchors and starts, same track life) is provided for comparison.
@@ -153,6 +160,13 @@ class TrackerConfig:
             how much of the detection's histogram enters the model; the box geometry
             (``relation``) is the detection's own, so a track that then runs on its own
             keeps the geometry of its last good detection.  False: PR 6a5d439's blend.
+        max_coast_background_similarity: a track whose model resembles its surroundings
+            more than this is published only with a detection, never on its own (on
+            development bags every track that ran on its own on a sign stayed below 0.47;
+            false tracks on vehicles and background reached 0.6-0.86).  1 = off.
+        max_coast_white_fraction: with ``anchor_on_color``, a track whose coloured shape is
+            more than this white (a drum's or cone's bands) never runs on its own (signs on
+            development bags: at most 0.25).  1 = off.
         max_ring_similarity: drift guard: a track running on its own whose surroundings
             (the ``surround_size`` ring) look like its target more than this sits in a
             region much larger than its box (an orange vehicle): it is lost (1 = off).
@@ -195,6 +209,8 @@ class TrackerConfig:
     fuse_bias: float = 0.1
     fuse_min_px: float = 0.0
     prefer_detection: bool = True
+    max_coast_background_similarity: float = 0.5
+    max_coast_white_fraction: float = 0.35
     max_ring_similarity: float = 0.6
     max_growth_excess: float = 0.3
 
@@ -224,7 +240,8 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
     return replace(config or TrackerConfig(), scales=SCALES, background_weighting=False,
                    surround_weight=0.0,
                    use_velocity=False, association='overwrite', max_ring_similarity=1.0,
-                   max_growth_excess=0.0)
+                   max_growth_excess=0.0, max_coast_background_similarity=1.0,
+                   max_coast_white_fraction=1.0)
 
 
 # --- histograms ---------------------------------------------------------------------------
@@ -910,8 +927,7 @@ class MultiTracker:
             tr.similarity = tr.pred_rho
             tr.lost = 0
             survivors.append(tr)
-            if tr.hits >= cfg.min_hits_to_coast and tr.target.colored \
-                    and tr.target.background_similarity <= cfg.max_background_similarity:
+            if tr.hits >= cfg.min_hits_to_coast and self._may_coast(tr.target):
                 out_trk.append(self._payload(tr, 'tracking'))
 
         # 4. Unmatched detections start tracks.
@@ -958,6 +974,16 @@ class MultiTracker:
         vx, vy = tr.velocity
         tr.velocity = (0.5 * vx + 0.5 * (nx - ox), 0.5 * vy + 0.5 * (ny - oy))
         tr.anchor, tr.box = anchor, box
+
+    def _may_coast(self, target: TargetModel) -> bool:
+        """The track may be published while it runs on its own: a coloured target that does
+        not look like its surroundings, nor like a drum or cone (white bands in the shape)."""
+        cfg = self.config
+        bg = target.background_similarity
+        if not target.colored or bg > min(cfg.max_background_similarity,
+                                          cfg.max_coast_background_similarity):
+            return False
+        return not (cfg.anchor_on_color and target.white_fraction > cfg.max_coast_white_fraction)
 
     def _confident(self, tr: _Track) -> bool:
         """The track may outvote a detection: detected often enough, tracked well."""

@@ -100,6 +100,14 @@ _CORE_PARAMS = (
           min=-1.0, max=1.0),
     Param('fuse_min_px', _D.fuse_min_px, 'smaller tracks are overwritten, not fused',
           min=0.0, max=1000.0),
+    Param('prefer_detection', _D.prefer_detection, 'fuse: an agreeing, complete detection '
+          'gives the box (false: blend)'),
+    Param('max_coast_background_similarity', _D.max_coast_background_similarity,
+          'a target this similar to its surroundings is never published on its own '
+          '(1 = off)', min=0.0, max=1.0),
+    Param('max_coast_white_fraction', _D.max_coast_white_fraction, 'a coloured shape this '
+          'white (drum, cone bands) is never published on its own (1 = off)', min=0.0,
+          max=1.0),
     Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
           'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
     Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '

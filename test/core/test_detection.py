@@ -178,6 +178,17 @@ def test_lidar_support_and_unsupported_blobs(detector):
         lidar_only=False).detect(img, [_roi(b, 3)])]
 
 
+def test_lidar_roi_never_changes_colour_detections(detector):
+    """The colour-only pass is run unchanged; an ROI it explains adds no second pass."""
+    img = _background()
+    a = _diamond(img, 300, 150, 22)
+    b = _diamond(img, 360, 150, 22)
+    plain = sorted((d.box.x, d.box.y, d.box.w, d.box.h) for d in detector.detect(img))
+    roi = _roi((a[0] - 10, a[1] - 10, b[0] + b[2] - a[0] + 20, a[3] + 20))
+    dets = detector.detect(img, [roi])
+    assert sorted((d.box.x, d.box.y, d.box.w, d.box.h) for d in dets) == plain
+
+
 def test_lidar_only_detection_needs_sign_colour(model):
     """An ROI whose sign the colour pass cannot report (here: where the prior says signs never
     are, with the in-ROI threshold out of reach) gives a lidar-only detection with its own

@@ -7,12 +7,14 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    the model's value gate have no reliable hue and are left out.
 2. Posterior threshold P(x | sign) P(sign) >= tau (eq. 1), done as a comparison with the
    precomputed per-pixel threshold tau / P(sign).  Only the prior's ROI is evaluated (Fig. 1).
-   LiDAR ROIs (``/workzone/rois``) raise the prior inside them to ``roi_prior`` and use the
-   lower ``roi_threshold``, so a sign the colour model half-sees is still found (seed 004's
-   two-layer idea, done as fusion).  A blob inside an ROI also needs less shape evidence
-   (``roi_relax``: looser hull-fill / solidity / aspect, no legend and no mounting-height
-   test) as long as it lies mostly inside the ROI (``roi_contain``); outside ROIs nothing
-   changes.
+   This colour-only pass is the same with or without LiDAR.  A second pass then looks only
+   at the LiDAR ROIs (``/workzone/rois``) that no colour detection explains (its centre
+   inside): there the prior is raised to ``roi_prior`` and the lower ``roi_threshold`` is
+   used, so a sign the colour model half-sees is still found (seed 004's two-layer idea,
+   done as fusion), while blobs outside those ROIs never merge differently.  A blob inside
+   an ROI also needs less shape evidence (``roi_relax``: looser hull-fill / solidity /
+   aspect, no legend and no mounting-height test) as long as it lies mostly inside the ROI
+   (``roi_contain``); outside ROIs nothing changes.
 3. Erosion then dilation (opening, seed 004 3.4.2) and a closing, connected components
    (``cv2.connectedComponentsWithStats``), radius filters (seed 000 footnote 2: centroid to
    side distance, here half the smaller box side).
@@ -575,27 +577,60 @@ class ColorDetector:
             y1 = int(min(sh, math.ceil((r.box.y2 + my) / s)))
             if x1 > x0 and y1 > y0:
                 lboxes.append((x0, y0, x1, y1))
-        # The evaluated region: the prior's ROI plus every LiDAR ROI.
-        cx0, cy0, cx1, cy1 = roi
-        for x0, y0, x1, y1 in lboxes:
-            cx0, cy0, cx1, cy1 = min(cx0, x0), min(cy0, y0), max(cx1, x1), max(cy1, y1)
         small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_AREA) if s > 1 else bgr
         self._gains = None
         if cfg.method == 'learned' and self.model.gray_world and small.size:
             # colour constancy outside the table (the model was trained this way)
             self._gains = gray_world_gains(small)
+        # 1. the colour-only pass over the prior's ROI, exactly as without LiDAR
+        cands = self._pass(small, bgr, roi, thr_base, s, thr_base, [])
+        cands = nms(cands, cfg.nms_iou, cfg.nms_contain,
+                    'area' if cfg.method == 'rgb_lp' else 'confidence')
+        # 2. a separate pass, with the ROI threshold, over the LiDAR ROIs that no colour
+        # detection explains (its centre in the ROI); it never changes a colour detection
+        todo = [b for b in lboxes if not any(
+            b[0] <= (c.x + c.w / 2) / s < b[2] and b[1] <= (c.y + c.h / 2) / s < b[3]
+            for c in cands)]
+        if todo:
+            thr = thr_base
+            if cfg.method == 'learned':
+                thr = thr_base.copy()
+                t_roi = np.uint8(min(255, math.ceil(cfg.roi_threshold / cfg.roi_prior
+                                                    * _P_SCALE)))
+                for x0, y0, x1, y1 in todo:
+                    np.minimum(thr[y0:y1, x0:x1], t_roi, out=thr[y0:y1, x0:x1])
+            region = (min(b[0] for b in todo), min(b[1] for b in todo),
+                      max(b[2] for b in todo), max(b[3] for b in todo))
+            extra = self._pass(small, bgr, region, thr, s, thr_base, todo, limit=todo)
+            extra = nms(extra, cfg.nms_iou, cfg.nms_contain,
+                        'area' if cfg.method == 'rgb_lp' else 'confidence')
+            for c in extra:
+                if self._in_roi((c.x, c.y, c.w, c.h), s, todo) is not None and all(
+                        _iou((c.x, c.y, c.w, c.h), (k.x, k.y, k.w, k.h))[1] <= cfg.nms_contain
+                        for k in cands):
+                    cands.append(c)
+        return self._fuse(cands, rois, bgr, thr_base)
+
+    def _pass(self, small: np.ndarray, bgr: np.ndarray, region: tuple, thr_full: np.ndarray,
+              s: int, thr_base: np.ndarray, lboxes: list,
+              limit: Optional[list] = None) -> list[Candidate]:
+        """One detection pass over ``region`` (mask coordinates) with thresholds ``thr_full``.
+
+        ``limit``: only pixels inside these mask-coordinate boxes may form blobs.
+        """
+        cfg = self.config
+        cx0, cy0, cx1, cy1 = region
         crop = small[cy0:cy1, cx0:cx1]
-        if self._gains is not None and crop.size:
-            crop = apply_gains(crop, self._gains)
         if crop.size == 0:
             return []
-        thr = thr_base
-        if lboxes:
-            thr = thr_base.copy()
-            t_roi = np.uint8(min(255, math.ceil(cfg.roi_threshold / cfg.roi_prior * _P_SCALE)))
-            for x0, y0, x1, y1 in lboxes:
-                np.minimum(thr[y0:y1, x0:x1], t_roi, out=thr[y0:y1, x0:x1])
-        thr = thr[cy0:cy1, cx0:cx1]
+        if self._gains is not None:
+            crop = apply_gains(crop, self._gains)
+        keep = None
+        if limit:
+            keep = np.zeros(crop.shape[:2], np.uint8)
+            for x0, y0, x1, y1 in limit:
+                keep[max(0, y0 - cy0):max(0, y1 - cy0), max(0, x0 - cx0):max(0, x1 - cx0)] = 255
+        thr = thr_full[cy0:cy1, cx0:cx1]
         hsv = cv2.cvtColor(crop, cv2.COLOR_BGR2HSV)
         cands: list[Candidate] = []
         if cfg.method == 'learned':
@@ -611,19 +646,23 @@ class ColorDetector:
                     # orange-hued pixels (dusk sky, sensor noise) are averaged away
                     prob = cv2.blur(prob, (cfg.smooth_px, cfg.smooth_px))
                 mask = cv2.compare(prob, thr, cv2.CMP_GE)
+                if keep is not None:
+                    mask &= keep
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
         elif cfg.method == 'hsv':
             for color in self.colors:
                 mask = np.zeros(hsv.shape[:2], np.uint8)
                 for h_lo, h_hi, s_lo, v_lo in HSV_RANGES[color]:
                     mask |= cv2.inRange(hsv, (h_lo, s_lo, v_lo), (h_hi, 255, 255))
+                if keep is not None:
+                    mask &= keep
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
         else:
             count = self.rgb_lp.mask(crop)
+            if keep is not None:
+                count = np.where(keep > 0, count, 0).astype(count.dtype)
             cands += self._mser_blobs(count, bgr, (cx0, cy0), s)
-        cands = nms(cands, cfg.nms_iou, cfg.nms_contain,
-                    'area' if cfg.method == 'rgb_lp' else 'confidence')
-        return self._fuse(cands, rois, bgr, thr_base)
+        return cands
 
     # -- seed 000 / 004 blob path --
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],

@@ -5,8 +5,6 @@ import cv2
 import numpy as np
 import pytest
 import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
@@ -33,44 +31,6 @@ def _frame(sign=True):
         cv2.polylines(img, [inner], True, (22, 22, 22), 2)            # border and legend:
         cv2.putText(img, 'RW', (404, 157), cv2.FONT_HERSHEY_DUPLEX, 0.6, (22, 22, 22), 2)
     return img
-
-
-class Ros:
-    def __init__(self):
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.nodes = []
-
-    def add(self, node):
-        self.nodes.append(node)
-        self.executor.add_node(node)
-        return node
-
-    def spin_until(self, cond, timeout=10.0, each=None):
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if each:
-                each()
-            self.executor.spin_once(timeout_sec=0.1)
-            if cond():
-                return True
-        return False
-
-    def close(self):
-        self.executor.shutdown()
-        for n in self.nodes:
-            n.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
-
-@pytest.fixture
-def ros():
-    r = Ros()
-    try:
-        yield r
-    finally:
-        r.close()
 
 
 @pytest.fixture

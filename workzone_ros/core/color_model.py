@@ -191,28 +191,14 @@ def hsv_range_lut(ranges: Sequence[tuple[int, int, int, int]],
 
 # --- colour constancy (outside the table) -------------------------------------------------
 
-def gray_world_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6,
-                     sat_max: float = 0.45, v_lo: int = 30, v_hi: int = 230,
-                     min_share: float = 0.05) -> tuple:
-    """Per-channel gains that make the frame's near-neutral pixels grey (grey-world balance).
+def gray_world_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6) -> tuple:
+    """Per-channel gains that make the frame's mean grey (grey-world white balance).
 
     Dusk light tints a whole frame orange (sky, lane paint); after the gains the tint is gone
-    and only truly orange surfaces stay orange.  The grey-world mean is taken over the
-    near-neutral pixels only (saturation (max - min) / max below ``sat_max``, brightness
-    ``max`` in [v_lo, v_hi]): a blue sky or green verges would otherwise pull the mean away
-    from grey and the gains would tint the neutral road red.  With fewer than ``min_share``
-    such pixels the whole frame is used.  Clipped to [lo, hi] so a frame filled by one
+    and only truly orange surfaces stay orange.  Clipped to [lo, hi] so a frame filled by one
     orange truck is not turned blue.  Returns (b, g, r) gains.
     """
-    mx = cv2.max(cv2.max(bgr[..., 0], bgr[..., 1]), bgr[..., 2])
-    mn = cv2.min(cv2.min(bgr[..., 0], bgr[..., 1]), bgr[..., 2])
-    spread = cv2.subtract(mx, mn).astype(np.float32)
-    sel = ((spread < sat_max * mx.astype(np.float32)) & (mx >= v_lo) & (mx <= v_hi))
-    sel = sel.astype(np.uint8)
-    if cv2.countNonZero(sel) >= min_share * sel.size:
-        m = cv2.mean(bgr, mask=sel)[:3]
-    else:
-        m = cv2.mean(bgr)[:3]
+    m = cv2.mean(bgr)[:3]
     grey = (m[0] + m[1] + m[2]) / 3.0
     return tuple(float(np.clip(grey / max(c, 1.0), lo, hi)) for c in m)
 

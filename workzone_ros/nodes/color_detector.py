@@ -30,11 +30,11 @@ from workzone_ros.core.color_model import ModelError, default_model, load_model
 from workzone_ros.core.detection import METHODS, ColorDetector, DetectorConfig, RgbLpModel
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
+from workzone_ros.resources import config_path
 
 __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
 
-DEFAULT_MODEL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
-    os.path.abspath(__file__)))), 'config', 'models', 'color_orange.npz')
+DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
 
 # Parameters that map one to one onto DetectorConfig fields.
 _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',

@@ -52,11 +52,12 @@ from typing import Any, Optional
 
 import numpy as np
 
+from workzone_ros.resources import config_path
+
 __all__ = ['main', 'CONFIGS', 'evaluate_bag', 'area_pr']
 
 TAU = 0.5
-DEFAULT_MODEL = str(Path(__file__).resolve().parents[2] / 'config' / 'models' /
-                    'color_orange.npz')
+DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
 
 
 def _configs():

@@ -15,17 +15,17 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from workzone_ros.core import color_model as cm
 from workzone_ros.core import detection as dt
+from workzone_ros.resources import config_path
 
 __all__ = ['add_arguments', 'run']
 
-MODEL = Path(__file__).resolve().parents[2] / 'config' / 'models' / 'color_orange.npz'
+MODEL = config_path('models/color_orange.npz')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -51,6 +51,7 @@ from workzone_ros.core import color_model as cm
 from workzone_ros.core import detection as dt
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import Box
+from workzone_ros.resources import config_path
 
 __all__ = ['main', 'match_frame', 'TableI', 'REAL_CLIPS', 'draw']
 
@@ -201,7 +202,7 @@ def lidar_chain_rois(bag: str, config: Optional[str] = None) -> dict:
     from workzone_ros.core import lidar_clustering as lc
     from workzone_ros.core import projection as pj
     from workzone_ros.tools.eval_lidar import _load_bag, _Odom, pair_stream
-    data = yaml.safe_load(Path(config or REPO / 'config' / 'workzone.yaml').read_text()) or {}
+    data = yaml.safe_load(Path(config or config_path('workzone.yaml')).read_text()) or {}
     ccfg = (data.get('lidar_cluster') or {}).get('ros__parameters', {}) or {}
     pcfg = (data.get('projector') or {}).get('ros__parameters', {}) or {}
     params = lc.ClusterParams.from_mapping(ccfg)
@@ -427,7 +428,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     """Run the evaluation; prints JSON, returns the exit status."""
     p = argparse.ArgumentParser(prog='workzone-ros evaluate color', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('--model', default=str(REPO / 'config' / 'models' / 'color_orange.npz'))
+    p.add_argument('--model', default=str(config_path('models/color_orange.npz')))
     p.add_argument('--bags', nargs='*', default=[], help='held-out synthetic bags')
     p.add_argument('--pixels', help='held-out `synth pixels` folder (pixel accuracy)')
     p.add_argument('--real', nargs='?', const=str(REALDATA / 'us_workzone_video'),

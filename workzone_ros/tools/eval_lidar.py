@@ -223,23 +223,29 @@ class _Odom:
         for t, m in odom:
             self.buf.add(t, m[:3, 3], matrix_to_quat(m[:3, :3]))
         self.b2l = base_to_lidar
+        self.speed_mps = _mean_speed(odom)
 
     def lidar(self, t_ns: int) -> Optional[np.ndarray]:
         m = self.buf.at(int(t_ns))
         return None if m is None else m @ self.b2l
 
 
-def evaluate_bag(path: Path, params: ClusterParams, k: int, n: int, offset_ms: float,
-                 min_gt_points: int, roi_params: RoiParams, camera: CameraModel,
-                 lidar_to_camera: np.ndarray, base_to_lidar: np.ndarray) -> dict:
-    """Detection and projection figures for one bag (see the module docstring)."""
-    scans, gts, odom, info = _load_bag(path)
+def _open_bag(path: Path, camera: CameraModel, base_to_lidar: np.ndarray, k: int, n: int,
+              frames: Optional[list] = None):
+    """Scans, ground truth, the bag's camera (else ``camera``), odometry and a fresh tracker."""
+    scans, gts, odom, info = _load_bag(path, frames)
     if info is not None:
         camera = CameraModel(int(info.width), int(info.height),
                              np.asarray(info.k, float).reshape(3, 3),
                              np.asarray(info.d, float), info.distortion_model or 'plumb_bob')
-    od = _Odom(odom, base_to_lidar)
-    tracker = CandidateTracker(k=k, n=n)
+    return scans, gts, camera, _Odom(odom, base_to_lidar), CandidateTracker(k=k, n=n)
+
+
+def evaluate_bag(path: Path, params: ClusterParams, k: int, n: int, offset_ms: float,
+                 min_gt_points: int, roi_params: RoiParams, camera: CameraModel,
+                 lidar_to_camera: np.ndarray, base_to_lidar: np.ndarray) -> dict:
+    """Detection and projection figures for one bag (see the module docstring)."""
+    scans, gts, camera, od, tracker = _open_bag(path, camera, base_to_lidar, k, n)
     left = params.left_max if params.include_left else params.center_left
     bands = {b: {'signs': 0, 'missed': 0, 'cands': 0, 'fp': 0} for b in BANDS}
     total = {'scans': 0, 'cands': 0, 'fp': 0, 'signs60': 0, 'missed60': 0}
@@ -312,7 +318,7 @@ def evaluate_bag(path: Path, params: ClusterParams, k: int, n: int, offset_ms: f
                 if rois and (ok or fn is None):
                     err[key].append(float(np.hypot(*(np.array(rois[0].center)
                                                      - p_true.uv[0]))))
-    speed = _mean_speed(odom)
+    speed = od.speed_mps
     return {'bag': str(path), 'speed_mps': speed, 'bands': bands, 'total': total,
             'err': err}
 
@@ -463,13 +469,7 @@ def evaluate_sync(path: Path, params: ClusterParams, k: int, n: int, variants: d
                   base_to_lidar: np.ndarray, sync_kw: dict) -> dict:
     """Per-policy ROI coverage, centre error and stamp gaps on one bag (module docstring)."""
     frames: list = []
-    scans, gts, odom, info = _load_bag(path, frames)
-    if info is not None:
-        camera = CameraModel(int(info.width), int(info.height),
-                             np.asarray(info.k, float).reshape(3, 3),
-                             np.asarray(info.d, float), info.distortion_model or 'plumb_bob')
-    od = _Odom(odom, base_to_lidar)
-    tracker = CandidateTracker(k=k, n=n)
+    scans, gts, camera, od, tracker = _open_bag(path, camera, base_to_lidar, k, n, frames)
     half_spin = forward_time_offset(roi_params) or int(0.5e9 / roi_params.lidar_rate_hz)
     events, detected = [], set()
     for stamp, pts in scans:             # as lidar_cluster: clustering + persistence
@@ -488,7 +488,7 @@ def evaluate_sync(path: Path, params: ClusterParams, k: int, n: int, variants: d
         events.append((stamp + image_delay_ns, 1, 'image', stamp, gs))
     events.sort(key=lambda e: (e[0], e[1], e[3]))
     events = [(a, kind, t, p) for a, _, kind, t, p in events]
-    out = {'bag': str(path), 'speed_mps': _mean_speed(odom), 'frames': len(frames),
+    out = {'bag': str(path), 'speed_mps': od.speed_mps, 'frames': len(frames),
            'policies': {}}
     for name, (policy, over) in variants.items():
         kw = dict(sync_kw)

@@ -155,9 +155,9 @@ def test_flatness_rejects_a_bright_blob():
     assert len(ok.candidates) == 1
 
 
-def test_reflector_tape_on_a_truck_is_rejected():
+def test_reflector_tape_outline_on_a_truck_is_rejected_as_hollow():
     # The rear of a truck outlined with retroreflective tape (PJLab scene_truck_reflectors):
-    # top edge and the upper sides in the height band, sides, bumper and plate below it.
+    # top edge at sign height, sides down to the bumper strip: one flat, hollow cluster.
     x, y0, w = 25.0, -3.7, 2.4
     top = plate(x, y0, 1.2, w, 0.1)
     left = plate(x, y0 - w / 2, -0.2, 0.1, 2.6)
@@ -165,9 +165,66 @@ def test_reflector_tape_on_a_truck_is_rejected():
     bumper = plate(x, y0, -1.4, w, 0.1)
     res = cluster_cloud(cloud(top, left, right, bumper, ground()))
     assert len(res.candidates) == 0
-    assert res.rejected['reflectors_below'] >= 1
-    off = cluster_cloud(cloud(top, left, right, bumper), ClusterParams(max_bright_below=-1))
-    assert len(off.candidates) >= 1
+    assert res.rejected['hollow'] == 1
+    off = cluster_cloud(cloud(top, left, right, bumper), ClusterParams(hollow_frac=1.0))
+    assert len(off.candidates) == 1                       # the hollow test is what does it
+
+
+def test_bright_strip_above_plate_and_tail_reflectors_is_rejected():
+    # A van's rear: a reflective strip at sign height, a plate and two tail reflectors under it.
+    x, y0 = 22.0, -3.7
+    strip = plate(x, y0, -0.1, 1.4, 0.4)
+    plate_ = plate(x, y0, -1.4, 0.31, 0.15)
+    tails = [plate(x, y0 + dy, -1.05, 0.12, 0.1) for dy in (-0.7, 0.7)]
+    res = cluster_cloud(cloud(strip, plate_, *tails, ground()))
+    assert len(res.candidates) == 0 and res.rejected['reflectors_below'] == 1
+    off = cluster_cloud(cloud(strip, plate_, *tails), ClusterParams(max_bright_below=-1))
+    assert len(off.candidates) == 1
+
+
+def diamond(x, y_center, bottom, side, ground_z=-1.95):
+    """Returns of a warning diamond (side ``side`` m) whose lowest corner is ``bottom`` m up."""
+    half = side * np.sqrt(0.5)
+    sq = plate(x, y_center, ground_z + bottom + half, 2 * half, 2 * half)
+    du = np.abs(sq[:, 1] - y_center) + np.abs(sq[:, 2] - (ground_z + bottom + half))
+    return sq[du <= half]
+
+
+def drum(x, y_center, radius=0.29, bands=((0.18, 0.30), (0.42, 0.54), (0.66, 0.78)),
+         ground_z=-1.95):
+    """Returns of a drum's reflective bands (the half cylinder facing the sensor)."""
+    r = np.hypot(x, y_center)
+    rows = []
+    for lo, hi in bands:
+        for z in np.arange(lo, hi, r * EL_RES / 3) + ground_z:
+            a = np.linspace(-np.pi / 2, np.pi / 2, max(int(2 * radius / (r * AZ_RES)), 3))
+            rows.append(np.column_stack([x - radius * np.cos(a), y_center + radius * np.sin(a),
+                                         np.full(a.size, z), np.full(a.size, 210.0)]))
+    return np.vstack(rows)
+
+
+def test_low_sign_on_a_stand_is_a_candidate_and_drums_are_not():
+    # A 48-in diamond (freeway size) on a portable stand, lowest corner 0.3 m above the road
+    # (MUTCD 6F.03): most of its face is below the seed's 1.55 m band.  Drums and a plate
+    # stay below.  (A 36-in diamond that low tops out at 1.59 m: the band's limit.)
+    sign = diamond(20.0, -8.0, 0.3, 1.22)
+    drums = [drum(20.0 + dx, -5.5) for dx in (-8.0, 0.0, 8.0)]
+    car_plate = plate(15.0, -3.7, -1.4, 0.31, 0.15)
+    res = cluster_cloud(cloud(sign, *drums, car_plate, ground()))
+    c = res.candidates
+    assert len(c) == 1
+    assert c.center[0, :2] == pytest.approx([20.0, -8.0], abs=0.1)
+    assert c.extent[0, 2] > 1.0                       # the whole face, not its top corner
+    assert res.rejected['too_low'] == 4
+    # The seed's per-point band keeps only the top corner of the face, if anything.
+    seed = cluster_cloud(cloud(sign, *drums, car_plate, ground()), ClusterParams(z_min=-0.4))
+    assert len(seed.candidates) == 0 or seed.candidates.extent[0, 2] < 0.2
+
+
+def test_white_pole_is_not_a_candidate():
+    pole = plate(15.0, -7.6, -0.4, 0.08, 2.6, intensity=135.0)     # PJLab scene_sign_board
+    res = cluster_cloud(cloud(pole, ground()))
+    assert len(res.candidates) == 0 and res.rejected['too_thin'] == 1
 
 
 def _cands(centers):

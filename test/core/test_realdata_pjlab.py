@@ -10,8 +10,13 @@ checked by eye on the overlays of ``workzone-ros evaluate lidar realdata``):
   the rectangular plate on the same mast (4 saturated returns at ~30 m), becomes the
   candidate, and its ROI (sized for at least a 1.2 m sign) covers the round sign.
 * scene_truck_reflectors: the truck's rear outlined with retroreflective tape, and car
-  plates.  Plates are below the height band (pre-filter); the tape's upper edge is in the
-  band, but the tape continues downward: the reflectors-underneath test rejects it.
+  plates.  Plates and tail lights never reach sign height (``min_top``, 1.55 m above the
+  road); the tape's upper part does, but it is an outline with a gap across the middle:
+  the hollow test rejects it (and the tape continuing below it: the reflectors test).
+
+Every bright point above the road paint is clustered and the sign height applies to the
+cluster's top, so the sedans' rear clusters (tail lights, plates: up to 1.3 m above the
+road in these scenes) and a white-painted pole are the hard negatives here.
 """
 import importlib.util
 
@@ -54,7 +59,10 @@ def test_far_guide_board_becomes_a_candidate_and_its_roi_covers_it():
     # The board face in the image (read off calib.png): u 872-966, v 477-530.
     assert _covers(roi.box, 872, 477, 966, 530)
     # Plates and crosswalk paint are bright but low: none of them is a candidate.
-    assert all(c['z'] > -0.4 for c in arr)
+    assert all(c['z'] > -1.0 for c in arr)
+    # The white-painted pole on the right (14.5 m ahead, 7.6 m right, 2.6 m tall).
+    assert res.rejected['too_thin'] >= 1
+    assert not any(13 < c['x'] < 16 and -8.5 < c['y'] < -7 for c in arr)
 
 
 def test_round_sign_scene_gives_a_candidate_whose_roi_covers_the_round_sign():
@@ -64,18 +72,27 @@ def test_round_sign_scene_gives_a_candidate_whose_roi_covers_the_round_sign():
     assert near, [r.box for r in rois]
     assert any(_covers(r.box, 300, 230, 380, 303) for r in near)
     assert all(r.intensity > 200 for r in near)        # saturated sheeting, not paint
+    # The three cars ahead (rears 18-25 m, tail lights and plates saturated) are too low.
+    assert not any(15 < c['x'] < 27 and 2 < c['y'] < 8 for c in arr)
+    assert res.rejected['too_low'] >= 3
 
 
 def test_truck_reflector_tape_and_plates_are_rejected():
     scene, res, arr, rois = _scene('scene_truck_reflectors')
-    assert res.rejected['reflectors_below'] >= 1
-    # No candidate on the truck (rear at ~29 m, 2-6 m left of the sensor).
+    assert res.rejected['hollow'] >= 1
+    # No candidate on the truck (rear at ~29 m, 2-6 m left of the sensor), nor at all.
     on_truck = [c for c in arr if 20 < c['x'] < 35 and 0 < c['y'] < 7]
-    assert on_truck == []
+    assert on_truck == [] and len(arr) == 0
     from workzone_ros.core.lidar_clustering import cluster_cloud
     from workzone_ros.tools.eval_lidar import REAL_PARAMS
-    off = cluster_cloud(scene['points'], REAL_PARAMS.with_(max_bright_below=-1)).candidates
-    assert any(20 < c[0] < 35 and 0 < c[1] < 7 for c in off.center)   # the test is what does it
+
+    def on_truck(**changes):
+        c = cluster_cloud(scene['points'], REAL_PARAMS.with_(**changes)).candidates
+        return any(20 < x < 35 and 0 < y < 7 for x, y, _ in c.center)
+    # Either test alone rejects the outline (the tape also continues below the cluster);
+    # without both it would be a candidate.
+    assert not on_truck(hollow_frac=1.0) and not on_truck(max_bright_below=-1)
+    assert on_truck(hollow_frac=1.0, max_bright_below=-1)
 
 
 def test_projection_of_the_board_points_lands_on_the_documented_pixels():

@@ -16,11 +16,23 @@ Implements seed 004 section 1.3 (Velodyne sign detection) with its future work d
    ``min_samples=1`` and ``eps = d0`` (the bench checks it); with ``k > 0`` the threshold of a
    voxel pair is ``d(r)`` at the pair's mean range.
 3. **Check-to-add filters** (seed 004 s1.3): a cluster is added only when it has enough points
-   and its bounding box fits the sign sizes.  Beyond the seed (its s1.5 future work): a
-   flatness test (a sign is a thin vertical plate: PCA of the cluster), and a "reflectors
-   underneath" test that rejects bright clusters with more bright returns below them in the
-   same footprint (retroreflective tape outlining a truck's rear, plates, tail reflectors):
-   a sign stands on a dull post or spans the road.
+   and its bounding box fits the sign sizes.  Beyond the seed (its s1.5 future work): the
+   cluster's top must reach sign height (``min_top``), a flatness test (a sign is a thin
+   vertical plate: PCA of the cluster), a "hollow" test (a sign face is filled: no row of
+   returns has a wide gap, unlike a truck's rear outlined with reflective tape), and a
+   "reflectors underneath" test that rejects bright clusters with more bright returns below
+   them in the same footprint (plates, tail reflectors, bumper tape): a sign stands on a
+   dull post or stand.
+
+   The seed's height band is a per-point pre-filter at sign height (z_min 1.55 m above the
+   road).  Temporary signs on portable stands start 0.3 m above the ground (MUTCD 6F.03), so
+   a per-point band either cuts their lower half (and the reflectors test then rejects the
+   sign because of its own lower half) or lets drums, cones and plates in.  We therefore
+   keep every bright point above the road paint (``z_min`` 0.25 m above the road), cluster,
+   and apply the seed's height to the *cluster*: its top must reach ``min_top`` (the seed's
+   band, 1.55 m above the road: above drums, cones, tubular markers, plates and car tail
+   lights -- on the real PJLab scenes sedan rears reach 1.3 m; a 36-in warning diamond on a
+   stand reaches 1.6 m).  Setting ``z_min`` back to -0.4 gives the seed's per-point band.
 4. **Persistence** (seed 004 s1.4 proposal: "requiring an object to be present in 3 or so
    frames"): a candidate is published when it was seen in ``k`` of the last ``n`` scans.
    With odometry the candidates are matched in the odometry frame, so a static sign keeps its
@@ -45,8 +57,8 @@ __all__ = [
     'candidates_to_array',
 ]
 
-REJECT_REASONS = ('few_points', 'too_large', 'too_small', 'not_flat', 'not_vertical',
-                  'reflectors_below')
+REJECT_REASONS = ('few_points', 'too_large', 'too_small', 'too_low', 'too_thin', 'not_flat',
+                  'not_vertical', 'hollow', 'reflectors_below')
 
 #: Layout of the published candidates (PointCloud2 fields x, y, z, radius, intensity, count, id).
 CANDIDATE_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('radius', '<f4'),
@@ -64,7 +76,12 @@ class ClusterParams:
     Attributes:
         min_intensity: pre-filter, intensity at least this (sensor units; retroreflective
             sheeting returns ~200-240 of 255, paint and bodies < 100).
-        z_min, z_max: pre-filter height band in the lidar frame, metres.
+        z_min, z_max: pre-filter height band in the lidar frame, metres (per point; the
+            default z_min keeps everything above the road paint, see ``min_top``).
+        min_top: check-to-add, the cluster's highest point must reach this z (lidar frame):
+            sign height, above drums, cones, plates and tail reflectors.
+        thin_height, max_aspect: a cluster taller than ``thin_height`` and more than
+            ``max_aspect`` times taller than wide is a pole or post, not a sign face.
         range_min, range_max: pre-filter range band, metres (horizontal distance).
         x_min: pre-filter, only points at least this far ahead (the front).
         right_max: pre-filter, how far to the right (-y) the region reaches.
@@ -86,18 +103,29 @@ class ClusterParams:
         flat_thickness, flat_thickness_k: the plate thickness (third-axis standard
             deviation) must be at most ``flat_thickness + flat_thickness_k * range``.
         max_normal_z: a sign is a vertical plate: |normal z| at most this.
+        hollow_gap, hollow_gap_k, hollow_frac: the hollow test rejects a cluster when one
+            row of returns (``hollow_row`` m of height) has an inner horizontal gap wider
+            than both ``hollow_gap + hollow_gap_k * range`` and ``hollow_frac`` of the
+            cluster's width (a tape outline; a filled face has only beam-spacing gaps).
+            ``hollow_frac`` >= 1 disables the test.
+        hollow_row: row height of the hollow test, metres.
         ground_z: road height in the lidar frame (minus the sensor's mounting height).
         below_clearance: bright returns lower than this above ``ground_z`` (lane paint)
             are ignored by the reflectors-underneath test.
         below_margin: footprint margin of the reflectors-underneath test, metres.
+        below_gap: a bright return counts as underneath when it is at least this much lower
+            than the cluster's lowest point and not part of the cluster.
         max_bright_below: reject a cluster with more bright returns than this underneath it
             (set < 0 to disable).
         voxel: voxel side for the graph; 0 means ``d0 / sqrt(3)`` (the exactness bound).
     """
 
     min_intensity: float = 120.0
-    z_min: float = -0.4
+    z_min: float = -1.7
     z_max: float = 8.0
+    min_top: float = -0.4
+    thin_height: float = 0.4
+    max_aspect: float = 4.0
     range_min: float = 3.0
     range_max: float = 110.0
     x_min: float = 1.0
@@ -116,9 +144,14 @@ class ClusterParams:
     flat_thickness: float = 0.06
     flat_thickness_k: float = 0.002
     max_normal_z: float = 0.6
+    hollow_gap: float = 0.6
+    hollow_gap_k: float = 0.01
+    hollow_frac: float = 0.5
+    hollow_row: float = 0.1
     ground_z: float = -1.95
     below_clearance: float = 0.25
     below_margin: float = 0.4
+    below_gap: float = 0.1
     max_bright_below: int = 2
     voxel: float = 0.0
 
@@ -200,6 +233,8 @@ class ClusterResult:
         labels: (N,) cluster label per pre-filtered point (-1 none).
         n_clusters: clusters before the filters.
         rejected: reason -> number of clusters rejected for it.
+        reason: (n_clusters,) index into :data:`REJECT_REASONS` of the first filter that
+            rejected each cluster, -1 for accepted clusters (for diagnostics and RViz).
     """
 
     candidates: Candidates
@@ -209,6 +244,7 @@ class ClusterResult:
     labels: np.ndarray
     n_clusters: int = 0
     rejected: dict = field(default_factory=dict)
+    reason: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     def clustered_mask(self) -> np.ndarray:
         """Mask over ``points`` of the points of accepted clusters."""
@@ -346,6 +382,21 @@ def _any_pair_within(sp: np.ndarray, start: np.ndarray, counts: np.ndarray, a: n
     return out
 
 
+def _widest_row_gap(pts: np.ndarray, row: float) -> float:
+    """Widest inner gap along the face's horizontal axis within one row of ``row`` m height."""
+    if pts.shape[0] < 3:
+        return 0.0
+    xy = pts[:, :2] - pts[:, :2].mean(axis=0)
+    w, v = np.linalg.eigh(xy.T @ xy)
+    u = xy @ v[:, 1]
+    r = np.floor((pts[:, 2] - pts[:, 2].min()) / row).astype(np.int64)
+    o = np.lexsort((u, r))
+    same = r[o][1:] == r[o][:-1]
+    if not same.any():
+        return 0.0
+    return float(np.diff(u[o])[same].max())
+
+
 def _cluster_stats(xyz: np.ndarray, inten: np.ndarray, labels: np.ndarray, n: int):
     """Bounding boxes, counts, mean intensity and 3x3 covariances per label (vectorised)."""
     order = np.argsort(labels, kind='stable')
@@ -389,16 +440,23 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
     rng = np.hypot(center[:, 0], center[:, 1])
     width = np.hypot(ext[:, 0], ext[:, 1])
     ok = np.ones(n, bool)
+    why = np.full(n, -1, np.int64)
 
     def reject(mask: np.ndarray, reason: str) -> None:
         nonlocal ok
-        rejected[reason] = int((ok & mask).sum())
+        hit = ok & mask
+        rejected[reason] = int(hit.sum())
+        why[hit] = REJECT_REASONS.index(reason)
         ok = ok & ~mask
 
     # Check-to-add (seed 004 s1.3): point count, bounding box within sign sizes.
     reject(counts < params.min_points, 'few_points')
     reject((width > params.max_width) | (ext[:, 2] > params.max_height), 'too_large')
     reject(np.maximum(width, ext[:, 2]) < params.min_size, 'too_small')
+    # Height on the cluster: its top must reach sign height (drums, cones, plates do not).
+    reject(hi[:, 2] < params.min_top, 'too_low')
+    reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width),
+           'too_thin')
     # Flatness (seed 004 s1.5 future work): PCA eigenvalues, ascending.
     evals, evecs = np.linalg.eigh(cov)
     evals = np.maximum(evals, 0.0)
@@ -409,14 +467,29 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
            'not_flat')
     normal_z = np.abs(evecs[:, 2, 0])
     reject(testable & (normal_z > params.max_normal_z), 'not_vertical')
-    # Reflectors underneath (truck tape, plates): bright returns below the footprint.
-    if params.max_bright_below >= 0 and below.shape[0] and ok.any():
+    order = np.argsort(labels, kind='stable')
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    if params.hollow_frac < 1.0 and ok.any():
+        hollow = np.zeros(n, bool)
+        for c in np.flatnonzero(ok):
+            pts = xyz[order[start[c]:start[c] + counts[c]]]
+            hollow[c] = _widest_row_gap(pts, params.hollow_row) > max(
+                params.hollow_gap + params.hollow_gap_k * rng[c], params.hollow_frac * width[c])
+        reject(hollow, 'hollow')
+    # Reflectors underneath (plates, tail reflectors, bumper tape): bright returns below the
+    # cluster's footprint that are not part of it (under the band, or other clusters).
+    if params.max_bright_below >= 0 and ok.any():
         idx = np.flatnonzero(ok)
         m = params.below_margin
-        inside = ((below[None, :, 0] >= lo[idx, 0, None] - m)
-                  & (below[None, :, 0] <= hi[idx, 0, None] + m)
-                  & (below[None, :, 1] >= lo[idx, 1, None] - m)
-                  & (below[None, :, 1] <= hi[idx, 1, None] + m))
+        pool = np.vstack([xyz, below])
+        plab = np.concatenate([labels, np.full(below.shape[0], -1)])
+        inside = ((pool[None, :, 0] >= lo[idx, 0, None] - m)
+                  & (pool[None, :, 0] <= hi[idx, 0, None] + m)
+                  & (pool[None, :, 1] >= lo[idx, 1, None] - m)
+                  & (pool[None, :, 1] <= hi[idx, 1, None] + m)
+                  & (pool[None, :, 2] <= lo[idx, 2, None] - params.below_gap)
+                  & (pool[None, :, 2] >= params.ground_z + params.below_clearance)
+                  & (plab[None, :] != idx[:, None]))
         bad = np.zeros(n, bool)
         bad[idx] = inside.sum(axis=1) > params.max_bright_below
         reject(bad, 'reflectors_below')
@@ -426,7 +499,7 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
         intensity=mi[keep], count=counts[keep].astype(np.int64), extent=ext[keep],
         ids=keep.astype(np.int64), confirmed=np.ones(keep.size, bool),
         cluster=keep.astype(np.int64))
-    return ClusterResult(cands, xyz, inten, index, labels, n, rejected)
+    return ClusterResult(cands, xyz, inten, index, labels, n, rejected, why)
 
 
 class CandidateTracker:

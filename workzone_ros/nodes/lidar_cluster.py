@@ -33,7 +33,12 @@ __all__ = ['LidarClusterNode', 'NODE_CLASS', 'main', 'CORE_PARAMS']
 _D = ClusterParams()
 _HELP = {
     'min_intensity': ('pre-filter: minimum intensity (sensor units)', 0.0, 65535.0),
-    'z_min': ('pre-filter: lowest z in the lidar frame, m', -20.0, 20.0),
+    'z_min': ('pre-filter: lowest z in the lidar frame, m (per point)', -20.0, 20.0),
+    'min_top': ('check-to-add: the cluster top must reach this z (sign height), m', -20.0,
+                50.0),
+    'thin_height': ('check-to-add: clusters taller than this are tested for poles, m', 0.0,
+                    100.0),
+    'max_aspect': ('check-to-add: a pole is taller than max_aspect x its width', 0.0, 1000.0),
     'z_max': ('pre-filter: highest z in the lidar frame, m', -20.0, 50.0),
     'range_min': ('pre-filter: nearest horizontal range, m', 0.0, 500.0),
     'range_max': ('pre-filter: farthest horizontal range, m', 0.0, 500.0),
@@ -55,10 +60,17 @@ _HELP = {
                        10.0),
     'flat_thickness_k': ('flatness: thickness allowance per metre of range', 0.0, 1.0),
     'max_normal_z': ('flatness: max |normal z| of a (vertical) sign plate', 0.0, 1.0),
+    'hollow_gap': ('hollow test: widest inner gap in a row at range 0, m', 0.0, 100.0),
+    'hollow_gap_k': ('hollow test: gap growth per metre of range', 0.0, 1.0),
+    'hollow_frac': ('hollow test: gap must also exceed this fraction of the width '
+                    '(>= 1 disables)', 0.0, 10.0),
+    'hollow_row': ('hollow test: row height, m', 0.01, 10.0),
     'ground_z': ('road height in the lidar frame, m', -20.0, 20.0),
     'below_clearance': ('reflectors test: ignore bright returns this close to the road, m',
                         0.0, 10.0),
     'below_margin': ('reflectors test: footprint margin, m', 0.0, 10.0),
+    'below_gap': ('reflectors test: counted only this far below the cluster bottom, m', 0.0,
+                  10.0),
     'max_bright_below': ('reflectors test: reject with more bright returns under the '
                          'cluster (-1 disables)', -1, 100000),
     'voxel': ('voxel side of the clustering graph (0 = d0/sqrt(3))', 0.0, 10.0),

@@ -975,12 +975,31 @@ class _Builder:
         x, y, _ = self.road.pose_at(s, d)
         return np.array([float(x), float(y), z])
 
+    def clear_of_signs(self, pos: np.ndarray, radius: float) -> bool:
+        """A channelizer at ``pos`` stays clear of sign mounts (nothing interpenetrates).
+
+        Posts need ``radius`` + 0.2 m; a portable stand's legs and low face need ``radius``
+        + the face's half width + 0.3 m (crews set a stand beside the drum line, not in it).
+        """
+        for sg in self.signs:
+            if sign_mount(sg) == 'stand':
+                need = radius + 0.5 * float(sg.width) + 0.3
+            else:
+                need = radius + 0.2
+            if math.hypot(*(pos[:2] - np.asarray(sg.center)[:2])) < need:
+                return False
+        return True
+
     def drum(self, s: float, d: float) -> None:
+        if not self.clear_of_signs(self.world(s, d), 0.29):
+            return
         self.objects.append(Cylinder(
             self.new_id(), 'drum', self.world(s, d), 0.29, 0.95, 'drum_orange',
             [(0.18, 0.30, 'drum_band'), (0.42, 0.54, 'drum_band'), (0.66, 0.78, 'drum_band')]))
 
     def cone(self, s: float, d: float) -> None:
+        if not self.clear_of_signs(self.world(s, d), 0.18):
+            return
         self.objects.append(Cone(self.new_id(), 'cone', self.world(s, d), 0.18, 0.71,
                                  'cone_orange', [(0.40, 0.52, 'drum_band')]))
 

@@ -384,3 +384,162 @@ def test_two_colour_guard_extends_only_truncated_detections(association):
             assert box_iou(got, gt) > 0.8, (i, got, gt)        # white part restored
         elif i >= 9:
             assert box_iou(got, d) > 0.95, (i, got, d)         # the detection's own box
+
+
+# --- publication gates, growth guard, duplicates (beyond the seed) --------------------------
+
+def dusk_background(seed: int = 20) -> np.ndarray:
+    """A textured backdrop of many hues, all about as saturated as a dusk sky (S ~ 120)."""
+    rng = np.random.default_rng(seed)
+    small = rng.integers(40, 200, (H // 8, W // 8, 3)).astype(np.uint8)
+    bg = cv2.GaussianBlur(cv2.resize(small, (W, H)), (0, 0), 3)
+    hsv = cv2.cvtColor(bg, cv2.COLOR_BGR2HSV)
+    hsv[..., 1] = np.clip(rng.normal(115, 6, hsv.shape[:2]), 0, 255).astype(np.uint8)
+    hsv[..., 2] = np.clip(hsv[..., 2], 90, 200)
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+
+
+def tinted_patch(img, box):
+    """Paint an orange patch as saturated as the backdrop (a tinted-sky false alarm)."""
+    x, y, w, h = (int(v) for v in box)
+    hsv = np.full((h, w, 3), (12, 118, 160), np.uint8)
+    img[y:y + h, x:x + w] = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+
+
+def test_saturation_contrast_tells_a_sign_face_from_a_tinted_patch():
+    from workzone_ros.core.tracking import saturation_contrast
+    img = dusk_background()
+    gt = draw_diamond(img, 320.0, 240.0, 40)
+    tinted_patch(img, (100.0, 100.0, 40.0, 40.0))
+    sign = build_target(img, gt, TrackerConfig())
+    patch = build_target(img, (100.0, 100.0, 40.0, 40.0), TrackerConfig())
+    assert sign.saturation_contrast >= 0.3, sign.saturation_contrast
+    assert patch.colored                                 # the detector's kind of false alarm
+    assert abs(patch.saturation_contrast) < 0.1, patch.saturation_contrast
+    # the function itself, on a window of the frame: same number as the model's
+    from workzone_ros.core.tracking import SearchWindow, _luts
+    win = SearchWindow(img, 260, 180, 381, 301, 1, _luts(20, 20))
+    cx, cy = center(gt)
+    assert saturation_contrast(win, cx, cy, 20.0, 20.0) >= 0.3
+
+
+@pytest.mark.parametrize('gate', [True, False])
+def test_a_tinted_patch_never_runs_on_its_own_but_a_sign_on_it_does(gate):
+    """Sign-likeness gate: a false detection on a patch of tinted sky (as saturated as its
+    surroundings) is not published without a detection; a sign face on the same backdrop
+    is, after a single detection.  Without the gate the patch would be (the test can fail)."""
+    cfg = TrackerConfig(max_coast_background_similarity=1.0,
+                        min_saturation_contrast=0.2 if gate else -1.0)
+    tracker = MultiTracker(cfg)
+    bg = dusk_background(21)
+    patch = (120.0, 90.0, 30.0, 30.0)
+    alone = {'sign': 0, 'patch': 0}
+    for i in range(8):
+        img = bg.copy()
+        cx, cy, size = path(i)
+        gt = draw_diamond(img, cx, cy, 0.5 * size)
+        tinted_patch(img, patch)
+        out = tracker.step(img, [det(gt), det(patch)] if i == 0 else [])
+        for t in out:
+            if t.source == 'tracking':
+                b = (t.box.x, t.box.y, t.box.w, t.box.h)
+                alone['sign' if box_iou(b, gt) > 0.5 else 'patch'] += 1
+    assert alone['sign'] == 7
+    assert (alone['patch'] == 0) == gate, alone
+
+
+@pytest.mark.parametrize('needs_trend', [True, False])
+def test_a_single_detection_is_followed_while_the_sign_grows(needs_trend):
+    """A track started by one detection runs on its own along a perspective path (3 % per
+    frame) within 2 px; the growth guard waits for a measured trend (without that rule the
+    real growth counts as drift and the track ends)."""
+    bg = background(22)
+    tracker = MultiTracker(TrackerConfig(growth_guard_needs_trend=needs_trend))
+    errors = []
+    for i in range(16):
+        img = bg.copy()
+        cx, cy, size = 300 + 2.5 * i, 220 - 0.8 * i, 30 * 1.03 ** i
+        draw_diamond(img, cx, cy, size)
+        gt = (cx - size / 2, cy - size / 2, size, size)
+        out = tracker.step(img, [det(gt)] if i == 0 else [])
+        if i and out:
+            assert [t.source for t in out] == ['tracking'] and out[0].track_id == 1
+            ex, ey = center(out[0].box)
+            errors.append(np.hypot(ex - cx, ey - cy))
+    if needs_trend:
+        assert len(errors) == 15 and max(errors) <= 2.0, np.round(errors, 2)
+    else:
+        assert len(errors) < 15
+
+
+def test_coasting_through_two_missed_frames_on_a_growing_path_stays_within_2px():
+    bg = background(23)
+    tracker = MultiTracker(TrackerConfig())
+    for i in range(16):
+        img = bg.copy()
+        cx, cy, size = path(i)
+        gt = draw_diamond(img, cx, cy, size)
+        missed = i in (10, 11)
+        out = tracker.step(img, [] if missed else [det(gt)])
+        assert [t.track_id for t in out] == [1]
+        assert out[0].source == ('tracking' if missed else 'detection')
+        if missed:
+            ex, ey = center(out[0].box)
+            assert np.hypot(ex - cx, ey - cy) <= 2.0, (i, center(out[0].box), (cx, cy))
+            assert abs(out[0].box.w / size - 1) <= 0.08
+
+
+@pytest.mark.parametrize('containment', [0.5, 1.0])
+def test_no_duplicate_track_on_the_orange_top_of_a_two_colour_sign(containment):
+    """The detector reports a regulatory sign twice (the whole box and, separately, its
+    orange top): the orange-top track is a duplicate of the sign's track and ends at once,
+    so only the sign's track runs on its own afterwards (without the containment rule the
+    orange top keeps a second track: the test can fail)."""
+    bg = background(24)
+    tracker = MultiTracker(TrackerConfig(duplicate_containment=containment))
+    for i in range(10):
+        img = bg.copy()
+        gt = draw_regulatory(img, 330 + 2 * i, 220 - 0.6 * i, 40 * 1.02 ** i)
+        top = (gt[0] + 1, gt[1] + 1, gt[2] - 2, 0.3 * gt[3])
+        dets = [det(gt, kind='regulatory')] if i < 3 else []
+        if i == 3:
+            dets = [det(gt, kind='regulatory'), det(top, kind='regulatory')]
+        out = tracker.step(img, dets)
+        if i > 3:
+            ids = sorted(t.track_id for t in out)
+            if containment < 1.0:
+                assert ids == [1], (i, out)
+                b = out[0].box
+                assert box_iou((b.x, b.y, b.w, b.h), gt) > 0.8
+            else:
+                assert ids == [1, 2], (i, out)
+    assert tracker.active_ids == ([1] if containment < 1.0 else [1, 2])
+
+
+def test_seed_config_keeps_the_seed_rule():
+    from workzone_ros.core.tracking import SCALES, seed_config
+    s = seed_config()
+    assert s.scales == SCALES and s.association == 'overwrite' and not s.use_velocity
+    assert s.min_hits_to_coast == 2 and s.min_saturation_contrast == -1.0
+    assert s.duplicate_containment == 1.0 and s.max_coast_background_similarity == 1.0
+    ours = TrackerConfig()
+    assert ours.min_hits_to_coast == 1 and ours.min_saturation_contrast > 0
+    assert ours.duplicate_containment < 1.0 and ours.growth_guard_needs_trend
+
+
+def test_a_one_detection_track_does_not_outvote_an_accurate_detection():
+    """A track started by one loose detection (a box merging the sign with its
+    surroundings) runs on its own, but the next good detection gives the box
+    (``min_hits_to_fuse``), not a blend with the loose one."""
+    bg = background(25)
+    tracker = MultiTracker(TrackerConfig())
+    img = bg.copy()
+    gt = draw_diamond(img, 320.0, 240.0, 40)
+    loose = (gt[0] - 20, gt[1] - 12, gt[2] + 60, gt[3] + 24)
+    tracker.step(img, [det(loose)])
+    img = bg.copy()
+    gt = draw_diamond(img, 323.0, 239.0, 41)
+    out = tracker.step(img, [det(gt)])
+    assert len(out) == 1 and out[0].source == 'detection'
+    b = out[0].box
+    assert box_iou((b.x, b.y, b.w, b.h), gt) > 0.95

@@ -44,7 +44,10 @@ tracked anchor.  The guard acts only on a detection that is not already extended
 does not reach well below the coloured part): the colour detector now extends regulatory
 boxes itself, and its extension is kept.  ``anchor_on_color=False`` tracks the whole box
 instead (the ablation).  A track is published on its own only when its target does not look
-like its surroundings nor has white bands (drums, cones): ``max_coast_*``.
+like its surroundings nor has white bands (drums, cones): ``max_coast_*``; and (sign-likeness)
+its face is more saturated than its surroundings (``min_saturation_contrast``).  A track
+whose anchor lies inside another track's box (an orange-top track next to the whole sign)
+is a duplicate and the one with fewer hits ends (``duplicate_containment``).
 
 A CamShift peer (``method='camshift'``: ``cv2.CamShift`` on a hue back-projection of the same
 search window, same anchors and starts, same track life) is provided for comparison.
@@ -65,7 +68,7 @@ __all__ = [
     'TrackerConfig', 'TrackingError', 'TargetModel', 'SearchWindow', 'MultiTracker',
     'MODES', 'METHODS', 'ASSOCIATIONS', 'SCALES', 'OUR_SCALES', 'seed_config', 'bhattacharyya',
     'shape_mask', 'build_target', 'meanshift_localise', 'camshift_localise', 'score_box',
-    'box_iou',
+    'box_iou', 'saturation_contrast',
 ]
 
 MODES = ('detection_only', 'detection_and_tracking')
@@ -108,7 +111,11 @@ class TrackerConfig:
         min_similarity: Bhattacharyya coefficient below which the track is lost.
         max_lost_frames: consecutive frames below ``min_similarity`` before the track ends.
         max_coast_frames: frames without an agreeing detection before the track ends.
-        min_hits_to_coast: detections a track needs before it may run on its own.
+        min_hits_to_coast: detections a track needs before it may run on its own (ours 1:
+            with the sign-likeness gate ``min_saturation_contrast`` a single detection is
+            enough; 2 on the tuning bags left most dusk misses uncovered; seed rule 2).
+        min_hits_to_fuse: detections a track needs before its tracked box may outvote a
+            detection (``fuse``); before, every associated detection overwrites it.
         max_background_similarity: a target whose model resembles its surroundings more than
             this is not trackable (a featureless region): it never runs on its own.
         iou_gate: IoU at which a detection belongs to a track (it starts no new track).
@@ -125,6 +132,11 @@ class TrackerConfig:
         min_box_px: ignore detections smaller than this (either side).
         anchor_on_color: track the coloured part and keep the box geometry (two-colour guard).
         duplicate_iou: two tracks overlapping more than this: the one with fewer hits ends.
+        duplicate_containment: two tracks are also duplicates when at least this share of
+            the smaller one's coloured anchor lies inside the larger one's box (the orange
+            top of a two-colour sign tracked next to the whole sign; 1 = off, seed rule).
+        duplicate_area_ratio: ... unless the larger box is more than this many times larger
+            (a detection merging a sign with a tinted sky does not swallow the sign's track).
         background_weighting: scale the mean-shift weights of bins that are common in the
             target's surroundings down (corrected background-weighted histogram, Ning et al.
             2012; not in seed 001, whose plain ``sqrt(t_u / c_u)`` weights give every bin
@@ -135,7 +147,7 @@ class TrackerConfig:
             best Bhattacharyya coefficient alone, which prefers the smallest kernel).
         surround_size: outer size of that band relative to the candidate box.
         association: ``fuse`` or ``overwrite`` (seed 001), see :data:`ASSOCIATIONS`.  With
-            ``fuse``, a detection associated with a confident track (``min_hits_to_coast``
+            ``fuse``, a detection associated with a confident track (``min_hits_to_fuse``
             hits, tracked similarity >= ``min_similarity``) is scored like a mean-shift
             candidate with the track's model at the detection's anchor (Bhattacharyya
             coefficient minus ``surround_weight`` times the ring's); the tracked box is
@@ -167,12 +179,22 @@ class TrackerConfig:
         max_coast_white_fraction: with ``anchor_on_color``, a track whose coloured shape is
             more than this white (a drum's or cone's bands) never runs on its own (signs on
             development bags: at most 0.25).  1 = off.
+        min_saturation_contrast: sign-likeness gate (not in the seed): a track is published
+            on its own only when the upper decile of its anchor's saturation exceeds that
+            of its surroundings by this (saturation / 255; :func:`saturation_contrast`).
+            Fluorescent sign faces stand out (tuning bags: 0.2-0.5, pale dusk signs 0.1-0.2);
+            patches of a tinted dusk sky or road, which the colour detector finds, do not
+            (mostly below 0.1).  -1 = off.
         max_ring_similarity: drift guard: a track running on its own whose surroundings
             (the ``surround_size`` ring) look like its target more than this sits in a
             region much larger than its box (an orange vehicle): it is lost (1 = off).
         max_growth_excess: drift guard: a track running on its own whose anchor grew more
             than this fraction beyond the growth its detections showed (perspective: the
             inverse size of a static sign falls linearly with time) ends (0 = off).
+        growth_guard_needs_trend: the growth guard acts only once two detections measured
+            the trend (the first measurement is taken as it is, not averaged with 0); a track
+            started by one detection would otherwise count its real perspective growth as
+            drift and end after a few frames (False: the previous rule).
     """
 
     mode: str = 'detection_and_tracking'
@@ -188,7 +210,8 @@ class TrackerConfig:
     min_similarity: float = 0.75
     max_lost_frames: int = 2
     max_coast_frames: int = 45
-    min_hits_to_coast: int = 2
+    min_hits_to_coast: int = 1
+    min_hits_to_fuse: int = 2
     max_background_similarity: float = 0.9
     iou_gate: float = 0.3
     agree_iou: float = 0.0
@@ -199,6 +222,8 @@ class TrackerConfig:
     min_box_px: int = 6
     anchor_on_color: bool = True
     duplicate_iou: float = 0.6
+    duplicate_containment: float = 0.5
+    duplicate_area_ratio: float = 4.0
     background_weighting: bool = True
     surround_weight: float = 0.5
     surround_size: float = 1.2
@@ -209,8 +234,10 @@ class TrackerConfig:
     fuse_bias: float = 0.1
     fuse_min_px: float = 0.0
     prefer_detection: bool = True
-    max_coast_background_similarity: float = 0.5
+    max_coast_background_similarity: float = 0.8
     max_coast_white_fraction: float = 0.35
+    min_saturation_contrast: float = 0.2
+    growth_guard_needs_trend: bool = True
     max_ring_similarity: float = 0.6
     max_growth_excess: float = 0.3
 
@@ -235,13 +262,15 @@ class TrackerConfig:
 def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
     """Seed 001's exact rule on top of ``config``: plain ``sqrt(t_u / c_u)`` weights (eq. 3),
     the best Bhattacharyya coefficient alone picks the kernel size, mean-shift starts at
-    the previous centre, an associated detection overwrites the track and no drift guards.
+    the previous centre, an associated detection overwrites the track and no drift guards,
+    publication gates or containment duplicates (``min_hits_to_coast`` = 2, as before).
     The regulatory two-colour guard stays (``anchor_on_color``)."""
     return replace(config or TrackerConfig(), scales=SCALES, background_weighting=False,
                    surround_weight=0.0,
                    use_velocity=False, association='overwrite', max_ring_similarity=1.0,
                    max_growth_excess=0.0, max_coast_background_similarity=1.0,
-                   max_coast_white_fraction=1.0)
+                   max_coast_white_fraction=1.0, min_saturation_contrast=-1.0,
+                   min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0)
 
 
 # --- histograms ---------------------------------------------------------------------------
@@ -378,6 +407,33 @@ def _histogram(bins: np.ndarray, k: np.ndarray, nb: int) -> Optional[np.ndarray]
     return p / total
 
 
+def saturation_contrast(win: SearchWindow, zx: float, zy: float, ax: float,
+                        ay: float) -> float:
+    """Sign-likeness of the box centred at z, half-size a: the upper decile of its
+    saturation minus that of the rest of the window, in [-1, 1].
+
+    Work-zone sign faces are fluorescent orange: more saturated than what surrounds them,
+    whatever the light (upper deciles, so a legend or a white part does not matter).  Patches
+    of a tinted sky, road or vegetation (dusk) are as saturated as their surroundings; the
+    inside of a large orange vehicle is as saturated as the rest of the vehicle.
+
+    Returns:
+        The contrast, or 0 when the box or the rest of the window holds fewer than four
+        samples.
+    """
+    kx0, kx1, ky0, ky1 = win.span(zx, zy, ax, ay)
+    if kx1 - kx0 < 2 or ky1 - ky0 < 2:
+        return 0.0
+    sat = win.hsv[..., 1]
+    inside = np.zeros(sat.shape, bool)
+    inside[ky0:ky1, kx0:kx1] = True
+    out = sat[~inside]
+    if out.size < 4:
+        return 0.0
+    s_in = np.percentile(sat[ky0:ky1, kx0:kx1], 90)
+    return float(s_in - np.percentile(out, 90)) / 255.0
+
+
 # --- target model -------------------------------------------------------------------------
 
 def shape_mask(hsv: np.ndarray, min_saturation: int = 70, min_value: int = 50,
@@ -439,6 +495,8 @@ class TargetModel:
         dark_fraction: share of the shape that is much darker than its colour (legend,
             border): signs have one, drums, cones and orange vehicles mostly do not.
         white_fraction: share of the shape that is white (a drum's or cone's bands).
+        saturation_contrast: :func:`saturation_contrast` of the anchor in its frame
+            (sign-likeness: sign faces are more saturated than their surroundings).
     """
 
     q: np.ndarray
@@ -451,6 +509,7 @@ class TargetModel:
     hue_hist: np.ndarray
     dark_fraction: float = 0.0
     white_fraction: float = 0.0
+    saturation_contrast: float = 0.0
 
     def box_from_anchor(self, anchor: Sequence[float]) -> tuple[float, float, float, float]:
         """The output box for an anchor ``(x, y, w, h)``."""
@@ -520,6 +579,7 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     kx0, kx1, ky0, ky1 = win.span(zx, zy, ax, ay)
     inside[ky0:ky1, kx0:kx1] = True
     ring = win.bins[~inside]
+    sat_contrast = saturation_contrast(win, zx, zy, ax, ay)
     bg_sim = 1.0
     qw = q
     if ring.size >= 8:
@@ -540,7 +600,8 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     cv2.normalize(hue_hist, hue_hist, 0, 255, cv2.NORM_MINMAX)
     return TargetModel(q=q, qw=qw, mask=mask, relation=relation, anchor=anchor,
                        background_similarity=bg_sim, colored=colored, hue_hist=hue_hist,
-                       dark_fraction=dark, white_fraction=white)
+                       dark_fraction=dark, white_fraction=white,
+                       saturation_contrast=sat_contrast)
 
 
 def _content(hsv: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
@@ -688,6 +749,15 @@ def score_box(win: SearchWindow, target: TargetModel, cx: float, cy: float, bx: 
     return rho, ring_sim
 
 
+def _ioa(a: Sequence[float], b: Sequence[float]) -> float:
+    """Share of box ``b``'s area inside box ``a`` (0 when ``b`` is empty)."""
+    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    if iw <= 0 or ih <= 0 or b[2] <= 0 or b[3] <= 0:
+        return 0.0
+    return iw * ih / (b[2] * b[3])
+
+
 def _blend(a: Sequence[float], b: Sequence[float], wb: float) -> tuple[float, float, float,
                                                                        float]:
     """Weighted mean of two ``(x, y, w, h)`` boxes (corners averaged; ``wb`` is b's weight)."""
@@ -724,6 +794,7 @@ class _Track:
     inv_rate: float = 0.0            # fall of 1 / anchor width per frame, from detections
     ref_width: float = 0.0           # anchor width at the last detection-led update
     since_ref: int = 0               # frames since then
+    trend_known: bool = False        # inv_rate / growth measured between two detections
     fused_share: float = 1.0         # detection's weight in the last update
 
 
@@ -943,11 +1014,15 @@ class MultiTracker:
             survivors.append(tr)
             out_det.append((di, self._payload(tr, 'detection')))
 
-        # 5. Duplicates: two tracks on one sign -> the one with fewer hits ends.
+        # 5. Duplicates: two tracks on one sign -> the one with fewer hits ends.  Besides
+        # overlapping boxes (IoU), a track whose coloured anchor lies inside another's box
+        # (the orange top of a two-colour sign next to the whole sign) is a duplicate
+        # (``duplicate_containment``, not in the seed).
+        contain = tracking and cfg.duplicate_containment < 1.0
         survivors.sort(key=lambda t: (-t.hits, t.track_id))
         kept: list[_Track] = []
         for tr in survivors:
-            if any(box_iou(tr.box, k.box) > cfg.duplicate_iou for k in kept):
+            if any(self._duplicate(tr, k, contain) for k in kept):
                 continue
             kept.append(tr)
         kept_ids = {t.track_id for t in kept}
@@ -956,6 +1031,24 @@ class MultiTracker:
         return [t for _, t in out_det] + [t for t in out_trk if t.track_id in kept_ids]
 
     # -- helpers -------------------------------------------------------------------------
+
+    def _duplicate(self, a: _Track, b: _Track, contain: bool) -> bool:
+        """Tracks ``a`` and ``b`` follow one sign: their boxes overlap by more than
+        ``duplicate_iou`` or (``contain``) the smaller box's coloured anchor lies at least
+        ``duplicate_containment`` inside the larger box, which is at most
+        ``duplicate_area_ratio`` times larger (a big box merging a sign with its
+        surroundings does not swallow the sign's own track)."""
+        cfg = self.config
+        if box_iou(a.box, b.box) > cfg.duplicate_iou:
+            return True
+        if not contain:
+            return False
+        area_a = a.box[2] * a.box[3]
+        area_b = b.box[2] * b.box[3]
+        small, big = (a, b) if area_a <= area_b else (b, a)
+        if max(area_a, area_b) > cfg.duplicate_area_ratio * max(min(area_a, area_b), 1e-9):
+            return False
+        return _ioa(big.box, small.anchor) >= cfg.duplicate_containment
 
     def _inside(self, box: Sequence[float], W: int, H: int) -> bool:
         """At least ``min_inside_fraction`` of ``box`` is inside the image."""
@@ -983,12 +1076,14 @@ class MultiTracker:
         if not target.colored or bg > min(cfg.max_background_similarity,
                                           cfg.max_coast_background_similarity):
             return False
+        if target.saturation_contrast < cfg.min_saturation_contrast:
+            return False
         return not (cfg.anchor_on_color and target.white_fraction > cfg.max_coast_white_fraction)
 
     def _confident(self, tr: _Track) -> bool:
         """The track may outvote a detection: detected often enough, tracked well."""
         cfg = self.config
-        return tr.pred_box is not None and tr.hits >= cfg.min_hits_to_coast \
+        return tr.pred_box is not None and tr.hits >= cfg.min_hits_to_fuse \
             and tr.target.colored and tr.pred_rho >= cfg.min_similarity \
             and tr.target.background_similarity <= cfg.max_background_similarity
 
@@ -1017,6 +1112,8 @@ class MultiTracker:
         excess = self.config.max_growth_excess
         if excess <= 0 or tr.ref_width <= 0 or tr.pred_anchor is None:
             return False
+        if not tr.trend_known and self.config.growth_guard_needs_trend:
+            return False
         inv = 1.0 / tr.ref_width - tr.since_ref * tr.inv_rate
         expected = 1.0 / max(inv, 1e-3)
         return tr.pred_anchor[2] > (1.0 + excess) * expected + 2.0
@@ -1027,9 +1124,13 @@ class MultiTracker:
         if tr.ref_width > 0 and tr.since_ref > 0:
             n = tr.since_ref
             g = min(max(math.log(aw / tr.ref_width) / n, -0.05), 0.2)
-            tr.growth = 0.6 * tr.growth + 0.4 * g
             inv = max((1.0 / tr.ref_width - 1.0 / aw) / n, 0.0)
-            tr.inv_rate = 0.6 * tr.inv_rate + 0.4 * inv
+            tr.growth = 0.6 * tr.growth + 0.4 * g
+            if tr.trend_known or not self.config.growth_guard_needs_trend:
+                tr.inv_rate = 0.6 * tr.inv_rate + 0.4 * inv
+            else:
+                tr.inv_rate = inv             # the first measured trend, not averaged with 0
+            tr.trend_known = True
         tr.ref_width = aw
         tr.since_ref = 0
 

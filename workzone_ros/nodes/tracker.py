@@ -64,6 +64,8 @@ _CORE_PARAMS = (
           'track ends', min=0, max=10000),
     Param('min_hits_to_coast', _D.min_hits_to_coast, 'detections before a track may run on '
           'its own', min=1, max=100),
+    Param('min_hits_to_fuse', _D.min_hits_to_fuse, 'detections before the tracked box may '
+          'outvote a detection (fuse)', min=1, max=100),
     Param('max_background_similarity', _D.max_background_similarity, 'a target this '
           'similar to its surroundings never runs on its own', min=0.0, max=1.0),
     Param('iou_gate', _D.iou_gate, 'IoU at which a detection agrees with a track', min=0.0,
@@ -83,6 +85,10 @@ _CORE_PARAMS = (
           'geometry (regulatory two-colour guard)'),
     Param('duplicate_iou', _D.duplicate_iou, 'overlap at which the weaker of two tracks '
           'ends', min=0.0, max=1.0),
+    Param('duplicate_containment', _D.duplicate_containment, "share of a track's anchor "
+          "inside another track's box at which the weaker ends (1 = off)", min=0.0, max=1.0),
+    Param('duplicate_area_ratio', _D.duplicate_area_ratio, 'containment duplicates only up '
+          'to this box area ratio', min=1.0, max=1000.0),
     Param('background_weighting', _D.background_weighting, 'corrected background-weighted '
           'histogram in the mean-shift weights'),
     Param('surround_weight', _D.surround_weight, 'penalty of sign colour around a '
@@ -108,11 +114,16 @@ _CORE_PARAMS = (
     Param('max_coast_white_fraction', _D.max_coast_white_fraction, 'a coloured shape this '
           'white (drum, cone bands) is never published on its own (1 = off)', min=0.0,
           max=1.0),
+    Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
+          'less saturated than this above its surroundings is never published on its own '
+          '(-1 = off)', min=-1.0, max=1.0),
     Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
           'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
     Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '
           "detections' perspective trend that ends a coasting track (0 = off)", min=0.0,
           max=10.0),
+    Param('growth_guard_needs_trend', _D.growth_guard_needs_trend, 'the growth guard acts '
+          'only once two detections measured the trend'),
 )
 
 

@@ -232,11 +232,12 @@ class ProjectorNode(WorkzoneNode):
         for img_ns, image, _, cands in decided:
             if cands is None:
                 if self._ready():             # else the missing calibration is the reason
+                    # A sync miss, not an invalid input: counted in /diagnostics, not dropped.
                     self._counts['images without candidates within slop'] += 1
-                    self.drop(self.resolve_topic_name(self.params.image_topic),
-                              f'no candidates within slop {self.params.slop:.3f} s of the image '
-                              f'stamped {img_ns * 1e-9:.3f}: LiDAR late, lost or clocks out of '
-                              f'sync')
+                    self.warn_throttled(
+                        'no candidates', f'no candidates within slop {self.params.slop:.3f} s '
+                        f'of the image stamped {img_ns * 1e-9:.3f}: LiDAR late, lost or clocks '
+                        f'out of sync (the image gets no ROIs)')
                 continue
             self._project(image, cands)
 

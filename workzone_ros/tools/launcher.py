@@ -643,10 +643,15 @@ class Launcher:
             rclpy.try_shutdown(context=self._ctx)
 
     def _graph_ready(self) -> bool:
-        """All launched nodes visible and the bag topics' subscriber counts settled."""
+        """All launched nodes visible, the bag topics' subscriber counts and the graph's own
+        topics' (``/workzone/...``: node to node) endpoint counts settled."""
         try:
             names = set(self._node.get_node_names())
             counts = tuple(self._node.count_subscribers(t) for t in sorted(self.reader.topics))
+            inner = sorted(t for t, _ in self._node.get_topic_names_and_types()
+                           if t.startswith('/workzone/'))
+            counts += tuple((self._node.count_publishers(t), self._node.count_subscribers(t))
+                            for t in inner)
         except Exception:  # noqa: BLE001 - graph not available yet
             return False
         if any(s.name not in names for s in self.specs if not self.args.single_process):

@@ -166,3 +166,60 @@ def test_prior_saturation():
     assert peaked.prior_image(640, 480)[140, 220] < 0.6
     assert flat.prior_image(640, 480)[140, 220] > 0.99
     assert flat.prior_image(640, 480)[470, 10] == pytest.approx(flat.floor, abs=1e-3)
+
+
+def test_saturation_norm_stretches_washed_out_frames_only():
+    norm = cm.SatNorm(quantile=0.9, ref=120.0, max_gain=4.0)
+    dull = np.full((40, 40, 3), (150, 150, 160), np.uint8)             # haze: S ~ 16
+    dull[:8, :8] = (110, 130, 170)                                    # a washed-out sign
+    hsv = cv2.cvtColor(dull, cv2.COLOR_BGR2HSV)
+    g = cm.saturation_gain(hsv, norm, v_min=30)
+    assert g == pytest.approx(4.0)                                    # clipped at max_gain
+    vivid = np.full((40, 40, 3), (200, 120, 40), np.uint8)           # blue sky, S ~ 204
+    assert cm.saturation_gain(cv2.cvtColor(vivid, cv2.COLOR_BGR2HSV), norm) == 1.0
+    mid = np.full((40, 40, 3), (120, 150, 180), np.uint8)             # S = 85
+    gm = cm.saturation_gain(cv2.cvtColor(mid, cv2.COLOR_BGR2HSV), norm)
+    assert gm == pytest.approx(120.0 / 85.0, rel=0.02)
+    tab = cm.saturation_table(2.5)
+    assert tab.dtype == np.uint8 and tab[0] == 0 and tab[40] == 100 and tab[200] == 255
+    # too dark to count (value gate): no gain from black pixels
+    assert cm.saturation_gain(np.zeros((4, 4, 3), np.uint8), norm, v_min=30) == 1.0
+
+
+def test_model_applies_its_saturation_norm(tmp_path):
+    """A table that accepts only S >= 150 sees a hazy sign (S ~ 60) after the frame's
+    saturation is stretched, while warm grey asphalt (S ~ 60) on a colourful frame stays
+    below it."""
+    lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
+    lut[8:20, 150:] = 0.99
+    meta = {'sat_norm': cm.SatNorm(0.9, 120.0, 4.0).to_dict()}
+    model = cm.default_model(lut, 30, None, meta)
+    path = tmp_path / 'm.npz'
+    cm.save_model(model, path)
+    model = cm.load_model(path)
+    assert model.sat_norm == cm.SatNorm(0.9, 120.0, 4.0)
+    hazy = np.full((40, 40, 3), (165, 160, 158), np.uint8)
+    hazy[10:20, 10:20] = (110, 135, 160)                              # orange hue, S ~ 80
+    assert model.likelihood(hazy)[15, 15] > 0.9
+    assert model.with_prior(model.prior).sat_norm is not None
+    plain = cm.default_model(lut, 30)
+    assert plain.sat_norm is None and plain.likelihood(hazy)[15, 15] == 0.0
+    sunny = np.full((40, 40, 3), (220, 140, 40), np.uint8)            # blue sky
+    sunny[20:] = (118, 132, 150)                                      # warm asphalt, S ~ 54
+    assert model.likelihood(sunny)[30, 5] == 0.0
+    bad = cm.default_model(lut, 30, None, {'sat_norm': {'ref': 'x'}})
+    with pytest.raises(cm.ModelError, match='sat_norm'):
+        bad.sat_norm
+
+
+def test_prior_camera_jitter_widens_the_roi():
+    boxes = [(420, 150, 30, 30)] * 20
+    fixed = cm.fit_prior(boxes, (640, 480), saturate=0.1)
+    other = cm.fit_prior(boxes, (640, 480), saturate=0.1, camera_jitter=(0.1, 0.05, 0.25))
+    fx, fy, fw, fh = fixed.roi
+    ox, oy, ow, oh = other.roi
+    assert oy + oh >= fy + fh + 40 and oy <= fy - 40          # +- 10 % of the height
+    assert ox <= fx and ox + ow >= fx + fw
+    # a sign lower in the image (another camera's horizon) has full prior only with jitter
+    assert fixed.prior_image(640, 480)[235, 435] < 0.5
+    assert other.prior_image(640, 480)[235, 435] > 0.99

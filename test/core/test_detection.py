@@ -346,3 +346,25 @@ def test_soft_mounting_limit_keeps_low_sign_faces(model):
     _one(dets, low)
     assert len(dets) == 1
     assert len(det.with_config(use_geometry=False).detect(img)) == 2
+
+
+def test_saturation_norm_finds_hazy_signs_and_ignores_warm_grey():
+    """A table that wants saturated orange (S >= 150) finds a washed-out sign on a hazy
+    frame once the frame's saturation is normalised, and still ignores warm grey ground on
+    a colourful frame (the real-camera failure: asphalt and dry lawns at S 50..120)."""
+    lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
+    lut[5:22, 150:] = 0.97
+    meta = {'sat_norm': cm.SatNorm(0.9, 120.0, 4.0).to_dict()}
+    normed = cm.default_model(lut, 50, None, meta)
+    plain = cm.default_model(lut, 50)
+    hazy = np.full((480, 640, 3), (168, 165, 160), np.uint8)
+    hazy[240:] = (120, 122, 124)
+    hazy = cv2.add(hazy, np.random.default_rng(3).integers(0, 6, hazy.shape, dtype=np.uint8))
+    pale = (120, 150, 200)                                       # orange, S ~ 102
+    gt = _diamond(hazy, 420, 150, 40, pale)
+    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False)
+    _one(dt.ColorDetector(normed, cfg).detect(hazy), gt, iou=0.6)
+    assert dt.ColorDetector(plain, cfg).detect(hazy) == []
+    vivid = _background(4)                                        # blue sky, grass, asphalt
+    vivid[300:420, 100:500] = (95, 130, 165)                     # dry lawn, S ~ 108
+    assert dt.ColorDetector(normed, cfg).detect(vivid) == []

@@ -38,7 +38,8 @@ __all__ = [
     'ModelError', 'SCHEMA', 'VERSION', 'H_BINS', 'S_BINS', 'HSV_RANGES', 'ColorModel',
     'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
     'boosted_lut', 'hsv_range_lut', 'histogram_from_pixels', 'fit_prior', 'save_model',
-    'load_model', 'default_model', 'gray_world_gains', 'apply_gains',
+    'load_model', 'default_model', 'gray_world_gains', 'apply_gains', 'SatNorm',
+    'saturation_gain', 'saturation_table',
 ]
 
 SCHEMA = 'workzone_ros/ColorModel'
@@ -208,6 +209,63 @@ def apply_gains(bgr: np.ndarray, gains: tuple) -> np.ndarray:
     return cv2.transform(bgr, np.diag(np.asarray(gains, np.float64)))
 
 
+@dataclass(frozen=True)
+class SatNorm:
+    """Frame-level saturation normalisation (colour constancy for haze and dull light).
+
+    Haze, overcast light, rain and a camera's own colour processing scale the saturation of
+    a whole frame: a sign that is S ~ 220 on a clear day with a vivid phone camera can be
+    S ~ 60 in fog.  A table over absolute saturation then has to accept S ~ 60 as "sign",
+    and on a clear frame warm grey asphalt, brick and beige walls (S 40..140) pass too.  So
+    the saturation is rescaled per frame before the table: the ``quantile`` of the frame's
+    saturation (pixels above the value gate) is brought up to ``ref`` with a gain in
+    [1, ``max_gain``].  A frame that is already colourful (a clear day) is left alone; a
+    washed-out one is stretched.  Training does the same, so the table sees normalised
+    saturation only.
+
+    Attributes:
+        quantile: frame saturation statistic (0.9: the 90th percentile).
+        ref: target value of that statistic.
+        max_gain: largest gain (a frame that is all grey is not blown up).
+    """
+
+    quantile: float = 0.9
+    ref: float = 120.0
+    max_gain: float = 4.0
+
+    def to_dict(self) -> dict:
+        """JSON form for the model metadata."""
+        return {'quantile': self.quantile, 'ref': self.ref, 'max_gain': self.max_gain}
+
+    @classmethod
+    def from_mapping(cls, d: Optional[Mapping[str, Any]]) -> Optional['SatNorm']:
+        """From model metadata (None when absent: no normalisation)."""
+        if not d:
+            return None
+        try:
+            return cls(float(d['quantile']), float(d['ref']), float(d['max_gain']))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelError(f'malformed sat_norm metadata {d!r}: {exc}') from None
+
+
+def saturation_gain(hsv: np.ndarray, norm: SatNorm, v_min: int = 0) -> float:
+    """The :class:`SatNorm` gain of one HSV frame (pixels with V >= ``v_min`` count)."""
+    mask = None
+    if v_min > 0:
+        mask = cv2.threshold(hsv[..., 2], v_min - 1, 255, cv2.THRESH_BINARY)[1]
+    hist = cv2.calcHist([hsv], [1], mask, [256], [0, 256]).ravel()
+    total = float(hist.sum())
+    if total <= 0:
+        return 1.0
+    q = int(np.searchsorted(np.cumsum(hist), norm.quantile * total))
+    return float(np.clip(norm.ref / max(q, 1), 1.0, norm.max_gain))
+
+
+def saturation_table(gain: float) -> np.ndarray:
+    """uint8 (256,) table S -> min(255, round(gain S)) (for ``cv2.LUT``)."""
+    return np.minimum(255, np.round(np.arange(256) * float(gain))).astype(np.uint8)
+
+
 # --- the spatial prior -------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -246,7 +304,8 @@ class SpatialPrior:
 def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tuple[int, int],
               cell: int = 8, sigma_cells: float = 2.5, roi_level: float = 0.02,
               roi_margin: int = 16, floor: float = 0.2,
-              saturate: float = 1.0) -> SpatialPrior:
+              saturate: float = 1.0,
+              camera_jitter: Optional[tuple[float, float, float]] = None) -> SpatialPrior:
     """Project every ground-truth box onto one image and smooth it (seed 000, Fig. 1).
 
     Args:
@@ -262,6 +321,12 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
             with e.g. 0.1 every location with a tenth of the peak density is a full-prior
             location (P(sign) multiplies the likelihood, so a peaked prior would demand
             likelihoods near 1 everywhere but at the peak).
+        camera_jitter: (pitch, yaw, zoom): the heat map is averaged over other cameras'
+            views of the same boxes: the image shifted up / down by up to ``pitch`` and
+            sideways by up to ``yaw`` (fractions of the image height / width: another
+            mounting pitch and yaw) and scaled about the image centre by 1/(1 + zoom) ..
+            (1 + zoom) (another focal length), so the prior does not assume the training
+            camera's exact horizon.  None: the training camera only.
 
     Returns:
         The :class:`SpatialPrior`; uniform if ``boxes`` is empty.
@@ -277,6 +342,8 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
         y1 = int(min(gh, np.ceil((y + h) / cell)))
         if x1 > x0 and y1 > y0:
             acc[y0:y1, x0:x1] += 1.0
+    if camera_jitter is not None:
+        acc = _jitter_views(acc, *camera_jitter)
     acc = cv2.GaussianBlur(acc, (0, 0), sigma_cells)
     heat = (np.clip(acc / (saturate * acc.max()), 0.0, 1.0).astype(np.float32)
             if acc.max() > 0 else np.ones_like(acc, np.float32))
@@ -286,6 +353,23 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
     x1 = min(width, (int(xs.max()) + 1) * cell + roi_margin)
     y1 = min(height, (int(ys.max()) + 1) * cell + roi_margin)
     return SpatialPrior(heat, (width, height), (x0, y0, x1 - x0, y1 - y0), floor)
+
+
+def _jitter_views(acc: np.ndarray, pitch: float, yaw: float, zoom: float,
+                  steps: int = 3) -> np.ndarray:
+    """Mean of ``acc`` seen by cameras with other pitch, yaw and focal length (cells)."""
+    gh, gw = acc.shape
+    cx, cy = (gw - 1) / 2.0, (gh - 1) / 2.0
+    out = np.zeros_like(acc, np.float64)
+    n = 0
+    for s in np.geomspace(1.0 / (1.0 + zoom), 1.0 + zoom, steps) if zoom > 0 else [1.0]:
+        for dy in np.linspace(-pitch, pitch, 2 * steps + 1) * gh if pitch > 0 else [0.0]:
+            for dx in np.linspace(-yaw, yaw, steps) * gw if yaw > 0 else [0.0]:
+                m = np.array([[s, 0.0, (1 - s) * cx + dx], [0.0, s, (1 - s) * cy + dy]])
+                out += cv2.warpAffine(acc, m, (gw, gh), flags=cv2.INTER_LINEAR,
+                                      borderMode=cv2.BORDER_CONSTANT)
+                n += 1
+    return out / max(n, 1)
 
 
 # --- the model and its file --------------------------------------------------------------
@@ -338,14 +422,30 @@ class ColorModel:
         """True when the tables were trained on grey-world balanced frames."""
         return bool(self.metadata.get('gray_world', False))
 
-    def likelihood(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
-        """P(x | colour) for every pixel of a BGR image (value gate applied), float32.
+    @property
+    def sat_norm(self) -> Optional[SatNorm]:
+        """The frame saturation normalisation the tables were trained with (or None)."""
+        return SatNorm.from_mapping(self.metadata.get('sat_norm'))
 
-        The frame is grey-world balanced first when the model was trained that way.
-        """
+    def normalised_hsv(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
+        """The frame as the tables see it: grey-world balanced and saturation-normalised
+        when the model was trained that way (the gain is computed on this frame)."""
         if self.gray_world:
             bgr = apply_gains(bgr, gray_world_gains(bgr))
         hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+        norm = self.sat_norm
+        if norm is not None and color == 'orange':     # the learned table only
+            g = saturation_gain(hsv, norm, self.v_min[self.index(color)])
+            hsv[..., 1] = cv2.LUT(hsv[..., 1], saturation_table(g))
+        return hsv
+
+    def likelihood(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
+        """P(x | colour) for every pixel of a BGR image (value gate applied), float32.
+
+        The frame is grey-world balanced and saturation-normalised first when the model was
+        trained that way.
+        """
+        hsv = self.normalised_hsv(bgr, color)
         i = self.index(color)
         p = self.luts[i][hsv[..., 0], hsv[..., 1]]
         p[hsv[..., 2] < self.v_min[i]] = 0.0

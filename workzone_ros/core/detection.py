@@ -20,7 +20,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    side distance, here half the smaller box side).
    Before the table the frame is grey-world balanced when the model was trained so
    (colour constancy outside the table: a dusk cast no longer turns sky and lane paint
-   orange), and the likelihood is box-filtered at the mask's resolution before the
+   orange) and its saturation is normalised (``SatNorm``: a hazy, washed-out frame is
+   stretched so its 90th saturation percentile reaches the model's reference; a colourful
+   frame is left alone, so warm grey asphalt and walls stay below the sign's saturation),
+   and the likelihood is box-filtered at the mask's resolution before the
    threshold (isolated orange-hued pixels are averaged away).
 4. Each blob is measured at full resolution inside a small window (so the half-resolution
    mask costs no box accuracy): hysteresis (pixels >= ``weak_threshold`` next to the blob
@@ -71,6 +74,8 @@ from workzone_ros.core.color_model import (
     SpatialPrior,
     apply_gains,
     gray_world_gains,
+    saturation_gain,
+    saturation_table,
 )
 from workzone_ros.interfaces import Box, Detection, Roi
 
@@ -520,6 +525,8 @@ class ColorDetector:
         self._cache: dict[tuple, Any] = {}
         self.debug: Optional[list] = None      # a list: rejected / measured blobs land here
         self._gains: Optional[tuple] = None
+        self._sat_norm = model.sat_norm if config.method == 'learned' else None
+        self._sat_tab: Optional[np.ndarray] = None
         g = model.extras.get('geometry')
         self._geometry = ((float(g[0]), float(g[1]), float(g[2] if len(g) >= 3 else g[1]))
                           if g is not None and len(g) >= 2 else None)
@@ -582,6 +589,17 @@ class ColorDetector:
         if cfg.method == 'learned' and self.model.gray_world and small.size:
             # colour constancy outside the table (the model was trained this way)
             self._gains = gray_world_gains(small)
+        self._sat_tab = None
+        if self._sat_norm is not None and 'orange' in self._idx and small.size:
+            # frame saturation normalisation (the model was trained this way), measured on
+            # a quarter of the mask's pixels
+            sub = small[::2, ::2]
+            if self._gains is not None:
+                sub = apply_gains(sub, self._gains)
+            g = saturation_gain(cv2.cvtColor(sub, cv2.COLOR_BGR2HSV), self._sat_norm,
+                                self._vmin['orange'])
+            if g > 1.0:
+                self._sat_tab = saturation_table(g)
         # 1. the colour-only pass over the prior's ROI, exactly as without LiDAR
         cands = self._pass(small, bgr, roi, thr_base, s, thr_base, [])
         cands = nms(cands, cfg.nms_iou, cfg.nms_contain,
@@ -637,7 +655,11 @@ class ColorDetector:
             h, sat, v = cv2.split(hsv)
             idx = cv2.merge([sat, h]).view(np.uint16)[..., 0]      # h * 256 + s
             for color in self.colors:
-                prob = np.take(self._lut_u8[color], idx)
+                if color == 'orange' and self._sat_tab is not None:
+                    idx_c = cv2.merge([cv2.LUT(sat, self._sat_tab), h]).view(np.uint16)[..., 0]
+                else:
+                    idx_c = idx
+                prob = np.take(self._lut_u8[color], idx_c)
                 if self._vmin[color] > 0:
                     # brightness gate outside the table: too dark for a reliable hue
                     prob &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
@@ -785,6 +807,11 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
         return cand
 
+    def _sat(self, hsv: np.ndarray) -> np.ndarray:
+        """The saturation channel as the orange table sees it (frame-normalised)."""
+        s = hsv[..., 1]
+        return s if self._sat_tab is None else self._sat_tab[s]
+
     @staticmethod
     def _in_roi(box: tuple, s: int, lboxes: list) -> Optional[tuple]:
         """The (expanded) LiDAR ROI, full-resolution (x, y, w, h), holding a box's centre."""
@@ -820,7 +847,7 @@ class ColorDetector:
             win = apply_gains(win, self._gains)
         hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
         i = self._idx['orange']
-        like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
+        like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
         vch = hsv[..., 2]
         like[vch < self.model.v_min[i]] = 0.0
         cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
@@ -1076,7 +1103,7 @@ class ColorDetector:
             win = apply_gains(win, self._gains)
         hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
         i = self._idx['orange']
-        like = self.model.luts[i][hsv[..., 0], hsv[..., 1]]
+        like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
         like[hsv[..., 2] < self.model.v_min[i]] = 0.0
         mask = (cv2.blur(like, (3, 3)) >= cfg.lidar_only_threshold).astype(np.uint8)
         n, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)

@@ -6,17 +6,28 @@ same way: nonzero mask = work-zone sign face), then
 
 1. splits each face mask into its orange pixels (positives) and its black legend / border
    and white panels (ignored: neither sign colour nor background, ``--orange-only``);
-2. adds ``--augment`` colour-jittered copies of every image (white balance, exposure,
-   saturation, hue) so the model transfers to other cameras and light;
-3. grey-world balances every frame (``--gray-world``; the detector does the same at run
-   time, outside the table);
+2. adds ``--augment`` colour-jittered copies of every image (white balance, exposure, tone
+   curve, saturation, hue, in the ranges of real cameras) so the model transfers to other
+   cameras and light; in a share of them (``--bg-hue``) the background's hue is rotated
+   by a random angle (the sign's is not): real roadsides hold warm grey asphalt, brick,
+   beige walls and dirt that our renders' palette lacks, so the table must not call a
+   colour orange just because no rendered background had it;
+3. grey-world balances every frame (``--gray-world``) and normalises its saturation
+   (``--sat-norm``: the frame's 90th saturation percentile is brought up to ``--sat-ref``,
+   gain 1..``--sat-max-gain``; haze and dull light no longer make washed-out signs look
+   like warm grey asphalt); the detector does the same at run time, outside the table;
 4. counts sign / background pixels per (hue, saturation) bin (pixels darker than ``--v-min``
    are left out: the detector gates them out too) and fits AdaBoost over decision stumps
    (``--estimators`` = H weak learners) on those counts;
 5. bakes g(f) into the 180 x 256 table (seed 000 eq. 2);
-6. builds the spatial prior from the boxes of the masks' connected components (Fig. 1) and
-   the mounting geometry (model extra ``geometry``: how low a sign's bottom edge gets at
-   all, e.g. on a portable stand, and how low it usually gets, ``--geometry-quantile``);
+6. builds the spatial prior from the boxes of the masks' connected components (Fig. 1),
+   averaged over other cameras' views (``--camera-pitch/-yaw/-zoom``: another mounting
+   pitch, yaw and focal length, so the prior does not assume our camera's exact horizon),
+   and the mounting geometry (model extra ``geometry``: how low a sign's bottom edge gets
+   at all, e.g. on a portable stand, and how low it usually gets, ``--geometry-quantile``,
+   relative to the image middle: unlike the prior this test is tied to the training
+   camera's height and horizon; for another camera retrain it or set the detector's
+   ``use_geometry`` false);
 7. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
 8. writes the versioned model file and prints training / validation pixel metrics.
 
@@ -96,19 +107,62 @@ def orange_mask(hsv: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return orange, ~(face & ~orange)
 
 
+#: Colour jitter ranges of :func:`augment` (plausible camera / light variation).
+AUGMENT = {'white_balance': (0.8, 1.25), 'exposure': (0.55, 1.6), 'gamma': (0.7, 1.4),
+           'saturation': (0.55, 1.8), 'hue': 4}
+
+
 def augment(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Colour jitter: white balance (per-channel gain), exposure, saturation and hue."""
-    f = img.astype(np.float32) * rng.uniform(0.85, 1.15, 3).astype(np.float32)
-    f *= float(rng.uniform(0.6, 1.35))
-    hsv = cv2.cvtColor(np.clip(f, 0, 255).astype(np.uint8), cv2.COLOR_BGR2HSV)
-    h = (hsv[..., 0].astype(np.int16) + int(rng.integers(-3, 4))) % 180
+    """Colour jitter as another camera would see the scene: white balance (per-channel
+    gain), exposure (with clipping), tone curve (gamma), saturation (vivid phone processing
+    to washed-out) and a small hue shift; ranges in :data:`AUGMENT`."""
+    a = AUGMENT
+    f = img.astype(np.float32) / 255.0
+    f *= rng.uniform(*a['white_balance'], 3).astype(np.float32)
+    f *= float(rng.uniform(*a['exposure']))
+    f = np.power(np.clip(f, 0.0, 1.0), float(rng.uniform(*a['gamma'])))
+    hsv = cv2.cvtColor((f * 255.0 + 0.5).astype(np.uint8), cv2.COLOR_BGR2HSV)
+    h = (hsv[..., 0].astype(np.int16) + int(rng.integers(-a['hue'], a['hue'] + 1))) % 180
     hsv[..., 0] = h.astype(np.uint8)
-    hsv[..., 1] = np.clip(hsv[..., 1] * float(rng.uniform(0.7, 1.15)), 0, 255).astype(np.uint8)
+    s = hsv[..., 1].astype(np.float32) * float(rng.uniform(*a['saturation']))
+    hsv[..., 1] = np.clip(s, 0, 255).astype(np.uint8)
     return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
 
 
+def rotate_background_hue(img: np.ndarray, face: np.ndarray, rng: np.random.Generator,
+                           warm: float = 0.5) -> np.ndarray:
+    """The frame with the hue of every non-sign pixel rotated by one random angle.
+
+    With probability ``warm`` the angle brings the background's median hue (of its
+    chromatic pixels) into the earth tones (OpenCV hue 0..30: soil, brick, dry grass, wood,
+    sunlit asphalt), which dominate real roadsides and which our renders' palette lacks;
+    otherwise the angle is uniform.
+    """
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    chrom = ~face & (hsv[..., 1] >= 25)
+    if rng.random() < warm and chrom.any():
+        angle = int(rng.integers(0, 31)) - int(np.median(hsv[..., 0][chrom]))
+    else:
+        angle = int(rng.integers(1, 180))
+    h = (hsv[..., 0].astype(np.int16) + angle) % 180
+    hsv[..., 0] = np.where(face, hsv[..., 0], h.astype(np.uint8))
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+
+
+def table_hsv(img: np.ndarray, gray_world: bool, sat_norm: Optional[cm.SatNorm],
+              v_min: int) -> np.ndarray:
+    """The frame's HSV as the orange table sees it (grey world, saturation norm)."""
+    if gray_world:
+        img = cm.apply_gains(img, cm.gray_world_gains(img))
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    if sat_norm is not None:
+        g = cm.saturation_gain(hsv, sat_norm, v_min)
+        hsv[..., 1] = cv2.LUT(hsv[..., 1], cm.saturation_table(g))
+    return hsv
+
+
 def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
-                  gray_world: bool = False) -> dict:
+                  gray_world: bool = False, sat_norm: Optional[cm.SatNorm] = None) -> dict:
     """Pixel accuracy of P(x | sign) >= threshold (and the value gate) against the masks.
 
     Positives are the orange pixels of the sign faces (:func:`orange_mask`); the black legend
@@ -120,9 +174,7 @@ def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
     tp = fp = fn = tn = 0
     for ip, mp in pairs:
         img, face = _read(ip, mp)
-        if gray_world:
-            img = cm.apply_gains(img, cm.gray_world_gains(img))
-        hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+        hsv = table_hsv(img, gray_world, sat_norm, v_min)
         mask, use = orange_mask(hsv, face)
         pred = (lut[hsv[..., 0], hsv[..., 1]] >= threshold) & (hsv[..., 2] >= v_min)
         tp += int(np.count_nonzero(pred & mask))
@@ -157,6 +209,9 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--augment', type=int, default=2,
                    help='colour-jittered copies of each training image (hue, saturation, '
                         'white balance, exposure; default 2)')
+    p.add_argument('--bg-hue', type=float, default=0.5,
+                   help='share of the augmented copies whose background hue is rotated '
+                        '(default 0.5; half of those into the earth tones)')
     p.add_argument('--seed', type=int, default=0, help='augmentation seed')
     p.add_argument('--geometry-margin', type=float, default=0.15,
                    help='margin on the lowest sign bottom seen in training (sign heights)')
@@ -166,10 +221,24 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--gray-world', action=argparse.BooleanOptionalAction, default=True,
                    help='grey-world balance every frame before the table (the detector then '
                         'does the same; default on)')
+    p.add_argument('--sat-norm', action=argparse.BooleanOptionalAction, default=True,
+                   help='normalise each frame saturation before the table (the detector '
+                        'then does the same; default on)')
+    p.add_argument('--sat-ref', type=float, default=120.0,
+                   help='saturation norm: target of the 90th percentile (default 120)')
+    p.add_argument('--sat-max-gain', type=float, default=4.0,
+                   help='saturation norm: largest gain (default 4)')
     p.add_argument('--prior-saturate', type=float, default=0.1,
                    help='prior heat = box density / (this x its maximum), clipped to 1')
     p.add_argument('--prior-roi-level', type=float, default=0.02,
                    help='the ROI covers heat >= this level')
+    p.add_argument('--camera-pitch', type=float, default=0.1,
+                   help='prior: horizon uncertainty, fraction of the image height '
+                        '(default 0.1, about 5 degrees)')
+    p.add_argument('--camera-yaw', type=float, default=0.05,
+                   help='prior: sideways uncertainty, fraction of the image width')
+    p.add_argument('--camera-zoom', type=float, default=0.25,
+                   help='prior: focal length uncertainty (scale 1/(1+z) .. 1+z)')
     p.add_argument('--rgb-lp', action='store_true',
                    help='also choose the seed 002 RGB thresholds (Boolean LP)')
     p.add_argument('--lp-w', type=float, default=1.0,
@@ -194,6 +263,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     rgb_neg = np.zeros_like(rgb_pos)
     boxes, size = [], None
     rng = np.random.default_rng(args.seed)
+    sat_norm = cm.SatNorm(ref=args.sat_ref, max_gain=args.sat_max_gain) if args.sat_norm \
+        else None
     for ip, mp in train:
         img0, face = _read(ip, mp)
         size = (img0.shape[1], img0.shape[0])
@@ -202,9 +273,11 @@ def main(argv: Optional[list[str]] = None) -> int:
                   if stats[i, 4] >= 20]
         for a in range(1 + args.augment):
             img = img0 if a == 0 else augment(img0, rng)
-            if args.gray_world:
+            if a > 0 and rng.random() < args.bg_hue:
+                img = rotate_background_hue(img, face, rng)
+            hsv = table_hsv(img, args.gray_world, sat_norm, args.v_min)
+            if args.gray_world and args.rgb_lp and a == 0:
                 img = cm.apply_gains(img, cm.gray_world_gains(img))
-            hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
             if args.orange_only:
                 mask, use = orange_mask(hsv, face)
             else:
@@ -229,8 +302,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
     lut = cm.boosted_lut(clf)
     t_fit = time.perf_counter() - t0 - t_count
+    jitter = (args.camera_pitch, args.camera_yaw, args.camera_zoom)
     prior = cm.fit_prior(boxes, size or (640, 480), saturate=args.prior_saturate,
-                         roi_level=args.prior_roi_level)
+                         roi_level=args.prior_roi_level,
+                         camera_jitter=jitter if any(jitter) else None)
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
         'train_images': len(train), 'val_images': len(val),
@@ -238,7 +313,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
-        'augment': args.augment, 'seed': args.seed,
+        'sat_norm': sat_norm.to_dict() if sat_norm is not None else None,
+        'augment': args.augment, 'augment_ranges': AUGMENT, 'bg_hue': args.bg_hue,
+        'camera_jitter': list(jitter), 'seed': args.seed,
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
@@ -259,10 +336,11 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['rgb_lp'] = lp.metadata
     model = cm.default_model(lut, args.v_min, prior, meta)
     model = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta, extras)
-    metrics = {'train': pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world)}
+    metrics = {'train': pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world,
+                                      sat_norm=sat_norm)}
     if val:
         metrics['validation'] = pixel_metrics(lut, args.v_min, val,
-                                              gray_world=args.gray_world)
+                                              gray_world=args.gray_world, sat_norm=sat_norm)
     meta['metrics'] = metrics
     cm.save_model(model, args.output)
     print(json.dumps({'output': args.output, 'bytes': Path(args.output).stat().st_size,

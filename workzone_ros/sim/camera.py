@@ -137,6 +137,10 @@ _WEATHER: dict[str, _Weather] = {
 }
 
 
+#: Fluorescent orange sheeting keeps at least this share of its saturation in any weather.
+_FLUORESCENT_SAT = 0.9
+
+
 def is_distractor(obj) -> bool:
     """True for hard negatives reported in :attr:`RenderResult.distractors`."""
     if isinstance(obj, Cone):
@@ -424,7 +428,8 @@ class CameraRenderer:
                        rng: np.random.Generator) -> np.ndarray:
         w = self.weather
         M = MATERIALS
-        cover = 'snow' if (self.scene.ground_cover == 'snow' or w.snow) else 'grass'
+        cover = 'snow' if (self.scene.ground_cover == 'snow' or w.snow) else \
+            ('dry_grass' if self.scene.ground_cover == 'dry_grass' else 'grass')
         asph = np.array(M['asphalt'].bgr, np.float32) * w.asphalt_gain
         shld = np.array(M['shoulder'].bgr, np.float32) * w.asphalt_gain
         pal = np.stack([asph, shld, np.array(M[cover].bgr, np.float32),
@@ -436,7 +441,7 @@ class CameraRenderer:
         # World-anchored textures, bilinear (fine grain and large patches).
         tex = _sample(self._tex, np.mod(d * 4.0, 256.0), np.mod(s * 4.0, 256.0))
         patch = _sample(self._patch, np.mod(d * 0.5, 64.0), np.mod(s * 0.25, 64.0))
-        amp = np.array([0.035, 0.05, 0.09 if cover == 'grass' else 0.03, 0.12], np.float32)[idx]
+        amp = np.array([0.035, 0.05, 0.03 if cover == 'snow' else 0.09, 0.12], np.float32)[idx]
         # Far away the texture averages out within a pixel.
         fade = np.exp(-rng_m * (1.0 / 60.0))
         col = pal[idx] * (1.0 + amp * (tex * fade + 0.8 * patch))[:, None]
@@ -698,6 +703,13 @@ class CameraRenderer:
             fd = float(np.clip(sp.fade, 0.0, 1.0)) * 0.75
             rgb = rgb * (1 - fd) + pale * fd
         w = self.weather
+        if orange is not None and w.saturation < _FLUORESCENT_SAT:
+            # Fluorescent orange sheeting keeps its colour under a grey sky (fluorescence
+            # turns the diffuse daylight's blue into orange): pre-saturate so that after the
+            # frame's grading it keeps at least _FLUORESCENT_SAT of its saturation.
+            k = _FLUORESCENT_SAT / w.saturation
+            lum = rgb @ np.array([0.114, 0.587, 0.299], np.float32)
+            rgb = lum[..., None] + (rgb - lum[..., None]) * k
         # Retroreflective sheeting: less haze than the scene, its own brightness.
         f = 1.0 - math.exp(-dist / (1.6 * w.haze_m))
         hor = np.array(w.sky_horizon, np.float32) * w.light

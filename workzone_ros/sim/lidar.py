@@ -624,7 +624,8 @@ _LUT_STEP, _LUT_HALF = 0.025, 200.0      # lateral material table: 2.5 cm bins o
 def _lateral_lut(cover: str) -> np.ndarray:
     """Ground material by lateral bin and dash phase: ``lut[2 * bin + dash_on]``."""
     d = (np.arange(int(2 * _LUT_HALF / _LUT_STEP)) + 0.5) * _LUT_STEP - _LUT_HALF
-    base = np.full(d.shape, _MAT['snow' if cover == 'snow' else 'grass'], dtype=np.int16)
+    base = np.full(d.shape, _MAT[cover if cover in ('snow', 'dry_grass') else 'grass'],
+                   dtype=np.int16)
     base[(d >= -(ROAD_HALF_WIDTH + RIGHT_SHOULDER)) & (d <= ROAD_HALF_WIDTH + LEFT_SHOULDER)] = \
         _MAT['shoulder']
     ad = np.abs(d)

@@ -15,9 +15,10 @@ Schema (every key optional except where noted; unknown keys are errors)::
     description: one line           # shown by `workzone-ros synth list`
     duration: 40.0                  # seconds (or `frames:` at 15 fps)
     weather: spring_sunny           # winter_overcast | spring_sunny | spring_rain | dusk
-    ground_cover: grass             # grass | snow (default: snow in winter)
+    ground_cover: grass             # grass | dry_grass | snow (default: snow in winter)
     road: {curves: [[length_m, curvature_1_per_m], ...], guardrails: true,
-           tree_line: true, overpasses: [s_m, ...]}
+           tree_line: true, overpasses: [s_m, ...],
+           buildings: 0.0}          # share of roadside stretches with a building front
     ego: {speed: 22.4, lane: middle, start_s: 0.0, jitter: 1.0}
     workzone: {taper_s: 600, length: 500, advance: 450, speed_limit: 45,
                lane_closed: left|right|null, taper_length: 150, drum_spacing: 15,
@@ -181,6 +182,7 @@ class RoadSpec:
     guardrails: bool = True
     tree_line: bool = True
     overpasses: tuple[float, ...] = ()
+    buildings: float = 0.0          # share of roadside stretches with a building front
 
 
 @dataclass(frozen=True)
@@ -345,10 +347,10 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
         duration = _num(top, 'duration', w, 40.0, lo=0.1, hi=3600.0)
     weather = _choice(top, 'weather', w, 'spring_sunny', WEATHERS)
     cover = _choice(top, 'ground_cover', w, 'snow' if weather.startswith('winter') else 'grass',
-                    ('grass', 'snow'))
+                    ('grass', 'dry_grass', 'snow'))
 
-    rd = _check_keys(top.get('road'), ('curves', 'guardrails', 'tree_line', 'overpasses'),
-                     f'{w}: road')
+    rd = _check_keys(top.get('road'), ('curves', 'guardrails', 'tree_line', 'overpasses',
+                                       'buildings'), f'{w}: road')
     curves = []
     for i, seg in enumerate(rd.get('curves') or []):
         if (not isinstance(seg, (list, tuple)) or len(seg) != 2
@@ -366,7 +368,8 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
         raise _err(f'{w}: road', f'overpasses must be a list of arc lengths, got {overpasses!r}')
     road = RoadSpec(tuple(curves), _bool(rd, 'guardrails', f'{w}: road', True),
                     _bool(rd, 'tree_line', f'{w}: road', True),
-                    tuple(float(x) for x in overpasses))
+                    tuple(float(x) for x in overpasses),
+                    _num(rd, 'buildings', f'{w}: road', 0.0, lo=0.0, hi=1.0))
 
     eg = _check_keys(top.get('ego'), ('speed', 'lane', 'start_s', 'jitter'), f'{w}: ego')
     ego = EgoSpec(_num(eg, 'speed', f'{w}: ego', DEFAULT_SPEED, lo=1.0, hi=60.0),
@@ -549,6 +552,14 @@ def random_scenario(seed: int) -> ScenarioSpec:
                         'cones': int(rng.integers(0, 4)), 'drums': int(rng.integers(0, 3)),
                         'general_signs': int(rng.integers(1, 6))},
     }
+    # Roadside dressing from its own generator (the draws above keep their layouts):
+    # warm mid-saturation surfaces (dry grass, brick and beige fronts) are the colour
+    # model's hard negatives on real roads.
+    dress = np.random.default_rng([int(seed), 7701])
+    if not data['weather'].startswith('winter') and dress.random() < 0.4:
+        data['ground_cover'] = 'dry_grass'
+    if dress.random() < 0.5:
+        data['road']['buildings'] = round(float(dress.uniform(0.1, 0.5)), 2)
     return parse_scenario(data, name=data['name'], source=f'random:{seed}')
 
 
@@ -1123,6 +1134,8 @@ class _Builder:
                                          self.world(float(rng.uniform(lo, hi)), d),
                                          float(rng.uniform(1.5, 2.8)),
                                          float(rng.uniform(6.0, 11.0)), 'tree'))
+        if spec.road.buildings > 0:
+            self.build_buildings(lo, hi)
         if spec.road.guardrails:
             s = lo + float(rng.uniform(50.0, 300.0))
             while s < hi:
@@ -1145,6 +1158,27 @@ class _Builder:
                 self.objects.append(Quad(self.new_id(), 'overpass', np.array(
                     [a + [0, 0, z1], b + [0, 0, z1], b + [0, 0, z0], a + [0, 0, z0]]),
                     'concrete'))
+
+    def build_buildings(self, lo: float, hi: float) -> None:
+        """Building fronts (brick, beige and tan siding) facing the road, 14-24 m out, on a
+        share ``road.buildings`` of 30-60 m stretches; own generator (other draws unchanged)."""
+        rng = np.random.default_rng([self.seed, 7702])
+        mats = ('brick', 'siding_beige', 'siding_tan')
+        for side in (1.0, -1.0):
+            s = lo
+            while s < hi:
+                seg = float(rng.uniform(30.0, 60.0))
+                if rng.random() < self.spec.road.buildings:
+                    width = float(rng.uniform(8.0, min(20.0, seg)))
+                    d = side * float(rng.uniform(14.0, 24.0))
+                    top = float(rng.uniform(4.0, 9.0))
+                    s0 = s + float(rng.uniform(0.0, seg - width))
+                    a, b = self.world(s0, d), self.world(s0 + width, d)
+                    corners = np.array([a + [0, 0, top], b + [0, 0, top], b, a]) if \
+                        side < 0 else np.array([b + [0, 0, top], a + [0, 0, top], a, b])
+                    self.objects.append(Quad(self.new_id(), 'building', corners,
+                                             str(rng.choice(mats))))
+                s += seg
 
     def build(self) -> tuple[Scene, EgoTrajectory, list[GtEvent]]:
         spec = self.spec

@@ -93,6 +93,10 @@ MATERIALS: dict[str, Material] = {m.name: m for m in (
     Material('grass', (55, 115, 70), 0.12),
     Material('snow', (235, 235, 240), 0.30),
     Material('tree', (40, 78, 45), 0.15),
+    Material('dry_grass', (92, 148, 176), 0.15),       # tan: hue near the sign's orange
+    Material('brick', (62, 78, 150), 0.20),
+    Material('siding_beige', (150, 178, 200), 0.30),
+    Material('siding_tan', (105, 140, 175), 0.25),
     Material('guardrail', (175, 178, 180), 0.30),
     Material('concrete', (160, 162, 165), 0.20),
     Material('sign_sheeting', (200, 200, 200), 0.95, True),   # colour comes from sign art
@@ -316,7 +320,7 @@ class Scene:
     signs: list[SignPanel] = field(default_factory=list)
     objects: list = field(default_factory=list)
     weather: str = 'spring_sunny'
-    ground_cover: str = 'grass'            # 'grass' or 'snow' beyond the shoulders
+    ground_cover: str = 'grass'            # 'grass', 'dry_grass' or 'snow' beyond the shoulders
     overpasses: list[float] = field(default_factory=list)   # arc lengths of overpass shadows
 
     def objects_at(self, t: float) -> list:

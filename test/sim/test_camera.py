@@ -263,3 +263,27 @@ def test_rendered_orange_differs_between_signs():
         hues.append(np.median(hsv[hsv[:, 1] > 100, 0]))
     assert max(hues) - min(hues) >= 3
     assert all(5 <= h <= 21 for h in hues)
+
+
+@pytest.mark.parametrize('weather', ['winter_overcast', 'spring_rain'])
+def test_fluorescent_orange_stays_saturated_in_grey_weather(weather):
+    # Real fluorescent sheeting stays vivid under a grey sky; before, the weather's grading
+    # left winter signs at a median saturation of ~64, duller than real asphalt in sun.
+    from workzone_ros.sim.sheet import demo_scene
+    scene, s0 = demo_scene(weather)
+    res = CameraRenderer(scene).render(0.0, ego_pose(scene.road, s0), 0)
+    hsv = cv2.cvtColor(res.image, cv2.COLOR_BGR2HSV)
+    sats = [np.median(px[px[:, 0] < 25, 1]) for h in res.signs
+            if signart.uses_orange(h.class_key)
+            for px in [hsv[res.label == h.sign_id]] if (px[:, 0] < 25).any()]
+    assert sats and min(sats) >= 100
+
+
+def test_roadside_dressing_buildings_and_dry_grass():
+    from workzone_ros.sim.scenario import build_scene, random_scenario
+    specs = [random_scenario(seed) for seed in range(2000, 2030)]
+    assert any(sp.ground_cover == 'dry_grass' for sp in specs)
+    spec = next(sp for sp in specs if sp.road.buildings > 0.2)
+    scene, _, _ = build_scene(spec, 0)
+    fronts = [o for o in scene.objects if o.kind == 'building']
+    assert fronts and {o.material for o in fronts} <= {'brick', 'siding_beige', 'siding_tan'}

@@ -91,6 +91,9 @@ def _sub_parser(cmd: str) -> argparse.ArgumentParser:
         p.add_argument('--size', type=_positive(int, 'size'), default=64)
     if cmd == 'pixels':
         p.add_argument('--frames', type=_positive(int, 'frames'), default=100)
+        p.add_argument('--fixed-camera', action='store_true',
+                       help='render from our camera mount only (default: height and pitch '
+                            'jittered per frame, so the colour prior generalises)')
     return p
 
 
@@ -145,7 +148,8 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f'{sum(counts.values())} crops in {out} '
                   f'({len(counts)} classes, index {out / "index.csv"})')
         else:
-            n = writer.export_pixels(out, specs, args.seed, args.frames)
+            n = writer.export_pixels(out, specs, args.seed, args.frames,
+                                     camera_jitter=not args.fixed_camera)
             print(f'{n} images and masks in {out}')
         return 0
     except (ScenarioError, SynthError, OSError) as exc:

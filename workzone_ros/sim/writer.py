@@ -677,12 +677,16 @@ def export_crops(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
 
 def export_pixels(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
                   frames: int = 100,
-                  progress: Optional[Callable[[str], None]] = _progress_printer()) -> int:
+                  progress: Optional[Callable[[str], None]] = _progress_printer(),
+                  camera_jitter: bool = True) -> int:
     """Images and pixel masks of the work-zone (orange) sign faces, for colour-model training.
 
     Writes ``images/<name>.png``, ``masks/<name>.png`` (255 on work-zone sign faces, from the
     renderer's per-pixel labels) and ``index.csv``.  Frames are spread over the moments
-    work-zone signs are 15-150 m ahead, plus some frames without any.
+    work-zone signs are 15-150 m ahead, plus some frames without any.  With
+    ``camera_jitter`` each frame's vehicle pose is raised by -0.3..+0.5 m and pitched by
+    +/-3 degrees (other vehicles, other mounts: the horizon and the signs' image rows move),
+    so a model's spatial prior is not tied to our camera.
 
     Returns:
         Number of frames written.
@@ -707,7 +711,13 @@ def export_pixels(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
             if n >= frames:
                 break
             t = k / FPS
-            res = world.renderer.render(t, world.ego.base_pose(t), k)
+            pose = world.ego.base_pose(t)
+            if camera_jitter:
+                jr = np.random.default_rng([seed, k, 7703])
+                lift = jr.uniform(-0.3, 0.5)
+                pose = replace(pose, position=pose.position + [0.0, 0.0, lift],
+                               pitch=pose.pitch + math.radians(jr.uniform(-3.0, 3.0)))
+            res = world.renderer.render(t, pose, k)
             mask = np.isin(res.label, list(wz_ids)).astype(np.uint8) * 255
             name = f'{spec.name}_{seed}_{k:05d}'
             cv2.imwrite(str(out / 'images' / f'{name}.png'), res.image)

@@ -42,7 +42,12 @@ the black border and the relation is close to identity; for a two-colour box it 
 band and the relation restores the white part exactly as the detector saw it, scaled with the
 tracked anchor.  The guard acts only on a detection that is not already extended (its box
 does not reach well below the coloured part): the colour detector now extends regulatory
-boxes itself, and its extension is kept.  ``anchor_on_color=False`` tracks the whole box
+boxes itself, and its extension is kept; and only when the box is also short for the sign
+(height / width well below the track's box, ``truncated_aspect``): in dim light the
+dominant hue often covers the whole face, a complete detection then has no box below its
+anchor either and must not be extended.  A complete detection's box is never replaced
+(``prefer_detection``); the relation matters while the track runs on its own, and it is
+always the last detection's own.  ``anchor_on_color=False`` tracks the whole box
 instead (the ablation).  A track is published on its own only when its target does not look
 like its surroundings nor has white bands (drums, cones): ``max_coast_*``; and (sign-likeness)
 its face is more saturated than its surroundings (``min_saturation_contrast``).  A track
@@ -172,6 +177,14 @@ class TrackerConfig:
             how much of the detection's histogram enters the model; the box geometry
             (``relation``) is the detection's own, so a track that then runs on its own
             keeps the geometry of its last good detection.  False: PR 6a5d439's blend.
+        truncated_aspect: two-colour guard: a detection whose box ends above the part the
+            track knows is extended by the track's geometry only when its height / width is
+            also below this times that of the track's box (0 = off: the previous rule, which
+            the seed rule keeps).  The coloured anchor alone does not tell a truncated box
+            from a complete one: in dim light the dominant hue covers the whole face, so a
+            complete detection has no box below its anchor either; on tuning paper_c 1111
+            the previous rule tripled such boxes (two-colour match 0.38 vs 0.58 detection
+            only; 0.62 with this check).
         max_coast_background_similarity: a track whose model resembles its surroundings
             more than this is published only with a detection, never on its own (on
             development bags every track that ran on its own on a sign stayed below 0.47;
@@ -179,6 +192,11 @@ class TrackerConfig:
         max_coast_white_fraction: with ``anchor_on_color``, a track whose coloured shape is
             more than this white (a drum's or cone's bands) never runs on its own (signs on
             development bags: at most 0.25).  1 = off.
+        white_bottom_share: ... unless at least this share of that white lies below the
+            lowest row where the colour dominates (``TargetModel.white_below``): a regulatory
+            face whose coloured shape covers its white bottom (dusk tuning bags: white
+            fraction 0.48, sign lost while the detector missed it), not a drum's or cone's
+            alternating bands (> 1 = off).
         min_saturation_contrast: sign-likeness gate (not in the seed): a track is published
             on its own only when the upper decile of its anchor's saturation exceeds that
             of its surroundings by this (saturation / 255; :func:`saturation_contrast`).
@@ -234,8 +252,10 @@ class TrackerConfig:
     fuse_bias: float = 0.1
     fuse_min_px: float = 0.0
     prefer_detection: bool = True
+    truncated_aspect: float = 0.7
     max_coast_background_similarity: float = 0.8
     max_coast_white_fraction: float = 0.35
+    white_bottom_share: float = 0.9
     min_saturation_contrast: float = 0.2
     growth_guard_needs_trend: bool = True
     max_ring_similarity: float = 0.6
@@ -264,12 +284,14 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
     the best Bhattacharyya coefficient alone picks the kernel size, mean-shift starts at
     the previous centre, an associated detection overwrites the track and no drift guards,
     publication gates or containment duplicates (``min_hits_to_coast`` = 2, as before).
-    The regulatory two-colour guard stays (``anchor_on_color``)."""
+    The regulatory two-colour guard stays (``anchor_on_color``) as it was committed
+    (``truncated_aspect=0``), so the baseline does not change."""
     return replace(config or TrackerConfig(), scales=SCALES, background_weighting=False,
                    surround_weight=0.0,
                    use_velocity=False, association='overwrite', max_ring_similarity=1.0,
                    max_growth_excess=0.0, max_coast_background_similarity=1.0,
                    max_coast_white_fraction=1.0, min_saturation_contrast=-1.0,
+                   truncated_aspect=0.0,
                    min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0)
 
 
@@ -495,6 +517,8 @@ class TargetModel:
         dark_fraction: share of the shape that is much darker than its colour (legend,
             border): signs have one, drums, cones and orange vehicles mostly do not.
         white_fraction: share of the shape that is white (a drum's or cone's bands).
+        white_below: share of that white below the lowest row where the colour dominates
+            (a regulatory sign's white bottom: near 1; a drum's or cone's bands: low).
         saturation_contrast: :func:`saturation_contrast` of the anchor in its frame
             (sign-likeness: sign faces are more saturated than their surroundings).
     """
@@ -509,6 +533,7 @@ class TargetModel:
     hue_hist: np.ndarray
     dark_fraction: float = 0.0
     white_fraction: float = 0.0
+    white_below: float = 0.0
     saturation_contrast: float = 0.0
 
     def box_from_anchor(self, anchor: Sequence[float]) -> tuple[float, float, float, float]:
@@ -542,9 +567,9 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     patch = cv2.cvtColor(np.ascontiguousarray(frame[yi0:yi1:s, xi0:xi1:s]), cv2.COLOR_BGR2HSV)
     m = shape_mask(patch)
     colored = m is not None
-    dark = white = 0.0
+    dark = white = white_below = 0.0
     if colored:
-        dark, white = _content(patch, m)
+        dark, white, white_below = _content(patch, m)
     anchor = (x, y, w, h)
     if colored and cfg.anchor_on_color:
         ys_, xs_ = np.nonzero(m)
@@ -600,22 +625,33 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     cv2.normalize(hue_hist, hue_hist, 0, 255, cv2.NORM_MINMAX)
     return TargetModel(q=q, qw=qw, mask=mask, relation=relation, anchor=anchor,
                        background_similarity=bg_sim, colored=colored, hue_hist=hue_hist,
-                       dark_fraction=dark, white_fraction=white,
+                       dark_fraction=dark, white_fraction=white, white_below=white_below,
                        saturation_contrast=sat_contrast)
 
 
-def _content(hsv: np.ndarray, mask: np.ndarray) -> tuple[float, float]:
-    """Dark and white shares of the shape, relative to the brightness of its colour."""
+def _content(hsv: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
+    """Dark and white shares of the shape, relative to the brightness of its colour, and the
+    share of its white below the lowest row where the colour dominates (``white_below``:
+    about 1 for a regulatory sign's white bottom, low for a drum's or cone's bands, which
+    have colour below them)."""
     inside = mask > 0
     n = int(inside.sum())
     if n == 0:
-        return 0.0, 0.0
-    s, v = hsv[..., 1][inside].astype(np.int16), hsv[..., 2][inside].astype(np.int16)
-    colour = s >= 100
-    ref = float(np.median(v[colour])) if colour.any() else float(np.median(v))
-    dark = float(np.count_nonzero(v < 0.5 * ref)) / n
-    white = float(np.count_nonzero((s < 60) & (v >= 0.75 * ref))) / n
-    return dark, white
+        return 0.0, 0.0, 0.0
+    s, v = hsv[..., 1].astype(np.int16), hsv[..., 2].astype(np.int16)
+    colour = (s >= 100) & inside
+    ref = float(np.median(v[colour])) if colour.any() else float(np.median(v[inside]))
+    dark = float(np.count_nonzero((v < 0.5 * ref) & inside)) / n
+    white_px = (s < 60) & (v >= 0.75 * ref) & inside
+    n_white = int(np.count_nonzero(white_px))
+    below = 0.0
+    if n_white:
+        rows_c = colour.sum(axis=1)
+        rows_w = white_px.sum(axis=1)
+        dom = np.nonzero(rows_c > rows_w)[0]
+        last = int(dom.max()) if dom.size else -1
+        below = float(rows_w[last + 1:].sum()) / n_white
+    return dark, n_white / n, below
 
 
 # --- localisation -------------------------------------------------------------------------
@@ -1078,6 +1114,8 @@ class MultiTracker:
             return False
         if target.saturation_contrast < cfg.min_saturation_contrast:
             return False
+        if target.white_below >= cfg.white_bottom_share:
+            return True       # white bottom under an orange top: a regulatory sign's face
         return not (cfg.anchor_on_color and target.white_fraction > cfg.max_coast_white_fraction)
 
     def _confident(self, tr: _Track) -> bool:
@@ -1087,12 +1125,15 @@ class MultiTracker:
             and tr.target.colored and tr.pred_rho >= cfg.min_similarity \
             and tr.target.background_similarity <= cfg.max_background_similarity
 
-    def _lost_white_part(self, old: TargetModel, new: TargetModel) -> bool:
+    def _lost_white_part(self, tr: _Track, new: TargetModel,
+                         box: Sequence[float]) -> bool:
         """Two-colour guard: the track knows a box reaching well beyond its coloured anchor
-        (the white part of a regulatory sign) and this detection covers much less of it."""
-        if not self.config.anchor_on_color:
+        (the white part of a regulatory sign) and this detection (``new``, box ``box``)
+        covers much less of it."""
+        cfg = self.config
+        if not cfg.anchor_on_color:
             return False
-        rel = old.relation
+        rel = tr.target.relation
         top = -rel[1]                            # box above the anchor, in anchor heights
         bottom = rel[1] + rel[3] - 1.0           # box below the anchor: the white part
         two_colour = bottom >= 0.4 and bottom >= 3.0 * max(top, 0.02)
@@ -1102,7 +1143,21 @@ class MultiTracker:
         # the coloured part) is truncated: the colour detector now extends regulatory boxes
         # itself, and replacing its extension by the track's older one lost accuracy.
         new_bottom = new.relation[1] + new.relation[3] - 1.0
-        return new_bottom < 0.5 * bottom
+        if new_bottom >= 0.5 * bottom:
+            return False
+        # ... and only when the box itself is short for the sign: its height over width
+        # well below that of the track's box.  The coloured anchor is not a stable measure
+        # of the orange part (in dim light the hull of the dominant hue often covers the
+        # whole face), so a complete detection whose anchor is the whole face also has no
+        # box below its anchor; extending it by the relation of an orange-band anchor
+        # tripled its height (tuning paper_c 1111).
+        if cfg.truncated_aspect > 0:
+            tb = tr.box
+            aspect_t = tb[3] / max(tb[2], 1e-6)
+            aspect_d = box[3] / max(box[2], 1e-6)
+            if aspect_d >= cfg.truncated_aspect * aspect_t:
+                return False
+        return True
 
     def _overgrown(self, tr: _Track) -> bool:
         """Drift guard: the tracked anchor grew past what perspective and the track's own
@@ -1160,7 +1215,7 @@ class MultiTracker:
         w_t = math.exp((s_t - top) / cfg.fuse_temperature) * size_factor(tr.pred_anchor)
         share = w_d / (w_d + w_t) if w_d + w_t > 0 else 1.0
         box_d = dm.box
-        truncated = self._lost_white_part(tr.target, new)
+        truncated = self._lost_white_part(tr, new, box_d)
         if truncated:
             box_d = tr.target.box_from_anchor(ad)        # two-colour guard (see _correct)
         at, bt = tr.pred_anchor, tr.pred_box
@@ -1199,7 +1254,7 @@ class MultiTracker:
             qw = (1 - a) * tr.target.qw + a * new.qw
             box = dm.box
             rel = tr.target.relation
-            if tracking and self._lost_white_part(tr.target, new):
+            if tracking and self._lost_white_part(tr, new, box):
                 # Two-colour guard: this detection covers only the coloured part of a box
                 # whose full extent the track knows (the detector missed the white bottom):
                 # keep the measured geometry instead of shrinking the box to the orange top.

@@ -114,6 +114,12 @@ _CORE_PARAMS = (
     Param('max_coast_white_fraction', _D.max_coast_white_fraction, 'a coloured shape this '
           'white (drum, cone bands) is never published on its own (1 = off)', min=0.0,
           max=1.0),
+    Param('white_bottom_share', _D.white_bottom_share, 'a shape with at least this share '
+          'of its white below its colour (regulatory white bottom) is exempt from the white '
+          'gate (> 1 = off)', min=0.0, max=2.0),
+    Param('truncated_aspect', _D.truncated_aspect, 'two-colour guard: a detection is '
+          "truncated only when its height/width is below this times the track's (0 = off)",
+          min=0.0, max=1.0),
     Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
           'less saturated than this above its surroundings is never published on its own '
           '(-1 = off)', min=-1.0, max=1.0),

@@ -572,7 +572,8 @@ def test_a_complete_detection_whose_anchor_is_the_whole_face_is_not_extended(asp
     fail).  The detection corrects the track directly (as when the tracked box is lost, or
     with seed 001's ``overwrite``), not through the fusion."""
     bg = background(26)
-    tracker = MultiTracker(TrackerConfig(truncated_aspect=aspect, association='overwrite'))
+    tracker = MultiTracker(TrackerConfig(truncated_aspect=aspect, association='overwrite',
+                                         anchor_kind_ratio=0.0))
     for i in range(8):
         img = bg.copy()
         cx, cy, w = 330 + 2 * i, 220 - 0.6 * i, 40 * 1.02 ** i
@@ -624,3 +625,28 @@ def test_a_white_bottom_runs_on_its_own_but_drum_bands_do_not(share):
     assert (alone['sign'] == 4) == (share <= 1.0), alone
 
 
+
+
+@pytest.mark.parametrize('ratio', [1.5, 0.0])
+def test_a_whole_face_anchor_is_not_extended_by_the_orange_band_relation(ratio):
+    """Two-colour guard, independent of the box aspect check (``truncated_aspect`` off): the
+    track learnt the orange band as its anchor; then the whole face takes the dominant hue,
+    so the detection's anchor is much taller for its width than the band.  It is another
+    part of the sign, the band's relation does not apply to it and the complete detection
+    is kept (``anchor_kind_ratio``); with 0 (off) the relation triples the box (can fail)."""
+    bg = background(28)
+    tracker = MultiTracker(TrackerConfig(anchor_kind_ratio=ratio, truncated_aspect=0.0,
+                                         association='overwrite'))
+    for i in range(8):
+        img = bg.copy()
+        cx, cy, w = 330 + 2 * i, 220 - 0.6 * i, 40 * 1.02 ** i
+        gt = draw_regulatory(img, cx, cy, w) if i < 4 else _tinted_regulatory(img, cx, cy, w)
+        out = tracker.step(img, [det(gt, kind='regulatory')])
+        assert [t.track_id for t in out] == [1]
+        if i >= 4:
+            b = out[0].box
+            iou = box_iou((b.x, b.y, b.w, b.h), gt)
+            if ratio > 0:
+                assert iou > 0.9, (i, b, gt)
+            else:
+                assert iou < 0.6, (i, b, gt)

@@ -185,6 +185,14 @@ class TrackerConfig:
             complete detection has no box below its anchor either; on tuning paper_c 1111
             the previous rule tripled such boxes (two-colour match 0.38 vs 0.58 detection
             only; 0.62 with this check).
+        anchor_kind_ratio: two-colour guard: a detection is extended only when its coloured
+            anchor is the same part of the sign as the track's, i.e. its height / width is at
+            most this times that of the track's anchor (0 = off, seed rule).  The anchor of
+            one sign switches between the orange band and the whole face (the hull of the
+            dominant hue covers the white part in some frames): extending a whole-face
+            anchor by the band's relation made the box three times too tall and, the
+            relation being kept, locked the track there (tuning paper_c 1121: match 0.47 vs
+            0.91 detection only; 0.89 with this check, no other tuning bag changed).
         max_coast_background_similarity: a track whose model resembles its surroundings
             more than this is published only with a detection, never on its own (on
             development bags every track that ran on its own on a sign stayed below 0.47;
@@ -257,6 +265,7 @@ class TrackerConfig:
     max_coast_white_fraction: float = 0.35
     white_bottom_share: float = 0.9
     min_saturation_contrast: float = 0.2
+    anchor_kind_ratio: float = 1.5
     growth_guard_needs_trend: bool = True
     max_ring_similarity: float = 0.6
     max_growth_excess: float = 0.3
@@ -291,7 +300,7 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
                    use_velocity=False, association='overwrite', max_ring_similarity=1.0,
                    max_growth_excess=0.0, max_coast_background_similarity=1.0,
                    max_coast_white_fraction=1.0, min_saturation_contrast=-1.0,
-                   truncated_aspect=0.0,
+                   truncated_aspect=0.0, anchor_kind_ratio=0.0,
                    min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0)
 
 
@@ -1145,6 +1154,16 @@ class MultiTracker:
         new_bottom = new.relation[1] + new.relation[3] - 1.0
         if new_bottom >= 0.5 * bottom:
             return False
+        # ... and only when the detection's coloured anchor is the same part of the sign as
+        # the one the relation was measured on: an anchor much taller for its width than the
+        # track's (the whole face took the dominant hue, the track knows the orange band)
+        # already holds the white part, and the band's relation would triple its box.
+        if cfg.anchor_kind_ratio > 0:
+            ta, na = tr.anchor, new.anchor
+            aspect_t = ta[3] / max(ta[2], 1e-6)
+            aspect_n = na[3] / max(na[2], 1e-6)
+            if aspect_n > cfg.anchor_kind_ratio * aspect_t:
+                return False
         # ... and only when the box itself is short for the sign: its height over width
         # well below that of the track's box.  The coloured anchor is not a stable measure
         # of the orange part (in dim light the hull of the dominant hue often covers the

@@ -120,6 +120,9 @@ _CORE_PARAMS = (
     Param('truncated_aspect', _D.truncated_aspect, 'two-colour guard: a detection is '
           "truncated only when its height/width is below this times the track's (0 = off)",
           min=0.0, max=1.0),
+    Param('anchor_kind_ratio', _D.anchor_kind_ratio, 'two-colour guard: a detection is '
+          "extended only when its coloured anchor's height/width is at most this times the "
+          "track's (0 = off)", min=0.0, max=10.0),
     Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
           'less saturated than this above its surroundings is never published on its own '
           '(-1 = off)', min=-1.0, max=1.0),

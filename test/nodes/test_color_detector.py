@@ -167,3 +167,14 @@ def test_no_rois_publisher_means_no_wait(ros, model_path):
     start = time.monotonic()
     assert ros.spin_until(lambda: got, timeout=4.0, each=lambda: img_pub.publish(msg))
     assert time.monotonic() - start < 4.0 and not node._pending
+
+
+def test_geometry_reference_parameter(ros, model_path):
+    """The mounting-height test's reference (fixed row or estimated horizon) is a node
+    parameter with checked choices."""
+    node = _node(ros, model_path, geometry_reference='horizon')
+    assert node._detector.config.geometry_reference == 'horizon'
+    assert node.set_parameters([Parameter('geometry_reference', value='fixed')])[0].successful
+    assert node._detector.config.geometry_reference == 'fixed'
+    assert not node.set_parameters([Parameter('geometry_reference',
+                                              value='sky')])[0].successful

@@ -45,3 +45,47 @@ def test_table_hsv_normalises_saturation():
     raw = cv2.cvtColor(dull, cv2.COLOR_BGR2HSV)[40, 40, 1]
     assert tc.table_hsv(dull, False, norm, 30)[40, 40, 1] > 2 * raw
     assert tc.table_hsv(dull, False, None, 30)[40, 40, 1] == raw
+
+
+def _folder(root, n, y_sign, seed):
+    """``n`` frames with an orange sign whose top is at ``y_sign`` (images/ and masks/)."""
+    (root / 'images').mkdir(parents=True)
+    (root / 'masks').mkdir()
+    rng = np.random.default_rng(seed)
+    for k in range(n):
+        img = np.full((120, 160, 3), (120, 122, 125), np.uint8)
+        img[:60] = (200, 150, 90)
+        img[60:70, 100:160] = (10, 205, 250)                       # saturated yellow
+        img = cv2.add(img, rng.integers(0, 10, img.shape, dtype=np.uint8))
+        mask = np.zeros(img.shape[:2], np.uint8)
+        img[y_sign:y_sign + 20, 20 + k:40 + k] = (0, 110, 245)
+        mask[y_sign:y_sign + 20, 20 + k:40 + k] = 255
+        cv2.imwrite(str(root / 'images' / f'f{k}.png'), img)
+        cv2.imwrite(str(root / 'masks' / f'f{k}.png'), mask)
+
+
+def test_train_gentle_with_geometry_from_fixed_camera_renders(tmp_path, capsys):
+    """``--boost gentle`` stores its stumps (the table equals them on every bin) and
+    ``--geometry-from`` takes the mounting limits from other (fixed-camera) folders."""
+    _folder(tmp_path / 'train', 4, 70, 0)          # jittered camera: signs low
+    _folder(tmp_path / 'fixed', 3, 20, 1)           # our camera: sign bottom 20 px above mid
+    out = tmp_path / 'm.npz'
+    rc = tc.main([str(tmp_path / 'train'), '-o', str(out), '--boost', 'gentle',
+                  '--estimators', '30', '--augment', '0', '--val-frac', '0',
+                  '--geometry-from', str(tmp_path / 'fixed'), '--geometry-margin', '0',
+                  '--no-sat-norm', '--no-gray-world'])
+    assert rc == 0
+    capsys.readouterr()
+    model = cm.load_model(out)
+    assert model.metadata['boost'] == 'gentle'
+    stumps = cm.GentleStumps(model.extras['gentle_stumps'])
+    assert len(stumps) == 30
+    h, s = np.meshgrid(np.arange(180), np.arange(256), indexing='ij')
+    F = cm.gentle_margin(stumps, np.column_stack([h.ravel(), s.ravel()])).reshape(180, 256)
+    np.testing.assert_allclose(model.lut('orange'), cm.logistic_link(F), atol=1e-6)
+    hsv = cv2.cvtColor(np.array([[(0, 110, 245), (10, 205, 250)]], np.uint8),
+                       cv2.COLOR_BGR2HSV)[0]
+    assert model.lut('orange')[hsv[0, 0], hsv[0, 1]] > 0.5
+    assert model.lut('orange')[hsv[1, 0], hsv[1, 1]] < 0.5
+    geo = model.extras['geometry']
+    assert geo[0] == 0.5 and abs(geo[1] - (-1.0)) < 1e-6      # (40 - 60) / 20, not (90-60)/20

@@ -82,7 +82,7 @@ from workzone_ros.interfaces import Box, Detection, Roi
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
-    'dominant_color',
+    'dominant_color', 'estimate_horizon',
 ]
 
 METHODS = ('learned', 'rgb_lp', 'hsv')
@@ -163,6 +163,14 @@ class DetectorConfig:
         lidar_only_min_share, lidar_only_max_share: the region's larger side as a share of
             the ROI's (the projector sizes ROIs from the candidate's radius and range).
         lidar_only_confidence: their confidence.
+        geometry_reference: the row the mounting-height test measures from: ``fixed`` (the
+            model's reference row, a fraction of the image height: our camera's horizon) or
+            ``horizon`` (the horizon estimated from the frames' lane lines,
+            :func:`estimate_horizon`, median of the last ``horizon_window`` reliable
+            estimates, one every ``horizon_every`` frames, forgotten after
+            ``horizon_memory`` frames; the test is off while there is no reliable
+            estimate).  The model's limits are relative to the true horizon of its
+            geometry renders, so ``horizon`` carries them to another camera.
         general_max_aspect, general_min_fill: seed 004 filters for red / yellow blobs.
         mser_delta: MSER delta of the ``rgb_lp`` method.
     """
@@ -216,6 +224,10 @@ class DetectorConfig:
     lidar_only_min_share: float = 0.12
     lidar_only_max_share: float = 0.9
     lidar_only_confidence: float = 0.3
+    geometry_reference: str = 'fixed'
+    horizon_every: int = 3
+    horizon_window: int = 15
+    horizon_memory: int = 90
     general_max_aspect: float = 1.6
     general_min_fill: float = 0.35
     mser_delta: int = 2
@@ -230,6 +242,8 @@ class DetectorConfig:
             raise ValueError('threshold must be in (0, 1)')
         if int(self.scale) < 1:
             raise ValueError('scale must be >= 1')
+        if self.geometry_reference not in ('fixed', 'horizon'):
+            raise ValueError("geometry_reference must be 'fixed' or 'horizon'")
 
 
 @dataclass
@@ -492,6 +506,80 @@ def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 1.0, max_thresholds:
     return RgbLpModel(chosen, meta)
 
 
+# --- the horizon --------------------------------------------------------------------------
+
+def estimate_horizon(bgr: np.ndarray, width: int = 320, top: float = 0.3, bottom: float = 0.95,
+                     min_angle: float = 15.0, max_angle: float = 75.0, min_len: float = 0.07,
+                     min_pairs: int = 3, max_spread: float = 0.04) -> Optional[float]:
+    """The horizon row of one frame from the vanishing point of the road's lane lines.
+
+    Line segments (Canny + probabilistic Hough, on the frame scaled to ``width``) between
+    rows ``top`` and ``bottom`` (fractions of the height) that slope by ``min_angle`` ..
+    ``max_angle`` degrees are split into left-leaning (rising to the right) and
+    right-leaning ones; every left / right pair is intersected, and the length-weighted
+    median row of the intersections is the horizon (a level road's lane lines meet there).
+
+    Returns:
+        The horizon row in pixels of ``bgr``, or None when the estimate is unreliable: fewer
+        than ``min_pairs`` pairs, or the weighted median absolute deviation of the
+        intersection rows above ``max_spread`` x the height, or a vanishing point below the
+        top of the segments that define it.
+    """
+    H, W = bgr.shape[:2]
+    if H < 16 or W < 16:
+        return None
+    f = min(1.0, width / float(W))
+    small = cv2.resize(bgr, (max(16, int(W * f)), max(16, int(H * f))),
+                       interpolation=cv2.INTER_AREA) if f < 1.0 else bgr
+    h, w = small.shape[:2]
+    y0, y1 = int(top * h), int(bottom * h)
+    gray = cv2.cvtColor(small[y0:y1], cv2.COLOR_BGR2GRAY)
+    edges = cv2.Canny(gray, 60, 160)
+    segs = cv2.HoughLinesP(edges, 1, np.pi / 180, 18, minLineLength=max(6, int(min_len * w)),
+                           maxLineGap=4)
+    if segs is None or len(segs) < 2:
+        return None
+    seg = np.asarray(segs).reshape(-1, 4).astype(np.float64)
+    seg[:, [1, 3]] += y0
+    dx, dy = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+    ang = np.degrees(np.arctan2(np.abs(dy), np.abs(dx)))
+    keep = (ang >= min_angle) & (ang <= max_angle)
+    seg, dx, dy = seg[keep], dx[keep], dy[keep]
+    if len(seg) < 2:
+        return None
+    slope = dy / np.where(dx == 0, 1e-9, dx)
+    length = np.hypot(dx, dy)
+    left, right = slope < 0, slope > 0           # y down: a left lane line rises to the right
+    if not left.any() or not right.any():
+        return None
+    # lines y = y_a + m (x - x_a); intersect every left with every right
+    la, ra = seg[left], seg[right]
+    ml, mr = slope[left][:, None], slope[right][None, :]
+    xl, yl = la[:, 0][:, None], la[:, 1][:, None]
+    xr, yr = ra[:, 0][None, :], ra[:, 1][None, :]
+    x = (yr - yl + ml * xl - mr * xr) / (ml - mr)
+    y = yl + ml * (x - xl)
+    wgt = length[left][:, None] * length[right][None, :]
+    # the vanishing point lies above both segments and not far outside the frame
+    top_l = np.minimum(la[:, 1], la[:, 3])[:, None]
+    top_r = np.minimum(ra[:, 1], ra[:, 3])[None, :]
+    ok = ((y <= np.minimum(top_l, top_r) + 2) & (y >= 0.05 * h) & (x >= -0.25 * w)
+          & (x <= 1.25 * w))
+    if np.count_nonzero(ok) < min_pairs:
+        return None
+    ys, ws = y[ok], wgt[ok]
+    order = np.argsort(ys)
+    ys, ws = ys[order], ws[order]
+    cw = np.cumsum(ws)
+    med = float(ys[np.searchsorted(cw, 0.5 * cw[-1])])
+    dev = np.abs(ys - med)
+    o2 = np.argsort(dev)
+    mad = float(dev[o2][np.searchsorted(np.cumsum(ws[o2]), 0.5 * cw[-1])])
+    if mad > max_spread * h:
+        return None
+    return med / f
+
+
 # --- the detector ------------------------------------------------------------------------
 
 class ColorDetector:
@@ -530,6 +618,29 @@ class ColorDetector:
         g = model.extras.get('geometry')
         self._geometry = ((float(g[0]), float(g[1]), float(g[2] if len(g) >= 3 else g[1]))
                           if g is not None and len(g) >= 2 else None)
+        self._frame_no = 0
+        self._horizons: list[tuple[int, float]] = []      # (frame number, row)
+        self._ref_row: Optional[float] = None             # this frame's reference row
+
+    def reset(self) -> None:
+        """Forget the horizon history (a new camera or clip)."""
+        self._frame_no = 0
+        self._horizons = []
+
+    def horizon(self) -> Optional[float]:
+        """The smoothed horizon row of the last frame (None: no reliable estimate)."""
+        cfg = self.config
+        recent = [r for k, r in self._horizons if self._frame_no - k <= cfg.horizon_memory]
+        return float(np.median(recent)) if recent else None
+
+    def _update_horizon(self, bgr: np.ndarray) -> None:
+        cfg = self.config
+        self._frame_no += 1
+        if (self._frame_no - 1) % max(1, cfg.horizon_every) == 0:
+            row = estimate_horizon(bgr)
+            if row is not None:
+                self._horizons.append((self._frame_no, row))
+                self._horizons = self._horizons[-max(1, cfg.horizon_window):]
 
     def with_config(self, **changes) -> 'ColorDetector':
         """A detector sharing the model with some parameters changed."""
@@ -574,6 +685,13 @@ class ColorDetector:
         height, width = bgr.shape[:2]
         s, sw, sh, thr_base, p_full, roi = self._frame_setup(width, height)
         cfg = self.config
+        self._ref_row = None
+        if self._geometry is not None and cfg.use_geometry:
+            if cfg.geometry_reference == 'horizon':
+                self._update_horizon(bgr)
+                self._ref_row = self.horizon()
+            else:
+                self._ref_row = self._geometry[0] * height
         # LiDAR ROIs in mask coordinates, expanded by roi_margin.
         lboxes = []
         for r in rois:
@@ -900,12 +1018,12 @@ class ColorDetector:
                 or max(aspect, 1 / aspect) > cfg.max_aspect / relax):
             return None
         geo = self._geometry
-        if geo is not None and cfg.use_geometry and not relaxed:
+        if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
             # Below the usual mounting (soft limit; portable stands stand low) only a clear
             # diamond face passes; below the lowest training sign (hard limit) nothing does.
-            rel = (y0 + by0 + bh - geo[0] * H) / bh
+            rel = (y0 + by0 + bh - self._ref_row) / bh
             if rel > geo[1]:
                 return None
             if rel > geo[2] and not (solidity >= cfg.low_min_solidity
@@ -995,11 +1113,17 @@ class ColorDetector:
         strip = bgr[y_top:y_max, max(0, x0):x1]
         if strip.size == 0:
             return
+        raw_s = None
         if self._gains is not None:
+            # white is judged both as the camera balanced it and after the grey-world gains:
+            # the gains remove a dusk cast from white sheeting, but under a blue sky they
+            # tint white sheeting yellow (S ~ 40..60) and the white part would be lost
+            raw_s = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)[..., 1]
             strip = apply_gains(strip, self._gains)
         strip = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
+        sat = strip[..., 1] if raw_s is None else np.minimum(strip[..., 1], raw_s)
         v_ref = float(np.median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
-        white = (strip[..., 1] <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
+        white = (sat <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
         # black legend rows inside the white part: judge rows on a short running window
         frac = white.mean(axis=1)
         k = max(1, int(round(cand.h * 0.25)))

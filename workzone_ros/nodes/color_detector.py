@@ -41,7 +41,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
-         'lidar_only_threshold')
+         'lidar_only_threshold', 'geometry_reference')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -92,6 +92,10 @@ class ColorDetectorNode(WorkzoneNode):
               min=0.0, max=0.3),
         Param('use_geometry', True, "reject orange blobs lower than the training signs' "
               'mounting height (model extra geometry)'),
+        Param('geometry_reference', 'fixed', "mounting-height test measured from the model's "
+              'fixed reference row (fixed: our camera) or from the horizon estimated from the '
+              "lane lines' vanishing point (horizon: any camera; off while unreliable)",
+              choices=('fixed', 'horizon')),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
         Param('rois_wait', 0.25, 'hold an image at most this long (wall time, s) for its '
               'ROIs when the ROI topic has a publisher; 0 = never wait', min=0.0, max=5.0),

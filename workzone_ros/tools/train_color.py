@@ -78,6 +78,19 @@ def load_pairs(dirs: list[str]) -> list[tuple[Path, Path]]:
     return pairs
 
 
+def mask_boxes(pairs) -> tuple[list, Optional[tuple[int, int]]]:
+    """Boxes (x, y, w, h) of the masks' connected components (>= 20 px) and the image size."""
+    boxes, size = [], None
+    for _, mp in pairs:
+        mask = cv2.imread(str(mp), cv2.IMREAD_GRAYSCALE)
+        if mask is None:
+            raise ValueError(f'unreadable mask {mp}')
+        size = (mask.shape[1], mask.shape[0])
+        n, _, stats, _ = cv2.connectedComponentsWithStats((mask > 0).astype(np.uint8))
+        boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n) if stats[i, 4] >= 20]
+    return boxes, size
+
+
 def _is_val(path: Path, frac: float) -> bool:
     return (zlib.crc32(path.stem.encode()) % 1000) / 1000.0 < frac
 
@@ -194,7 +207,21 @@ def main(argv: Optional[list[str]] = None) -> int:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('data', nargs='+', help='folder(s) with images/ and masks/')
     p.add_argument('-o', '--output', default=str(DEFAULT_OUT), help='model file (.npz)')
-    p.add_argument('--estimators', type=int, default=60, help='weak learners H (default 40)')
+    p.add_argument('--estimators', type=int, default=60, help='weak learners H (default 60)')
+    p.add_argument('--boost', choices=('discrete', 'gentle'), default='discrete',
+                   help='discrete: scikit-learn SAMME AdaBoost over decision stumps; gentle: '
+                        'Gentle AdaBoost over regression stumps (Friedman et al., the additive '
+                        'logistic model whose F the link g expects; default discrete)')
+    p.add_argument('--shrinkage', type=float, default=1.0,
+                   help='gentle: each stump scaled by this (default 1)')
+    p.add_argument('--geometry-from', nargs='+', default=None, metavar='DIR',
+                   help='mounting geometry from the masks of these folders instead of the '
+                        'training folders: renders from our fixed camera (synth pixels '
+                        '--fixed-camera), whose horizon is the --horizon-row; the detector '
+                        'compares with the horizon it estimates per frame')
+    p.add_argument('--horizon-row', type=float, default=0.5,
+                   help='true horizon row of the geometry renders, fraction of the height '
+                        '(our level camera: 0.5)')
     p.add_argument('--v-min', type=int, default=35, help='value gate (default 35)')
     p.add_argument('--ignore-s', type=int, default=0,
                    help='leave sign-face pixels with S below this out of training (default 0)')
@@ -239,6 +266,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='prior: sideways uncertainty, fraction of the image width')
     p.add_argument('--camera-zoom', type=float, default=0.25,
                    help='prior: focal length uncertainty (scale 1/(1+z) .. 1+z)')
+    p.add_argument('--metrics', action=argparse.BooleanOptionalAction, default=True,
+                   help='score the table on the training images (default on)')
+    p.add_argument('--counts', metavar='NPZ',
+                   help='bin-count cache: written after counting, read instead of counting '
+                        'when it exists (same data and counting options only; not with '
+                        '--rgb-lp)')
     p.add_argument('--rgb-lp', action='store_true',
                    help='also choose the seed 002 RGB thresholds (Boolean LP)')
     p.add_argument('--lp-w', type=float, default=1.0,
@@ -265,7 +298,14 @@ def main(argv: Optional[list[str]] = None) -> int:
     rng = np.random.default_rng(args.seed)
     sat_norm = cm.SatNorm(ref=args.sat_ref, max_gain=args.sat_max_gain) if args.sat_norm \
         else None
-    for ip, mp in train:
+    cached = None
+    if args.counts and Path(args.counts).exists() and not args.rgb_lp:
+        with np.load(args.counts, allow_pickle=False) as z:
+            cached = {k: z[k] for k in z.files}
+        pos, neg = cached['pos'], cached['neg']
+        boxes = [tuple(int(v) for v in b) for b in cached['boxes']]
+        size = tuple(int(v) for v in cached['size'])
+    for ip, mp in (train if cached is None else []):
         img0, face = _read(ip, mp)
         size = (img0.shape[1], img0.shape[0])
         n, _, stats, _ = cv2.connectedComponentsWithStats(face.astype(np.uint8))
@@ -298,9 +338,23 @@ def main(argv: Optional[list[str]] = None) -> int:
                 b_, _ = dt.rgb_histograms(img, ~face & use)
                 rgb_pos += a_
                 rgb_neg += b_
+    if args.counts and cached is None and size is not None:
+        # the bin counts depend on the data and the counting options only (not on the
+        # boosting options): keep them to refit with other --boost / --pos-weight / H
+        np.savez_compressed(args.counts, pos=pos, neg=neg,
+                            boxes=np.array(boxes, np.int64).reshape(-1, 4),
+                            size=np.array(size, np.int64))
     t_count = time.perf_counter() - t0
-    clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
-    lut = cm.boosted_lut(clf)
+    extras: dict = {}
+    if args.boost == 'gentle':
+        gentle = cm.fit_gentle(pos, neg, args.estimators, args.pos_weight, args.shrinkage)
+        lut = cm.gentle_lut(gentle)
+        extras['gentle_stumps'] = gentle.stumps
+        n_est = len(gentle)
+    else:
+        clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
+        lut = cm.boosted_lut(clf)
+        n_est = int(len(clf.estimators_))
     t_fit = time.perf_counter() - t0 - t_count
     jitter = (args.camera_pitch, args.camera_yaw, args.camera_zoom)
     prior = cm.fit_prior(boxes, size or (640, 480), saturate=args.prior_saturate,
@@ -309,7 +363,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
         'train_images': len(train), 'val_images': len(val),
-        'sign_boxes': len(boxes), 'estimators': int(len(clf.estimators_)),
+        'sign_boxes': len(boxes), 'estimators': n_est, 'boost': args.boost,
+        'shrinkage': args.shrinkage if args.boost == 'gentle' else None,
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
@@ -319,16 +374,22 @@ def main(argv: Optional[list[str]] = None) -> int:
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
-    # mounting geometry: sign bottoms relative to the mid row, in units of the sign height
-    rel = [(y + h - 0.5 * size[1]) / h for x, y, w, h in boxes if h >= 8] if size else []
-    extras: dict = {}
+    # mounting geometry: sign bottoms relative to the horizon row, in sign heights
+    g_boxes, g_size = boxes, size
+    if args.geometry_from:
+        g_boxes, g_size = mask_boxes(load_pairs(args.geometry_from))
+    row = args.horizon_row
+    rel = [(y + h - row * g_size[1]) / h for x, y, w, h in g_boxes if h >= 8] if g_size \
+        else []
     if rel:
         # [reference row, hard limit (the lowest sign seen, e.g. on a portable stand),
         #  soft limit (the usual mounting: below it only clear sign faces pass)]
         extras['geometry'] = np.array([
-            0.5, float(np.max(rel)) + args.geometry_margin,
+            row, float(np.max(rel)) + args.geometry_margin,
             float(np.quantile(rel, args.geometry_quantile)) + args.geometry_margin])
         meta['geometry'] = extras['geometry'].tolist()
+        meta['geometry_from'] = ([str(Path(d).resolve()) for d in args.geometry_from]
+                                 if args.geometry_from else 'training folders')
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)
@@ -336,8 +397,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['rgb_lp'] = lp.metadata
     model = cm.default_model(lut, args.v_min, prior, meta)
     model = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta, extras)
-    metrics = {'train': pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world,
-                                      sat_norm=sat_norm)}
+    metrics = {}
+    if args.metrics:
+        metrics['train'] = pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world,
+                                         sat_norm=sat_norm)
     if val:
         metrics['validation'] = pixel_metrics(lut, args.v_min, val,
                                               gray_world=args.gray_world, sat_norm=sat_norm)

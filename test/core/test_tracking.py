@@ -6,6 +6,8 @@ along a known path.  Positions are continuous image coordinates (pixel j covers 
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -522,6 +524,7 @@ def test_seed_config_keeps_the_seed_rule():
     assert s.scales == SCALES and s.association == 'overwrite' and not s.use_velocity
     assert s.min_hits_to_coast == 2 and s.min_saturation_contrast == -1.0
     assert s.duplicate_containment == 1.0 and s.max_coast_background_similarity == 1.0
+    assert s.ring_margin < 0 and s.size_history == 0
     ours = TrackerConfig()
     assert ours.min_hits_to_coast == 1 and ours.min_saturation_contrast > 0
     assert ours.duplicate_containment < 1.0 and ours.growth_guard_needs_trend
@@ -650,3 +653,85 @@ def test_a_whole_face_anchor_is_not_extended_by_the_orange_band_relation(ratio):
                 assert iou > 0.9, (i, b, gt)
             else:
                 assert iou < 0.6, (i, b, gt)
+
+
+# --- size prediction from the detections' perspective trend --------------------------------
+
+def test_predicted_size_follows_the_inverse_size_trend_and_ignores_one_outlier():
+    from workzone_ros.core.tracking import predicted_size
+    w = lambda t: 1.0 / (1 / 20.0 - 0.0015 * t)                      # noqa: E731
+    hist = [(t, w(t), 0.8 * w(t)) for t in range(0, 8)]
+    hist[5] = (5, 1.6 * w(5), 1.6 * 0.8 * w(5))                      # one too-wide detection
+    pw, ph = predicted_size(hist, 9)
+    assert abs(pw - w(9)) < 0.3 and abs(ph - 0.8 * w(9)) < 0.3, (pw, ph, w(9))
+    assert predicted_size(hist[:2], 9) is None                       # too few detections
+    assert predicted_size([(1, 10, 10), (1, 12, 12), (1, 11, 11)], 5) is None
+
+
+@pytest.mark.parametrize('history', [8, 0])
+def test_a_track_that_took_a_too_wide_box_takes_the_next_good_detection(history):
+    """The size-consistency factor of ``fuse`` also accepts the size the detections'
+    1/size trend predicts (``size_history``), not only the track's last box:
+    a track whose box became too wide (it took a detection merging the sign with its
+    surroundings) accepts the next correct detection; with the last box as the reference
+    (``size_history=0``) the wide track outvotes it."""
+    bg = background(10)
+    tracker = MultiTracker(TrackerConfig(size_history=history))
+    for i in range(7):
+        img = bg.copy()
+        cx, cy, size = path(i)
+        gt = draw_diamond(img, cx, cy, size)
+        tracker.step(img, [det(gt)])
+    tr = tracker._tracks[0]
+    a, b = tr.anchor, tr.box
+    k = 1.4
+    tr.anchor = (a[0] - (k - 1) / 2 * a[2], a[1] - (k - 1) / 2 * a[3], k * a[2], k * a[3])
+    tr.box = (b[0] - (k - 1) / 2 * b[2], b[1] - (k - 1) / 2 * b[3], k * b[2], k * b[3])
+    tr.target = replace(tr.target, anchor=tr.anchor)
+    img = bg.copy()
+    cx, cy, size = path(7)
+    gt = draw_diamond(img, cx, cy, size)
+    out = tracker.step(img, [det(gt)])
+    iou = box_iou(tracker._tracks[0].anchor, gt)
+    assert len(out) == 1
+    if history:
+        assert iou > 0.88, iou
+    else:
+        assert iou < 0.85, iou
+
+
+def _flags(img, box, width=0.15, col=(0, 110, 245)):
+    """Sign-coloured flags left and right of a sign's box (a stand's flags)."""
+    x, y, w, h = box
+    for fx in (x - width * w, x + w):
+        cv2.rectangle(img, (int(fx), int(y + 0.2 * h)), (int(fx + width * w), int(y + 0.8 * h)),
+                      col, -1)
+
+
+@pytest.mark.parametrize('margin', [0.1, -1.0])
+def test_a_sign_among_its_flags_runs_on_its_own_but_a_drift_into_orange_ends(margin):
+    """Ring drift guard relative to the ring at the detections (``ring_margin``): a sign
+    whose stand's flags make its ring high while it is detected keeps running on its own
+    through detector misses (the absolute threshold alone loses it); a track whose ring
+    jumps when an orange region surrounds it (a vehicle) still ends."""
+    bg = background(10)
+    for scene in ('flags', 'vehicle'):
+        tracker = MultiTracker(TrackerConfig(ring_margin=margin))
+        sources = []
+        for i in range(9):
+            img = bg.copy()
+            cx, cy, size = path(i)
+            box = (cx - size / 2, cy - size / 2, size, size)
+            if scene == 'flags':
+                _flags(img, box)
+            elif i >= 5:
+                cv2.rectangle(img, (int(cx - 1.5 * size), int(cy - 1.5 * size)),
+                              (int(cx + 1.5 * size), int(cy + 1.5 * size)), (0, 110, 245), -1)
+            gt = draw_diamond(img, cx, cy, size)
+            out = tracker.step(img, [det(gt)] if i < 5 else [])
+            sources.append(''.join(t.source[0] for t in out))
+        assert sources[:5] == ['d'] * 5
+        if scene == 'flags' and margin >= 0:
+            assert sources[5:] == ['t'] * 4, sources
+        else:
+            assert sources[5:] == [''] * 4, (scene, sources)

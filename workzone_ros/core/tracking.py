@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
 
 import cv2
@@ -164,6 +164,13 @@ class TrackerConfig:
             box geometry are refreshed in proportion to the detection's weight.
         fuse_temperature: score scale of the fusion weights.
         size_sigma: log-size tolerance of the size-consistency factor.
+        size_history: with ``fuse``, the size-consistency factor also accepts the size the
+            last ``size_history`` detected anchor sizes predict (besides the track's last
+            size times its growth; the closer of the two counts): a static sign's inverse
+            size falls linearly with time, so ``1 / size`` is fitted robustly (Theil-Sen:
+            median slope, median intercept) and extrapolated to the current frame.  A track
+            that took a too-wide box then still accepts the next correct detection.  Needs
+            three detections; 0 = the last size alone (as before).
         fuse_iou: anchor IoU at which the two boxes are averaged rather than chosen.
         fuse_bias: added to the detection's score: on development bags the colour score
             alone predicted poorly which box was better (correlation 0.1 with the IoU
@@ -214,6 +221,13 @@ class TrackerConfig:
         max_ring_similarity: drift guard: a track running on its own whose surroundings
             (the ``surround_size`` ring) look like its target more than this sits in a
             region much larger than its box (an orange vehicle): it is lost (1 = off).
+        ring_margin: with ``ring_margin`` >= 0 the drift guard also needs the ring to exceed
+            the ring the track's model had at its last detection by this margin: a sign
+            that stands among sign-coloured things (its stand's flags, a second sign) has a
+            high ring while it is detected too and keeps it, a track drifting into an orange
+            vehicle's region gains one (< 0 = off: the absolute threshold alone).  Only for
+            tracks with ``ring_margin_min_hits`` detections or more (a detector's false alarm
+            on an orange truck has a high ring from its first detection on).
         max_growth_excess: drift guard: a track running on its own whose anchor grew more
             than this fraction beyond the growth its detections showed (perspective: the
             inverse size of a static sign falls linearly with time) ends (0 = off).
@@ -268,7 +282,10 @@ class TrackerConfig:
     anchor_kind_ratio: float = 1.5
     growth_guard_needs_trend: bool = True
     max_ring_similarity: float = 0.6
+    ring_margin: float = 0.1
+    ring_margin_min_hits: int = 3
     max_growth_excess: float = 0.3
+    size_history: int = 8
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -301,7 +318,8 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
                    max_growth_excess=0.0, max_coast_background_similarity=1.0,
                    max_coast_white_fraction=1.0, min_saturation_contrast=-1.0,
                    truncated_aspect=0.0, anchor_kind_ratio=0.0,
-                   min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0)
+                   min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0,
+                   ring_margin=-1.0, size_history=0)
 
 
 # --- histograms ---------------------------------------------------------------------------
@@ -794,6 +812,35 @@ def score_box(win: SearchWindow, target: TargetModel, cx: float, cy: float, bx: 
     return rho, ring_sim
 
 
+def predicted_size(history: Sequence[tuple[float, float, float]],
+                   frame: float) -> Optional[tuple[float, float]]:
+    """Anchor size (w, h) expected at ``frame`` from detected sizes ``(frame, w, h)``.
+
+    A static sign's image size is ``f S / d`` with ``d`` falling at the ego speed, so
+    ``1 / size`` is linear in time.  Fitted per side with Theil-Sen (median of the pairwise
+    slopes, median intercept): robust to one or two wrong detections.
+
+    Returns:
+        The predicted size, or None with fewer than three distinct frames or a prediction
+        that is not positive.
+    """
+    if len({h[0] for h in history}) < 3:
+        return None
+    t = np.array([h[0] for h in history], float)
+    out = []
+    for k in (1, 2):
+        inv = 1.0 / np.maximum(np.array([h[k] for h in history], float), 1.0)
+        i, j = np.triu_indices(len(t), 1)
+        ok = t[j] != t[i]
+        slope = float(np.median((inv[j][ok] - inv[i][ok]) / (t[j][ok] - t[i][ok])))
+        icpt = float(np.median(inv - slope * t))
+        v = icpt + slope * frame
+        if v <= 1e-4:
+            return None
+        out.append(1.0 / v)
+    return out[0], out[1]
+
+
 def _ioa(a: Sequence[float], b: Sequence[float]) -> float:
     """Share of box ``b``'s area inside box ``a`` (0 when ``b`` is empty)."""
     iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
@@ -841,6 +888,8 @@ class _Track:
     since_ref: int = 0               # frames since then
     trend_known: bool = False        # inv_rate / growth measured between two detections
     fused_share: float = 1.0         # detection's weight in the last update
+    ref_ring: float = 0.0            # ring similarity at the last detection
+    det_sizes: list = field(default_factory=list)   # (frame, anchor w, anchor h) detected
 
 
 @dataclass
@@ -871,6 +920,7 @@ class MultiTracker:
         self._tracks: list[_Track] = []
         self._next_id = 1
         self.frames = 0
+        self._frame: Optional[np.ndarray] = None
         #: seconds spent in localisation per track in the last step (for the bench).
         self.last_localise_s: list[float] = []
 
@@ -936,6 +986,7 @@ class MultiTracker:
                                 f'{getattr(frame, "dtype", type(frame).__name__)}')
         cfg = self.config
         self.frames += 1
+        self._frame = frame
         H, W = frame.shape[:2]
         tracking = cfg.mode == 'detection_and_tracking'
         self.last_localise_s = []
@@ -1027,7 +1078,9 @@ class MultiTracker:
                     tr.box = (b[0] + vx, b[1] + vy, b[2], b[3])
                     survivors.append(tr)
                 continue
-            if tr.pred_ring > cfg.max_ring_similarity:
+            if tr.pred_ring > cfg.max_ring_similarity and (
+                    cfg.ring_margin < 0 or tr.hits < cfg.ring_margin_min_hits
+                    or tr.pred_ring > tr.ref_ring + cfg.ring_margin):
                 # Drift guard: the target's colour continues all around the box (the box sits
                 # in a much larger region of sign colour, e.g. an orange vehicle): not a sign
                 # anymore; coast blind like an occlusion and end unless a detection returns.
@@ -1055,6 +1108,9 @@ class MultiTracker:
             tr = _Track(self._next_id, dm.target, dm.target.anchor, dm.box, dm.det.kind,
                         dm.det.color, dm.det.confidence,
                         ref_width=max(dm.target.anchor[2], 1.0))
+            self._record_size(tr, dm.target.anchor)
+            if tracking and cfg.ring_margin >= 0:
+                tr.ref_ring = self._ring_at(frame, dm.target, dm.target.anchor)
             self._next_id += 1
             survivors.append(tr)
             out_det.append((di, self._payload(tr, 'detection')))
@@ -1220,13 +1276,19 @@ class MultiTracker:
         win = SearchWindow(frame, cx - m * ax - 2, cy - m * ay - 2, cx + m * ax + 3,
                            cy + m * ay + 3, _stride(ax, ay, cfg.max_samples), self._luts)
         rho_d, ring_d = score_box(win, tr.target, cx, cy, ax, ay, cfg)
+        tr.ref_ring = ring_d
         s_d = rho_d - cfg.surround_weight * ring_d + cfg.fuse_bias
         s_t = tr.pred_rho - cfg.surround_weight * tr.pred_ring
         g = math.exp(tr.growth)
-        pw, ph = max(tr.anchor[2], 1.0) * g, max(tr.anchor[3], 1.0) * g
+        refs = [(max(tr.anchor[2], 1.0) * g, max(tr.anchor[3], 1.0) * g)]
+        pred = predicted_size(tr.det_sizes, self.frames) if cfg.size_history > 0 else None
+        if pred is not None:
+            refs.append(pred)
+        self._record_size(tr, ad)
 
         def size_factor(a) -> float:
-            d2 = math.log(max(a[2], 1.0) / pw) ** 2 + math.log(max(a[3], 1.0) / ph) ** 2
+            d2 = min(math.log(max(a[2], 1.0) / pw) ** 2 + math.log(max(a[3], 1.0) / ph) ** 2
+                     for pw, ph in refs)
             return math.exp(-0.5 * d2 / cfg.size_sigma ** 2)
 
         top = max(s_d, s_t)
@@ -1263,11 +1325,30 @@ class MultiTracker:
         tr.similarity = min(1.0, max(0.0, sim))
         tr.kind, tr.color, tr.confidence = dm.det.kind, dm.det.color, dm.det.confidence
 
+    def _ring_at(self, frame: np.ndarray, target: TargetModel,
+                 anchor: Sequence[float]) -> float:
+        """Ring similarity (:func:`score_box`) of ``target`` around ``anchor``."""
+        cfg = self.config
+        ax, ay = max(anchor[2], 1.0) / 2, max(anchor[3], 1.0) / 2
+        cx, cy = anchor[0] + ax, anchor[1] + ay
+        m = cfg.surround_size
+        win = SearchWindow(frame, cx - m * ax - 2, cy - m * ay - 2, cx + m * ax + 3,
+                           cy + m * ay + 3, _stride(ax, ay, cfg.max_samples), self._luts)
+        return score_box(win, target, cx, cy, ax, ay, cfg)[1]
+
+    def _record_size(self, tr: _Track, anchor: Sequence[float]) -> None:
+        """Remember a detected anchor size for :func:`predicted_size`."""
+        n = self.config.size_history
+        if n > 0:
+            tr.det_sizes.append((float(self.frames), float(anchor[2]), float(anchor[3])))
+            del tr.det_sizes[:-n]
+
     def _correct(self, tr: _Track, dm: _DetModel, sim: float) -> None:
         cfg = self.config
         tracking = cfg.mode == 'detection_and_tracking'
         new = dm.target
         if new is not None:
+            self._record_size(tr, new.anchor)
             a = cfg.model_update
             q = (1 - a) * tr.target.q + a * new.q
             qw = (1 - a) * tr.target.qw + a * new.qw
@@ -1281,6 +1362,8 @@ class MultiTracker:
                 box = new.box_from_anchor(new.anchor)
             tr.target = replace(new, q=q / q.sum(), qw=qw / qw.sum())
             self._advance(tr, new.anchor, box)
+            if tracking and cfg.ring_margin >= 0:
+                tr.ref_ring = self._ring_at(self._frame, tr.target, new.anchor)
             self._measure_growth(tr)
         else:
             tr.box = dm.box           # no model from this box (mostly outside): keep the old

@@ -100,6 +100,9 @@ _CORE_PARAMS = (
           min=1e-3, max=1000.0),
     Param('size_sigma', _D.size_sigma, 'log-size tolerance of the size-consistency factor',
           min=1e-3, max=10.0),
+    Param('size_history', _D.size_history, 'fuse: detected sizes whose 1/size trend '
+          'predicts the size the detection is compared with (0 = last size)', min=0,
+          max=100),
     Param('fuse_iou', _D.fuse_iou, 'anchor IoU at which tracked and detected boxes are '
           'averaged rather than chosen', min=0.0, max=1.0),
     Param('fuse_bias', _D.fuse_bias, "added to the detection's score in the fusion",
@@ -126,6 +129,10 @@ _CORE_PARAMS = (
     Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
           'less saturated than this above its surroundings is never published on its own '
           '(-1 = off)', min=-1.0, max=1.0),
+    Param('ring_margin', _D.ring_margin, 'drift guard: the ring must also exceed the ring '
+          'at the last detection by this (< 0 = off)', min=-1.0, max=1.0),
+    Param('ring_margin_min_hits', _D.ring_margin_min_hits, 'ring_margin applies to tracks '
+          'with this many detections', min=0, max=1000),
     Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
           'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
     Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '

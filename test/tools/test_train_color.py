@@ -89,3 +89,26 @@ def test_train_gentle_with_geometry_from_fixed_camera_renders(tmp_path, capsys):
     assert model.lut('orange')[hsv[1, 0], hsv[1, 1]] < 0.5
     geo = model.extras['geometry']
     assert geo[0] == 0.5 and abs(geo[1] - (-1.0)) < 1e-6      # (40 - 60) / 20, not (90-60)/20
+
+
+def test_train_stores_relative_measurement(tmp_path, capsys):
+    """``--measure-relative EDGE BLUR`` writes the detector's box-measurement levels into the
+    model metadata (old models lack it and keep the absolute thresholds)."""
+    import pytest
+
+    from workzone_ros.core import detection as dt
+
+    _folder(tmp_path / 'train', 3, 30, 0)
+    out = tmp_path / 'm.npz'
+    base = [str(tmp_path / 'train'), '-o', str(out), '--boost', 'gentle', '--estimators', '5',
+            '--augment', '0', '--val-frac', '0', '--no-sat-norm', '--no-gray-world',
+            '--no-metrics']
+    assert tc.main(base + ['--measure-relative', '0.5', '0.4']) == 0
+    capsys.readouterr()
+    model = cm.load_model(out)
+    assert model.metadata['measure'] == {'mode': 'relative', 'edge_rel': 0.5, 'blur_rel': 0.4}
+    assert dt.ColorDetector(model)._relative == (0.5, 0.4)
+    with pytest.raises(SystemExit):
+        tc.main(base + ['--measure-relative', '1.5', '0.4'])
+    assert tc.main(base) == 0
+    assert 'measure' not in cm.load_model(out).metadata

@@ -35,7 +35,12 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    grown per blob from its own edge profile (``_border_growth``): by ``border_frac`` when the
    black border line lies outside the hull (margin and line lost), plus the width of the
    soft colour edge around it (blurred, small or rain-washed signs); a bright sign whose
-   margin is already inside the hull does not grow.  The confidence
+   margin is already inside the hull does not grow.  A model whose table scores the
+   blended edge smoothly (Gentle AdaBoost) says so in its metadata (``measure``: relative):
+   the box is taken from the blob's core (pixels at least ``edge_rel`` of the way from its
+   own background likelihood level to its face level) and grown by the blur rings judged on
+   the same relative scale (:func:`relative_measure`); which blobs are signs is still
+   judged on the absolute face.  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.
@@ -82,7 +87,7 @@ from workzone_ros.interfaces import Box, Detection, Roi
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
-    'dominant_color', 'estimate_horizon',
+    'dominant_color', 'estimate_horizon', 'relative_measure',
 ]
 
 METHODS = ('learned', 'rgb_lp', 'hsv')
@@ -582,6 +587,38 @@ def estimate_horizon(bgr: np.ndarray, width: int = 320, top: float = 0.3, bottom
 
 # --- the detector ------------------------------------------------------------------------
 
+def relative_measure(metadata: Any) -> Optional[tuple[float, float]]:
+    """The box-measurement levels a model file asks for (metadata ``measure``).
+
+    ``{"mode": "relative", "edge_rel": a, "blur_rel": b}``: every orange blob's box is the
+    bounding box of its core, the face pixels with likelihood at least ``base + a (face -
+    base)``, grown by 1-px rings whose mean likelihood is at least ``base + b (face -
+    base)``, where face and base are that blob's own face and background likelihood levels
+    (see ``ColorDetector._relative_levels``); the shape, legend and mounting-height tests
+    still use the absolute face.  For tables that score a sign's blended edge smoothly
+    (Gentle AdaBoost).  Absent (old models) or ``"mode": "absolute"``: the configured
+    ``weak_threshold`` and ``blur_like`` (tuned for step-shaped tables) give the box.
+
+    Raises:
+        ModelError: a malformed ``measure`` entry.
+    """
+    d = metadata.get('measure') if metadata else None
+    if not d:
+        return None
+    try:
+        mode = d.get('mode', 'absolute')
+        if mode == 'absolute':
+            return None
+        if mode != 'relative':
+            raise ValueError(f'unknown mode {mode!r}')
+        a, b = float(d['edge_rel']), float(d['blur_rel'])
+        if not (0.0 <= a <= 1.0 and 0.0 <= b <= 1.0):
+            raise ValueError('edge_rel and blur_rel must lie in [0, 1]')
+        return a, b
+    except (AttributeError, KeyError, TypeError, ValueError) as exc:
+        raise ModelError(f'malformed measure metadata {d!r}: {exc}') from None
+
+
 class ColorDetector:
     """Colour sign detector over a :class:`ColorModel` (and optional seed 002 thresholds).
 
@@ -621,6 +658,7 @@ class ColorDetector:
         self._frame_no = 0
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
+        self._relative = relative_measure(model.metadata)
 
     def reset(self) -> None:
         """Forget the horizon history (a new camera or clip)."""
@@ -983,7 +1021,17 @@ class ColorDetector:
         strong = ((like >= t - 1e-6) & (region > 0)).astype(np.uint8)
         if not strong.any():
             return None
-        weak = (like >= min(cfg.weak_threshold, t)).astype(np.uint8) | strong
+        weak_t, blur_t = min(cfg.weak_threshold, t), cfg.blur_like
+        rel = self._relative
+        edge_t = None
+        if rel is not None:
+            # the box edge relative to this blob's own levels (model metadata ``measure``):
+            # a smooth table scores a sign's blended edge anywhere between the face's level
+            # and the background's, so the absolute thresholds (set for a step-shaped table)
+            # would let the box grow into the blend.  Only the box moves: which blobs are
+            # signs is still judged on the absolute face below.
+            edge_t, blur_t = self._relative_levels(like, strong, region, rel)
+        weak = (like >= weak_t).astype(np.uint8) | strong
         size = max(fw, fh)
         k = max(3, int(round(cfg.close_frac * size)) | 1)
         kern = np.ones((k, k), np.uint8)
@@ -1045,7 +1093,16 @@ class ColorDetector:
         kind = ('warning' if hull_fill < cfg.diamond_hull_fill
                 and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
         conf = _mode(like[pix > 0])
-        grow, feats = self._border_growth(hmask, dark, like, min(bw, bh))
+        if edge_t is not None:
+            # the box from the face's core: its pixels at least ``edge_rel`` of the way
+            # from the background's likelihood level to the face's
+            core = (region_j & (like >= edge_t)).astype(np.uint8)
+            if np.count_nonzero(core) >= 3:
+                hull = cv2.convexHull(cv2.findNonZero(core))
+                bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
+                hmask = np.zeros_like(pix)
+                cv2.fillConvexPoly(hmask, hull, 1)
+        grow, feats = self._border_growth(hmask, dark, like, min(bw, bh), blur_t)
         if self.debug is not None:
             self.debug[-1].update(hull_box=(x0 + bx0, y0 + by0, bw, bh), vref=v_ref,
                                   relaxed=relaxed, **feats)
@@ -1063,8 +1120,26 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
 
+    @staticmethod
+    def _relative_levels(like: np.ndarray, strong: np.ndarray, region: np.ndarray,
+                         rel: tuple) -> tuple[float, float]:
+        """(edge, blur) likelihood thresholds of one blob from its own levels.
+
+        The face level is the mode of the blob's strong pixels' likelihood (the blob's
+        confidence, eq. 2), the background level the median likelihood of the measuring
+        window outside the (dilated) blob.  An edge blurred by the optics or by resampling
+        goes from one level to the other; ``rel = (edge_rel, blur_rel)`` place the core's
+        edge and the blur-ring thresholds at ``base + rel x (face - base)`` (0.5: the
+        half-maximum rule).
+        """
+        face = _mode(like[strong > 0])
+        outside = like[region == 0]
+        base = min(float(np.median(outside)) if outside.size else 0.0, face)
+        span = face - base
+        return base + rel[0] * span, base + rel[1] * span
+
     def _border_growth(self, hmask: np.ndarray, dark: np.ndarray, like: np.ndarray,
-                       size: int) -> tuple[float, dict]:
+                       size: int, blur_like: Optional[float] = None) -> tuple[float, dict]:
         """Per-side box growth of one blob from its own edge profile (fraction of its size).
 
         The sign art has a thin outer orange margin and a black border line inside it.  Two
@@ -1077,6 +1152,7 @@ class ColorDetector:
         ``border_mode='always'`` always grows (the old behaviour).
         """
         cfg = self.config
+        blur_like = cfg.blur_like if blur_like is None else blur_like
         r = max(1, int(round(cfg.border_frac * size)))
         k = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
         outer = (cv2.dilate(hmask, k) > 0) & (hmask == 0)
@@ -1090,7 +1166,7 @@ class ColorDetector:
         for _ in range(int(cfg.blur_max_frac * size) + 2):
             nxt = cv2.dilate(prev, ring_k)
             ring = (nxt > 0) & (prev == 0)
-            if not ring.any() or float(like[ring].mean()) < cfg.blur_like:
+            if not ring.any() or float(like[ring].mean()) < blur_like:
                 break
             blur, prev = blur + 1, nxt
         feats = dict(ring=out_dark, inner=in_dark, blur=blur)
@@ -1099,6 +1175,10 @@ class ColorDetector:
         if no == 0:
             return 0.0, feats
         line_out = (out_dark >= cfg.border_dark) if cfg.border_dark > 0 else out_dark >= in_dark
+        if self._relative is not None and in_dark >= 0.5:
+            # a smooth table's face reaches over the border line: a band just inside the
+            # hull that is mostly dark is the line itself, nothing is missing outside it
+            line_out = False
         return (cfg.border_frac if line_out else 0.0) + blur / float(size), feats
 
     def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:

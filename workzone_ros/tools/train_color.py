@@ -277,7 +277,17 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--lp-w', type=float, default=1.0,
                    help='seed 002 FN weight w, relative to the class sizes (default 1)')
     p.add_argument('--lp-max', type=int, default=6, help='seed 002 max thresholds (default 6)')
+    p.add_argument('--measure-relative', type=float, nargs=2, metavar=('EDGE', 'BLUR'),
+                   help='store box-measurement levels relative to each blob (model metadata '
+                        '"measure"): the box from the face pixels at least base + EDGE x '
+                        "(face - base) of the blob's own likelihood levels, grown by rings "
+                        'of mean at least base + BLUR x (face - base); for smooth tables '
+                        "(e.g. --boost gentle).  Default: the detector's "
+                        'absolute weak_threshold / blur_like')
     args = p.parse_args(argv)
+    if args.measure_relative is not None and not all(
+            0.0 <= v <= 1.0 for v in args.measure_relative):
+        p.error('--measure-relative levels must lie in [0, 1]')
 
     try:
         pairs = load_pairs(args.data)
@@ -390,6 +400,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['geometry'] = extras['geometry'].tolist()
         meta['geometry_from'] = ([str(Path(d).resolve()) for d in args.geometry_from]
                                  if args.geometry_from else 'training folders')
+    if args.measure_relative is not None:
+        meta['measure'] = {'mode': 'relative', 'edge_rel': args.measure_relative[0],
+                           'blur_rel': args.measure_relative[1]}
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)

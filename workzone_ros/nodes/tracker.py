@@ -129,6 +129,15 @@ _CORE_PARAMS = (
     Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
           'less saturated than this above its surroundings is never published on its own '
           '(-1 = off)', min=-1.0, max=1.0),
+    Param('saturation_reference', _D.saturation_reference, "sign-likeness: percentile of "
+          "the surroundings' saturation the face's upper decile is compared with (90 = the "
+          'previous rule)', min=0.0, max=100.0),
+    Param('min_chroma_contrast', _D.min_chroma_contrast, 'sign-likeness: a target whose '
+          'chroma (S*V) upper decile is less than this times that of its surroundings is '
+          'never published on its own (0 = off)', min=0.0, max=100.0),
+    Param('min_hits_after_loss', _D.min_hits_after_loss, 'a track that lost its target '
+          'since its last detection is published on its own again only with this many '
+          'detections (1 = always)', min=0, max=1000),
     Param('ring_margin', _D.ring_margin, 'drift guard: the ring must also exceed the ring '
           'at the last detection by this (< 0 = off)', min=-1.0, max=1.0),
     Param('ring_margin_min_hits', _D.ring_margin_min_hits, 'ring_margin applies to tracks '

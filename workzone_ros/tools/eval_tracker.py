@@ -12,8 +12,9 @@ lockstep, all from the same starts on the same frames:
 * ``meanshift``: our tracker (``TrackerConfig()`` defaults: fusion of tracked and detected
   boxes with an agreeing complete detection's box preferred, shrinking scales, drift guards,
   no tracking output for targets like their surroundings, with white bands or not more
-  saturated than their surroundings (sign-likeness; then one detection suffices to run on
-  its own), containment duplicates (orange-top tracks) removed);
+  saturated than their surroundings' median and more colourful (chroma) than them
+  (sign-likeness; then one detection suffices to run on its own), containment duplicates
+  (orange-top tracks) removed);
 * ``meanshift_overwrite``: ours with seed 001's association (the detection overwrites);
 * ``meanshift_seed``: seed 001's exact rule (``tracking.seed_config``: plain
   ``sqrt(t_u / c_u)`` weights, five only-larger kernels, best Bhattacharyya coefficient,

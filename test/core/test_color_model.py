@@ -159,6 +159,55 @@ def test_gray_world_removes_a_tint_and_is_clipped():
     assert min(gains) >= 0.6 and max(gains) <= 1.6
 
 
+def _clear_day(cast=(1.0, 1.0, 1.0)):
+    """A clear-day road frame: blue sky, green verges, grey asphalt, lane paint, a sign."""
+    img = np.empty((240, 320, 3), np.uint8)
+    img[:100] = (235, 170, 90)                                 # blue sky
+    img[100:140] = (50, 120, 60)                               # green verges
+    img[140:] = (92, 95, 98)                                   # asphalt, nearly neutral
+    img[200:204, 40:280] = (225, 228, 230)                     # lane paint
+    img[60:90, 150:180] = ORANGE                               # a sign face
+    return cm.apply_gains(img, cast)
+
+
+def _sat(bgr, rows, cols):
+    return float(np.median(cv2.cvtColor(bgr[rows, cols], cv2.COLOR_BGR2HSV)[..., 1]))
+
+
+def test_low_chroma_balance_leaves_a_clear_day_alone_where_grey_world_tints_the_road():
+    img = _clear_day()
+    road = (slice(150, 240), slice(0, 320))
+    by_mean = cm.apply_gains(img, cm.gray_world_gains(img))
+    by_low = cm.apply_gains(img, cm.low_chroma_gains(img))
+    assert _sat(by_mean, *road) > 60                           # grey world: orange asphalt
+    assert _sat(by_low, *road) < 15                            # low chroma: grey asphalt
+    assert _sat(by_low, slice(62, 88), slice(152, 178)) > 200  # the sign keeps its colour
+
+
+def test_low_chroma_balance_removes_a_cast_and_is_clipped():
+    img = _clear_day(cast=(0.7, 0.9, 1.3))                    # dusk / white-balance error
+    road = (slice(150, 240), slice(0, 320))
+    assert _sat(img, *road) > 80
+    gains = cm.low_chroma_gains(img)
+    assert _sat(cm.apply_gains(img, gains), *road) < 15
+    assert min(cm.low_chroma_gains(np.full((64, 64, 3), ORANGE, np.uint8))) >= 0.6
+    assert cm.low_chroma_gains(np.zeros((64, 64, 3), np.uint8)) == (1.0, 1.0, 1.0)
+
+
+def test_white_balance_from_model_metadata():
+    lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
+    img = _clear_day()
+    assert cm.default_model(lut, metadata={}).balance_gains(img) is None
+    old = cm.default_model(lut, metadata={'gray_world': True})    # models before the key
+    assert old.white_balance == 'grey_world'
+    assert old.balance_gains(img) == cm.gray_world_gains(img)
+    new = cm.default_model(lut, metadata={'gray_world': True, 'white_balance': 'low_chroma'})
+    assert new.balance_gains(img) == cm.low_chroma_gains(img)
+    with pytest.raises(cm.ModelError, match='unknown white_balance'):
+        cm.default_model(lut, metadata={'gray_world': True, 'white_balance': 'max_rgb'}
+                         ).balance_gains(img)
+
+
 def test_prior_saturation():
     boxes = [(400, 100, 40, 40)] * 10 + [(200, 120, 40, 40)]
     peaked = cm.fit_prior(boxes, (640, 480))

@@ -45,7 +45,8 @@ __all__ = [
     'ModelError', 'SCHEMA', 'VERSION', 'H_BINS', 'S_BINS', 'HSV_RANGES', 'ColorModel',
     'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
     'boosted_lut', 'hsv_range_lut', 'histogram_from_pixels', 'fit_prior', 'save_model',
-    'load_model', 'default_model', 'gray_world_gains', 'apply_gains', 'SatNorm',
+    'load_model', 'default_model', 'gray_world_gains', 'low_chroma_gains', 'WHITE_BALANCE',
+    'apply_gains', 'SatNorm',
     'saturation_gain', 'saturation_table', 'GentleStumps', 'fit_gentle', 'gentle_margin',
     'gentle_lut',
 ]
@@ -328,6 +329,43 @@ def gray_world_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6) -> tuple
     return tuple(float(np.clip(grey / max(c, 1.0), lo, hi)) for c in m)
 
 
+def low_chroma_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6, share: float = 0.2,
+                     iters: int = 2, top: float = 0.5) -> tuple:
+    """Per-channel gains that make the frame's least chromatic pixels grey.
+
+    Grey world (:func:`gray_world_gains`) assumes the frame averages to grey; a clear day's
+    blue sky and green verges do not, and its gains then tint the neutral asphalt orange
+    (13.9 % of the background of sunny renders passed the orange table that way).  Here only
+    the ``share`` of well-exposed pixels with the lowest chroma (max - min) / max in the
+    image below ``top`` (a road camera's ground: asphalt, lane paint, concrete; the sky is
+    left out, since a warm cast turns a blue sky grey), on a quarter-size copy, is averaged:
+    the ground as the light or the camera's white balance tints it.  A sign face is among the
+    most chromatic pixels of any frame and never takes part.  The selection is redone once
+    after the first gains (``iters``).  Clipped to [lo, hi].  Returns (b, g, r) gains.
+    """
+    bgr = bgr[int(bgr.shape[0] * top):]
+    h, w = bgr.shape[:2]
+    small = bgr if min(h, w) < 64 else cv2.resize(bgr, (w // 4, h // 4),
+                                                   interpolation=cv2.INTER_AREA)
+    px = small.reshape(-1, 3).astype(np.float32)
+    mx0 = px.max(axis=1)
+    px = px[(mx0 > 30) & (mx0 < 245)]            # neither dark noise nor clipped
+    if len(px) < 50:
+        return (1.0, 1.0, 1.0)
+    g = np.ones(3, np.float32)
+    for _ in range(max(1, iters)):
+        x = px * g
+        mx = x.max(axis=1)
+        c = (mx - x.min(axis=1)) / np.maximum(mx, 1.0)
+        m = x[c <= np.quantile(c, share)].mean(axis=0)
+        g = np.clip(g * m.mean() / np.maximum(m, 1.0), lo, hi)
+    return tuple(float(v) for v in g)
+
+
+#: White-balance estimators by model metadata name (``white_balance``).
+WHITE_BALANCE = {'grey_world': gray_world_gains, 'low_chroma': low_chroma_gains}
+
+
 def apply_gains(bgr: np.ndarray, gains: tuple) -> np.ndarray:
     """``bgr`` times per-channel ``gains``, saturated to uint8."""
     return cv2.transform(bgr, np.diag(np.asarray(gains, np.float64)))
@@ -547,6 +585,25 @@ class ColorModel:
         return bool(self.metadata.get('gray_world', False))
 
     @property
+    def white_balance(self) -> Optional[str]:
+        """The white-balance estimator the tables were trained with (None: none).
+
+        Models before ``white_balance`` existed mean grey world by ``gray_world`` true.
+        """
+        if not self.gray_world:
+            return None
+        name = self.metadata.get('white_balance') or 'grey_world'
+        if name not in WHITE_BALANCE:
+            raise ModelError(f'unknown white_balance {name!r} in model metadata '
+                             f'(known: {", ".join(WHITE_BALANCE)})')
+        return name
+
+    def balance_gains(self, bgr: np.ndarray) -> Optional[tuple]:
+        """The frame's white-balance gains as the model was trained (None: no balancing)."""
+        name = self.white_balance
+        return None if name is None else WHITE_BALANCE[name](bgr)
+
+    @property
     def sat_norm(self) -> Optional[SatNorm]:
         """The frame saturation normalisation the tables were trained with (or None)."""
         return SatNorm.from_mapping(self.metadata.get('sat_norm'))
@@ -554,8 +611,9 @@ class ColorModel:
     def normalised_hsv(self, bgr: np.ndarray, color: str = 'orange') -> np.ndarray:
         """The frame as the tables see it: grey-world balanced and saturation-normalised
         when the model was trained that way (the gain is computed on this frame)."""
-        if self.gray_world:
-            bgr = apply_gains(bgr, gray_world_gains(bgr))
+        gains = self.balance_gains(bgr)
+        if gains is not None:
+            bgr = apply_gains(bgr, gains)
         hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
         norm = self.sat_norm
         if norm is not None and color == 'orange':     # the learned table only

@@ -78,7 +78,6 @@ from workzone_ros.core.color_model import (
     ModelError,
     SpatialPrior,
     apply_gains,
-    gray_world_gains,
     saturation_gain,
     saturation_table,
 )
@@ -742,9 +741,9 @@ class ColorDetector:
                 lboxes.append((x0, y0, x1, y1))
         small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_AREA) if s > 1 else bgr
         self._gains = None
-        if cfg.method == 'learned' and self.model.gray_world and small.size:
-            # colour constancy outside the table (the model was trained this way)
-            self._gains = gray_world_gains(small)
+        if cfg.method == 'learned' and small.size:
+            # colour constancy outside the table (as the model was trained; None: none)
+            self._gains = self.model.balance_gains(small)
         self._sat_tab = None
         if self._sat_norm is not None and 'orange' in self._idx and small.size:
             # frame saturation normalisation (the model was trained this way), measured on

@@ -309,10 +309,11 @@ def evaluate_pixels(model: cm.ColorModel, folder: str, threshold: float) -> dict
                                                               root / row['mask']))
     lut = model.lut('orange')
     v = model.v_min[model.index('orange')]
-    gw, sn = model.gray_world, model.sat_norm
-    out = {w: pixel_metrics(lut, v, pairs, threshold, gw, sn) for w, pairs in by_weather.items()}
+    gw, sn, wb = model.gray_world, model.sat_norm, model.white_balance or 'grey_world'
+    out = {w: pixel_metrics(lut, v, pairs, threshold, gw, sn, wb)
+           for w, pairs in by_weather.items()}
     out['all'] = pixel_metrics(lut, v, [p for ps in by_weather.values() for p in ps],
-                               threshold, gw, sn)
+                               threshold, gw, sn, wb)
     return out
 
 

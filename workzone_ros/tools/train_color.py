@@ -163,10 +163,10 @@ def rotate_background_hue(img: np.ndarray, face: np.ndarray, rng: np.random.Gene
 
 
 def table_hsv(img: np.ndarray, gray_world: bool, sat_norm: Optional[cm.SatNorm],
-              v_min: int) -> np.ndarray:
-    """The frame's HSV as the orange table sees it (grey world, saturation norm)."""
+              v_min: int, white_balance: str = 'grey_world') -> np.ndarray:
+    """The frame's HSV as the orange table sees it (white balance, saturation norm)."""
     if gray_world:
-        img = cm.apply_gains(img, cm.gray_world_gains(img))
+        img = cm.apply_gains(img, cm.WHITE_BALANCE[white_balance](img))
     hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
     if sat_norm is not None:
         g = cm.saturation_gain(hsv, sat_norm, v_min)
@@ -175,7 +175,8 @@ def table_hsv(img: np.ndarray, gray_world: bool, sat_norm: Optional[cm.SatNorm],
 
 
 def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
-                  gray_world: bool = False, sat_norm: Optional[cm.SatNorm] = None) -> dict:
+                  gray_world: bool = False, sat_norm: Optional[cm.SatNorm] = None,
+                  white_balance: str = 'grey_world') -> dict:
     """Pixel accuracy of P(x | sign) >= threshold (and the value gate) against the masks.
 
     Positives are the orange pixels of the sign faces (:func:`orange_mask`); the black legend
@@ -187,7 +188,7 @@ def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
     tp = fp = fn = tn = 0
     for ip, mp in pairs:
         img, face = _read(ip, mp)
-        hsv = table_hsv(img, gray_world, sat_norm, v_min)
+        hsv = table_hsv(img, gray_world, sat_norm, v_min, white_balance)
         mask, use = orange_mask(hsv, face)
         pred = (lut[hsv[..., 0], hsv[..., 1]] >= threshold) & (hsv[..., 2] >= v_min)
         tp += int(np.count_nonzero(pred & mask))
@@ -248,6 +249,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--gray-world', action=argparse.BooleanOptionalAction, default=True,
                    help='grey-world balance every frame before the table (the detector then '
                         'does the same; default on)')
+    p.add_argument('--white-balance', choices=tuple(cm.WHITE_BALANCE), default='low_chroma',
+                   help='white-balance estimator when balancing (--gray-world): low_chroma '
+                        '(the least chromatic fifth of the frame is made grey; default) or '
+                        'grey_world (the frame mean; a clear sky and green verges then tint '
+                        'asphalt orange)')
     p.add_argument('--sat-norm', action=argparse.BooleanOptionalAction, default=True,
                    help='normalise each frame saturation before the table (the detector '
                         'then does the same; default on)')
@@ -325,9 +331,9 @@ def main(argv: Optional[list[str]] = None) -> int:
             img = img0 if a == 0 else augment(img0, rng)
             if a > 0 and rng.random() < args.bg_hue:
                 img = rotate_background_hue(img, face, rng)
-            hsv = table_hsv(img, args.gray_world, sat_norm, args.v_min)
+            hsv = table_hsv(img, args.gray_world, sat_norm, args.v_min, args.white_balance)
             if args.gray_world and args.rgb_lp and a == 0:
-                img = cm.apply_gains(img, cm.gray_world_gains(img))
+                img = cm.apply_gains(img, cm.WHITE_BALANCE[args.white_balance](img))
             if args.orange_only:
                 mask, use = orange_mask(hsv, face)
             else:
@@ -378,6 +384,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
+        'white_balance': args.white_balance,
         'sat_norm': sat_norm.to_dict() if sat_norm is not None else None,
         'augment': args.augment, 'augment_ranges': AUGMENT, 'bg_hue': args.bg_hue,
         'camera_jitter': list(jitter), 'seed': args.seed,
@@ -413,10 +420,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     metrics = {}
     if args.metrics:
         metrics['train'] = pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world,
-                                         sat_norm=sat_norm)
+                                         sat_norm=sat_norm, white_balance=args.white_balance)
     if val:
         metrics['validation'] = pixel_metrics(lut, args.v_min, val,
-                                              gray_world=args.gray_world, sat_norm=sat_norm)
+                                              gray_world=args.gray_world, sat_norm=sat_norm,
+                                              white_balance=args.white_balance)
     meta['metrics'] = metrics
     cm.save_model(model, args.output)
     print(json.dumps({'output': args.output, 'bytes': Path(args.output).stat().st_size,

@@ -16,6 +16,7 @@ from workzone_ros.core.tracking import (
     MultiTracker,
     TrackerConfig,
     TrackingError,
+    approach_rate,
     bhattacharyya,
     box_iou,
     build_target,
@@ -112,6 +113,12 @@ def center(b):
         (b[0] + b[2] / 2, b[1] + b[3] / 2)
 
 
+#: The hand-drawn paths grow about 2 % per frame at 40-90 px: an approach several times slower
+#: than the motion cue's minimum (``min_approach_rate``, a camera at 15 fps approaching at
+#: 10 m/s or more); tests of localisation and track life run without the cue.
+SLOW = dict(min_approach_rate=0.0)
+
+
 def path(i):
     """A sign drifting right and up, accelerating outward and growing 2 % per frame."""
     return 300 + 3 * i + 0.05 * i * i, 200 - 1.0 * i, 40 * 1.02 ** i
@@ -148,7 +155,7 @@ def test_target_histogram_is_normalised_and_distinct_from_background():
 
 def test_sign_moving_and_growing_is_followed_within_2px():
     bg = background()
-    tracker = MultiTracker(TrackerConfig())
+    tracker = MultiTracker(TrackerConfig(**SLOW))
     errors, size_err = [], []
     for i in range(40):
         img = bg.copy()
@@ -171,7 +178,7 @@ def test_sign_moving_and_growing_is_followed_within_2px():
 
 def test_occluded_frame_does_not_kill_the_track():
     bg = background(1)
-    tracker = MultiTracker(TrackerConfig())
+    tracker = MultiTracker(TrackerConfig(**SLOW))
     for i in range(20):
         img = bg.copy()
         cx, cy, size = path(i)
@@ -191,7 +198,7 @@ def test_occluded_frame_does_not_kill_the_track():
 def test_two_signs_side_by_side_keep_their_ids():
     bg = background(2)
     rng = np.random.default_rng(3)
-    tracker = MultiTracker(TrackerConfig())
+    tracker = MultiTracker(TrackerConfig(**SLOW))
     ids = {}
     for i in range(30):
         img = bg.copy()
@@ -291,7 +298,7 @@ def test_detection_only_mode_emits_only_detections():
 @pytest.mark.parametrize('anchor', [True, False])
 def test_regulatory_two_colour_box_keeps_its_white_part(anchor):
     bg = background(8)
-    tracker = MultiTracker(TrackerConfig(anchor_on_color=anchor))
+    tracker = MultiTracker(TrackerConfig(anchor_on_color=anchor, **SLOW))
     ious = []
     for i in range(25):
         img = bg.copy()
@@ -308,7 +315,7 @@ def test_regulatory_two_colour_box_keeps_its_white_part(anchor):
 
 def test_camshift_peer_follows_the_same_sign():
     bg = background(9)
-    tracker = MultiTracker(TrackerConfig(method='camshift'))
+    tracker = MultiTracker(TrackerConfig(method='camshift', **SLOW))
     ious = []
     for i in range(20):
         img = bg.copy()
@@ -456,7 +463,7 @@ def test_a_single_detection_is_followed_while_the_sign_grows(needs_trend):
     frame) within 2 px; the growth guard waits for a measured trend (without that rule the
     real growth counts as drift and the track ends)."""
     bg = background(22)
-    tracker = MultiTracker(TrackerConfig(growth_guard_needs_trend=needs_trend))
+    tracker = MultiTracker(TrackerConfig(growth_guard_needs_trend=needs_trend, **SLOW))
     errors = []
     for i in range(16):
         img = bg.copy()
@@ -476,7 +483,7 @@ def test_a_single_detection_is_followed_while_the_sign_grows(needs_trend):
 
 def test_coasting_through_two_missed_frames_on_a_growing_path_stays_within_2px():
     bg = background(23)
-    tracker = MultiTracker(TrackerConfig())
+    tracker = MultiTracker(TrackerConfig(**SLOW))
     for i in range(16):
         img = bg.copy()
         cx, cy, size = path(i)
@@ -715,7 +722,7 @@ def test_a_sign_among_its_flags_runs_on_its_own_but_a_drift_into_orange_ends(mar
     jumps when an orange region surrounds it (a vehicle) still ends."""
     bg = background(10)
     for scene in ('flags', 'vehicle'):
-        tracker = MultiTracker(TrackerConfig(ring_margin=margin))
+        tracker = MultiTracker(TrackerConfig(ring_margin=margin, **SLOW))
         sources = []
         for i in range(9):
             img = bg.copy()
@@ -818,7 +825,7 @@ def test_a_one_detection_track_that_lost_its_lock_waits_for_a_detection(min_hits
     it again (the test fails without the rule).  Tracks detected more often are published
     after an occlusion as before (test_occluded_frame_does_not_kill_the_track)."""
     bg = background(1)
-    tracker = MultiTracker(TrackerConfig(min_hits_after_loss=min_hits))
+    tracker = MultiTracker(TrackerConfig(min_hits_after_loss=min_hits, **SLOW))
     alone = []
     for i in range(8):
         img = bg.copy()
@@ -840,3 +847,63 @@ def test_a_one_detection_track_that_lost_its_lock_waits_for_a_detection(min_hits
     img = bg.copy()
     draw_diamond(img, *path(9))
     assert [t.source for t in tracker.step(img, [])] == ['tracking']
+
+
+# --- motion cue: a vehicle ahead vs a static sign ---------------------------------------------
+
+def _perspective(t, s0=24.0, rate=1.5e-3, direction=(0.83, -0.55), ratio=4.0):
+    """A static sign approached at constant speed: ``1 / size`` falls by ``rate`` per frame
+    and its offset from the focus of expansion (the image centre) is ``ratio`` sizes."""
+    s = 1.0 / (1.0 / s0 - rate * t)
+    return W / 2 + direction[0] * ratio * s, H / 2 + direction[1] * ratio * s, s
+
+
+def test_approach_rate_is_the_fall_of_the_inverse_size():
+    """:func:`approach_rate`: a static sign's inverse size falls linearly (``v / (f S)`` per
+    frame), measured from its size alone or from its offset from the focus of expansion; a
+    vehicle ahead at the ego speed (same size, same place) gives about 0; a short history
+    gives None."""
+    hist = [(float(t), *_perspective(t)[:2], _perspective(t)[2], _perspective(t)[2])
+            for t in range(12)]
+    assert approach_rate(hist) == pytest.approx(1.5e-3, rel=1e-6)            # size alone
+    assert approach_rate(hist, (W / 2, H / 2)) == pytest.approx(1.5e-3, rel=1e-6)
+    # The offset estimate: the same sign whose size the tracker did not follow.
+    flat = [(t, cx, cy, 30.0, 30.0) for t, cx, cy, _, _ in hist]
+    assert approach_rate(flat) == pytest.approx(0.0, abs=1e-9)
+    assert approach_rate(flat, (W / 2, H / 2)) > 1e-3
+    rng = np.random.default_rng(0)
+    ahead = [(float(t), 320 + rng.normal(0, 1), 260 + rng.normal(0, 1),
+              40 + rng.normal(0, 1), 20 + rng.normal(0, 0.5)) for t in range(15)]
+    assert abs(approach_rate(ahead, (W / 2, H / 2))) < 3e-4
+    assert approach_rate(hist[:5], (W / 2, H / 2)) is None                  # 4 frames
+
+
+@pytest.mark.parametrize('cue', [True, False])
+def test_a_target_that_keeps_its_place_and_size_is_not_published_on_its_own(cue):
+    """Motion cue (``min_approach_rate``): an orange target that stays at the same image
+    place and size for a second (a vehicle driving ahead) is not published while the
+    detector misses it; a sign approached in perspective (growing, moving away from the
+    focus of expansion) is.  Detections pass unchanged either way.  Without the cue
+    (``min_approach_rate=0``) both are published (the test fails without the rule)."""
+    cfg = TrackerConfig() if cue else TrackerConfig(min_approach_rate=0.0)
+    assert cfg.min_approach_rate > 0 or not cue
+    bg = background(2)
+    for moving in (False, True):
+        tracker = MultiTracker(cfg)
+        sources = []
+        for i in range(14):
+            img = bg.copy()
+            cx, cy, size = _perspective(i) if moving else (200.0, 180.0, 40.0)
+            gt = draw_diamond(img, cx, cy, size)
+            out = tracker.step(img, [det(gt)] if i < 10 else [])
+            sources.append([t.source for t in out])
+            if i >= 10 and out:
+                assert box_iou((out[0].box.x, out[0].box.y, out[0].box.w, out[0].box.h),
+                               gt) > 0.6
+        assert all(s == ['detection'] for s in sources[:10]), sources
+        alone = [s == ['tracking'] for s in sources[10:]]
+        if moving or not cue:
+            assert all(alone), (moving, cue, sources[10:])
+        else:
+            assert not any(alone), sources[10:]
+            assert tracker.active_ids == [1]          # it still runs, ready for a detection

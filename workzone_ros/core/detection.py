@@ -153,7 +153,12 @@ class DetectorConfig:
         white_s_max, white_v_rel: a pixel is white if S <= white_s_max and V >= white_v_rel x
             the orange blob's median V.
         ext_min_dark: smallest share of dark (legend, border) pixels in the white part; the
-            white part must also end (a bottom edge) within ``ext_max_ratio``.
+            white part must also end (a bottom edge) within its reach.
+        ext_max_wratio: the extension may also reach this many times the orange width
+            (a thin orange plaque over a tall white sign: R2-1 + G20-5aP is 1.75 w high).
+        ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
+            saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
+            white rows by up to ``ext_gap_w`` x the width.
         roi_prior, roi_threshold, roi_margin: LiDAR ROIs: prior and posterior threshold
             inside them, and the fraction of their size added around them.
         roi_relax: inside an ROI the hull-fill and solidity minima are multiplied (and the
@@ -217,6 +222,9 @@ class DetectorConfig:
     white_s_max: int = 45
     white_v_rel: float = 0.8
     ext_min_dark: float = 0.03
+    ext_max_wratio: float = 1.8
+    ext_gap_w: float = 0.6
+    ext_gap_s: int = 60
     roi_prior: float = 1.0
     roi_threshold: float = 0.3
     roi_margin: float = 0.25
@@ -1186,7 +1194,9 @@ class ColorDetector:
         H = bgr.shape[0]
         x0, x1 = int(cand.x), int(cand.x + cand.w)
         y_top = int(cand.y + cand.h)
-        y_max = min(H, int(y_top + cfg.ext_max_ratio * cand.h))
+        # reach: ``ext_max_ratio`` x the orange height, or (a thin plaque over a tall white
+        # sign, R2-1 + G20-5aP) up to ``ext_max_wratio`` x the width
+        y_max = min(H, int(y_top + max(cfg.ext_max_ratio * cand.h, cfg.ext_max_wratio * cand.w)))
         if y_max - y_top < 2:
             return
         strip = bgr[y_top:y_max, max(0, x0):x1]
@@ -1207,11 +1217,16 @@ class ColorDetector:
         frac = white.mean(axis=1)
         k = max(1, int(round(cand.h * 0.25)))
         smooth = np.convolve(frac, np.ones(k) / k, mode='full')[:len(frac)]
+        # rows of a large black legend (speed-limit numerals) are not white, but they are
+        # achromatic like the sheeting around them: such rows may separate white rows by up
+        # to ``ext_gap_w`` x the width (background rows, foliage or sky, are coloured)
+        achrom = np.median(sat, axis=1) <= cfg.ext_gap_s
+        gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
         run = 0
         for j, f in enumerate(smooth):
             if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
                 run = j + 1
-            elif j - run > k:
+            elif j - run > (gap if achrom[run:j + 1].all() else k):
                 break
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:

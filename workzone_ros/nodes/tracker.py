@@ -149,6 +149,21 @@ _CORE_PARAMS = (
           max=10.0),
     Param('growth_guard_needs_trend', _D.growth_guard_needs_trend, 'the growth guard acts '
           'only once two detections measured the trend'),
+    # Off unless configured (config/workzone.yaml turns it on): the node's own test draws a
+    # sign approached far slower (2 %/frame at 50 px) than the cue's minimum.
+    Param('min_approach_rate', 0.0, 'motion cue: a track whose inverse size (or offset from '
+          'the focus of expansion) falls slower than this per frame (1/px; v / (f S fps)) '
+          'is not published on its own (a vehicle ahead; 0 = off; core default '
+          f'{_D.min_approach_rate})', min=0.0, max=1.0),
+    Param('motion_window', _D.motion_window, 'motion cue: frames of track history used',
+          min=2, max=1000),
+    Param('motion_min_frames', _D.motion_min_frames, 'motion cue: judged only on a history '
+          'spanning at least this many frames', min=2, max=1000),
+    Param('focus_of_expansion', list(_D.focus_of_expansion), 'motion cue: focus of '
+          'expansion as image fractions [x, y] (straight ahead)'),
+    Param('radial_min_offset', _D.radial_min_offset, 'motion cue: the offset estimate '
+          'counts when the offset from the focus is at least this many box sizes',
+          min=0.0, max=100.0),
 )
 
 
@@ -156,6 +171,7 @@ def config_from_params(params: Any) -> TrackerConfig:
     """The core configuration from the node's ``params``."""
     values = {p.attr: getattr(params, p.attr) for p in _CORE_PARAMS}
     values['scales'] = tuple(float(v) for v in values['scales'])
+    values['focus_of_expansion'] = tuple(float(v) for v in values['focus_of_expansion'])
     return TrackerConfig(**values)
 
 

@@ -682,7 +682,8 @@ class ColorModel:
 
         With the frames' ``intrinsics`` (fx, fy, cx, cy in pixels) and a model that records
         its own, the normalised intrinsics (fx / width, fy / height, cx / width, cy / height)
-        must agree within ``tolerance`` (so a resized stream of the same camera matches);
+        must agree within the relative ``tolerance`` (a resized stream of the same camera
+        matches);
         otherwise the frame size must be the training size exactly: an unknown camera of
         another size is never assumed to look like ours.
         """

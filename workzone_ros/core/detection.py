@@ -7,6 +7,14 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    the model's value gate have no reliable hue and are left out.
 2. Posterior threshold P(x | sign) P(sign) >= tau (eq. 1), done as a comparison with the
    precomputed per-pixel threshold tau / P(sign).  Only the prior's ROI is evaluated (Fig. 1).
+   The heat map and its ROI are rows and columns of the training camera: frames of another
+   camera (another size, or other normalised intrinsics given with ``set_camera``) get a
+   location-free prior instead, the heat map's mean over its ROI relative to the table's
+   peak, over the whole frame, and no fixed-row mounting test (``camera_match``; on the real
+   722x406 dashcam clips the stretched 640x480 map put a sidewalk sign at the prior's floor,
+   where no likelihood can pass).  That prior demands the likelihood of saturated sign
+   sheeting (the default table's upper step, 0.97-0.99) and so also separates a sign from
+   warm mid-saturation brick, lawns and asphalt (0.65-0.78) behind it.
    This colour-only pass is the same with or without LiDAR.  A second pass then looks only
    at the LiDAR ROIs (``/workzone/rois``) that no colour detection explains (its centre
    inside): there the prior is raised to ``roi_prior`` and the lower ``roi_threshold`` is

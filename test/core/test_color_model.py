@@ -334,3 +334,42 @@ def test_gentle_stumps_validation_and_errors():
         cm.GentleStumps(np.array([[2.0, 1.0, 0.0, 0.0]]))
     with pytest.raises(cm.ModelError, match='both sign and background'):
         cm.fit_gentle(np.zeros((180, 256)), np.ones((180, 256)))
+
+
+def test_prior_expected_value_and_flat_prior():
+    """The location-free prior is the heat map's mean over its ROI; a flat prior is that
+    value everywhere; a uniform prior's expected value is 1."""
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2)
+    x, y, w, h = prior.roi
+    img = prior.prior_image(640, 480)
+    assert prior.expected() == pytest.approx(float(img[y:y + h, x:x + w].mean()), rel=1e-6)
+    assert 0.2 < prior.expected() < 1.0
+    assert cm.SpatialPrior.uniform(722, 406).expected() == pytest.approx(1.0)
+    flat = cm.SpatialPrior.flat(0.4, 722, 406)
+    assert np.allclose(flat.prior_image(361, 203), 0.4)
+    assert flat.roi_for(722, 406) == (0, 0, 722, 406)
+
+
+def test_model_camera_and_same_camera():
+    """Without camera metadata the training camera is the prior's image size (only that
+    exact size matches); with recorded intrinsics the normalised ones decide, so a resized
+    stream of the same camera matches and another lens of the same size does not."""
+    prior = cm.fit_prior([(380, 100, 80, 80)], (640, 480))
+    old = cm.default_model(prior=prior)
+    assert old.camera == {'width': 640.0, 'height': 480.0}
+    assert old.same_camera(640, 480)
+    assert not old.same_camera(722, 406)
+    assert not old.same_camera(1280, 960)
+    assert old.same_camera(640, 480, (554.0, 554.0, 320.0, 240.0))   # no intrinsics recorded
+    meta = {'camera': {'width': 640, 'height': 480, 'fx': 554.26, 'fy': 554.26, 'cx': 320,
+                       'cy': 240}}
+    new = cm.default_model(prior=prior, metadata=meta)
+    assert new.same_camera(640, 480)
+    assert new.same_camera(640, 480, (554.26, 554.26, 320.0, 240.0))
+    assert new.same_camera(1280, 960, (1108.5, 1108.5, 640.0, 480.0))    # resized stream
+    assert not new.same_camera(640, 480, (400.0, 400.0, 320.0, 240.0))    # wider lens
+    assert not new.same_camera(640, 480, (554.26, 554.26, 320.0, 300.0))  # other pitch
+    assert not new.same_camera(722, 406)
+    bad = cm.default_model(prior=prior, metadata={'camera': {'width': 'x'}})
+    with pytest.raises(cm.ModelError, match='camera'):
+        bad.camera

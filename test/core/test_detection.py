@@ -530,3 +530,102 @@ def test_relative_measurement_does_not_grow_over_an_inside_border_line():
                                           'blur_rel': 0.5}), cfg)
     assert old == pytest.approx(cfg.border_frac)
     assert rel._border_growth(hmask, dark, like, 40, 0.5)[0] == 0.0
+
+
+# --- frames of a camera the model was not trained on (#5 real frames) -------------------
+
+def test_other_camera_does_not_get_the_fixed_camera_prior(model):
+    """A 722x406 frame from an unknown camera: the prior's heat map (rows and columns of our
+    640x480 camera) is not stretched over it; a sign where that map is at its floor is
+    found.  The model's own camera still gets the heat map."""
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(colors=('orange',)))
+    img = _background(shape=(406, 722))
+    low = _diamond(img, 150, 300, 30)             # on a sidewalk, low left: heat at its floor
+    _one(det.detect(img), low)
+    assert det.same_camera(640, 480) and not det.same_camera(722, 406)
+    assert det.with_config(camera_match=False).detect(img) == []     # the stretched map
+    own = _background()
+    _diamond(own, 150, 360, 30)
+    assert det.detect(own) == []                  # our camera: the heat map applies
+
+
+def test_other_camera_has_no_fixed_row_mounting_test(model):
+    """The fixed mounting-height row is our camera's horizon: a low sign face in another
+    camera's frame is not judged by it (the same face in our camera's frame is); a 640x480
+    stream whose intrinsics say it is another lens is another camera too."""
+    meta = {'camera': {'width': 640, 'height': 480, 'fx': 554.26, 'fy': 554.26, 'cx': 320,
+                       'cy': 240}}
+    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta,
+                        {'geometry': np.array([0.5, 0.26])})
+    det = dt.ColorDetector(geo, dt.DetectorConfig(colors=('orange',), use_prior=False))
+    img = _background(shape=(406, 722))
+    low = _diamond(img, 300, 340, 30)
+    _one(det.detect(img), low)
+    assert det.with_config(camera_match=False).detect(img) == []
+    own = _background()
+    low = _diamond(own, 300, 400, 30)
+    assert det.detect(own) == []
+    det.set_camera((554.26, 554.26, 320.0, 240.0))
+    assert det.detect(own) == []
+    det.set_camera((380.0, 380.0, 320.0, 240.0))                   # a 80 deg lens
+    _one(det.detect(own), low)
+    _one(det.with_config(threshold=0.5).detect(own), low)          # with_config keeps it
+    det.set_camera(None)
+    assert det.detect(own) == []
+    with pytest.raises(ValueError, match='fx, fy, cx, cy'):
+        det.set_camera((1.0, 2.0))
+
+
+def _step_model(prior):
+    """A table shaped like the default model's: warm mid-saturation surfaces (brick, dry
+    lawns, beige fronts) at 0.75, the sign's saturated sheeting at 0.98."""
+    lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
+    lut[4:22, 48:144] = 0.75
+    lut[4:22, 144:] = 0.98
+    return cm.default_model(lut, 60, prior)
+
+
+def _brick_wall(img, x0, y0, x1, y1, seed=3):
+    brick = cv2.cvtColor(np.uint8([[[9, 120, 165]]]), cv2.COLOR_HSV2BGR)[0, 0].tolist()
+    cv2.rectangle(img, (x0, y0), (x1, y1), brick, -1)
+    for y in range(y0, y1, 12):                       # mortar courses
+        cv2.line(img, (x0, y), (x1, y), (150, 150, 150), 1)
+    noise = np.random.default_rng(seed).integers(0, 14, (y1 - y0, x1 - x0, 3), np.uint8)
+    img[y0:y1, x0:x1] = cv2.add(img[y0:y1, x0:x1], noise)
+
+
+def test_sign_in_front_of_a_brick_wall_is_separated():
+    """On an unknown camera the location-free prior (the heat map's mean over its ROI)
+    raises the posterior threshold above warm mid-saturation walls: the sign is found on
+    its own, not merged with the brick behind it (with the stretched heat map, or with no
+    prior, the wall joins the blob)."""
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
+    det = dt.ColorDetector(_step_model(prior), dt.DetectorConfig(colors=('orange',)))
+    img = _background(shape=(406, 722))
+    _brick_wall(img, 360, 30, 640, 250)
+    sign = _diamond(img, 474, 130, 36)
+    gt = Box(*map(float, sign))
+    dets = det.detect(img)
+    assert len(dets) == 1
+    d = dets[0].box
+    # the face alone (the box may still grow by the soft-edge rings the wall passes)
+    assert d.x <= gt.x + 2 and d.y <= gt.y + 2 and d.x2 >= gt.x2 - 2 and d.y2 >= gt.y2 - 2
+    assert d.w * d.h < 2.5 * gt.w * gt.h and d.iou(gt) >= 0.4
+    # the stretched heat map, no prior, or a location-free prior of 1: merged with the wall
+    for other in (det.with_config(camera_match=False), det.with_config(use_prior=False),
+                  det.with_config(foreign_prior=1.0)):
+        assert not [o for o in other.detect(img) if o.box.iou(gt) >= 0.3]
+
+
+def test_foreign_prior_config_and_default(model):
+    """foreign_prior 0 takes the model prior's ROI mean relative to the orange table's peak;
+    an explicit value is used as is; out-of-range values are refused."""
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(colors=('orange',)))
+    peak = float(model.lut('orange').max())
+    assert det.foreign_prior() == pytest.approx(min(1.0, prior.expected() / peak))
+    assert det.with_config(foreign_prior=0.7).foreign_prior() == pytest.approx(0.7)
+    for bad in (-0.1, 1.5):
+        with pytest.raises(ValueError, match='foreign_prior'):
+            dt.DetectorConfig(foreign_prior=bad)

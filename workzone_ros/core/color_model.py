@@ -462,6 +462,25 @@ class SpatialPrior:
         """A flat prior over the whole image (no location knowledge)."""
         return cls(np.ones((8, 8), np.float32), (width, height), (0, 0, width, height), 1.0)
 
+    @classmethod
+    def flat(cls, value: float, width: int, height: int) -> 'SpatialPrior':
+        """The same prior ``value`` at every location, the ROI the whole image."""
+        return cls(np.zeros((8, 8), np.float32), (width, height), (0, 0, width, height),
+                   float(np.clip(value, 1e-3, 1.0)))
+
+    def expected(self) -> float:
+        """The prior's mean over its ROI (the region where the training signs appeared).
+
+        What the model believes, on average, about a place where signs were seen at all,
+        without knowing which place it is: the location-free prior for frames of a camera
+        the heat map was not learnt on (:meth:`ColorModel.same_camera`), where the heat
+        map's rows and columns mean other directions.  A uniform prior gives 1.
+        """
+        width, height = self.image_size
+        x, y, w, h = self.roi
+        p = self.prior_image(width, height)[max(0, y):max(0, y + h), max(0, x):max(0, x + w)]
+        return float(p.mean()) if p.size else 1.0
+
 
 def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tuple[int, int],
               cell: int = 8, sigma_cells: float = 2.5, roi_level: float = 0.02,
@@ -632,6 +651,51 @@ class ColorModel:
         p = self.luts[i][hsv[..., 0], hsv[..., 1]]
         p[hsv[..., 2] < self.v_min[i]] = 0.0
         return p
+
+    @property
+    def camera(self) -> dict[str, float]:
+        """The training camera the prior and mounting geometry were learnt on.
+
+        Metadata ``camera`` (``width``, ``height`` and, when known, ``fx``, ``fy``, ``cx``,
+        ``cy`` in pixels) written by ``train color``; older files: the prior's image size.
+
+        Raises:
+            ModelError: a malformed ``camera`` entry.
+        """
+        d = self.metadata.get('camera') if self.metadata else None
+        if not d:
+            width, height = self.prior.image_size
+            return {'width': float(width), 'height': float(height)}
+        try:
+            out = {k: float(d[k]) for k in ('width', 'height')}
+            out.update({k: float(d[k]) for k in ('fx', 'fy', 'cx', 'cy') if k in d})
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelError(f'malformed camera metadata {d!r}: {exc}') from None
+        if out['width'] <= 0 or out['height'] <= 0:
+            raise ModelError(f'malformed camera metadata {d!r}: non-positive size')
+        return out
+
+    def same_camera(self, width: int, height: int,
+                    intrinsics: Optional[Sequence[float]] = None,
+                    tolerance: float = 0.02) -> bool:
+        """Whether frames of ``width`` x ``height`` come from the model's training camera.
+
+        With the frames' ``intrinsics`` (fx, fy, cx, cy in pixels) and a model that records
+        its own, the normalised intrinsics (fx / width, fy / height, cx / width, cy / height)
+        must agree within the relative ``tolerance`` (a resized stream of the same camera
+        matches);
+        otherwise the frame size must be the training size exactly: an unknown camera of
+        another size is never assumed to look like ours.
+        """
+        cam = self.camera
+        known = all(k in cam for k in ('fx', 'fy', 'cx', 'cy'))
+        if intrinsics is not None and known:
+            fx, fy, cx, cy = (float(v) for v in intrinsics)
+            mine = (cam['fx'] / cam['width'], cam['fy'] / cam['height'],
+                    cam['cx'] / cam['width'], cam['cy'] / cam['height'])
+            theirs = (fx / width, fy / height, cx / width, cy / height)
+            return all(abs(a - b) <= tolerance * abs(a) for a, b in zip(mine, theirs))
+        return (int(round(cam['width'])), int(round(cam['height']))) == (int(width), int(height))
 
     def with_prior(self, prior: SpatialPrior) -> 'ColorModel':
         """A copy with another prior (e.g. uniform)."""

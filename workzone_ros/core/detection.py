@@ -7,6 +7,14 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    the model's value gate have no reliable hue and are left out.
 2. Posterior threshold P(x | sign) P(sign) >= tau (eq. 1), done as a comparison with the
    precomputed per-pixel threshold tau / P(sign).  Only the prior's ROI is evaluated (Fig. 1).
+   The heat map and its ROI are rows and columns of the training camera: frames of another
+   camera (another size, or other normalised intrinsics given with ``set_camera``) get a
+   location-free prior instead, the heat map's mean over its ROI relative to the table's
+   peak, over the whole frame, and no fixed-row mounting test (``camera_match``; on the real
+   722x406 dashcam clips the stretched 640x480 map put a sidewalk sign at the prior's floor,
+   where no likelihood can pass).  That prior demands the likelihood of saturated sign
+   sheeting (the default table's upper step, 0.97-0.99) and so also separates a sign from
+   warm mid-saturation brick, lawns and asphalt (0.65-0.78) behind it.
    This colour-only pass is the same with or without LiDAR.  A second pass then looks only
    at the LiDAR ROIs (``/workzone/rois``) that no colour detection explains (its centre
    inside): there the prior is raised to ``roi_prior`` and the lower ``roi_threshold`` is
@@ -180,6 +188,22 @@ class DetectorConfig:
             ``horizon_memory`` frames; the test is off while there is no reliable
             estimate).  The model's limits are relative to the true horizon of its
             geometry renders, so ``horizon`` carries them to another camera.
+        camera_match: the spatial prior's heat map and ROI and the ``fixed`` mounting-height
+            row are our training camera's image rows and columns: apply them only to frames
+            from that camera (:meth:`ColorModel.same_camera`: the model's frame size, or its
+            normalised intrinsics when the node passes the frames' ones with
+            :meth:`ColorDetector.set_camera`).  Frames of another camera get the same prior
+            at every location, ``foreign_prior``, over the whole frame, and no fixed-row
+            mounting test (the ``horizon`` reference still applies: it is measured on the
+            frames).  False: the model's prior and row on any camera (the previous
+            behaviour).
+        foreign_prior: that location-free prior; 0: the model prior's mean over its ROI
+            (:meth:`SpatialPrior.expected`) relative to the orange table's peak
+            (:meth:`ColorDetector.foreign_prior`; default model 0.513 / 0.991: the
+            posterior threshold becomes 0.97, the likelihood of the sign's own saturated
+            sheeting, 0.98-0.99, not of warm mid-saturation walls, lawns and asphalt,
+            0.65-0.78).
+        camera_tolerance: relative tolerance of the normalised intrinsics comparison.
         general_max_aspect, general_min_fill: seed 004 filters for red / yellow blobs.
         mser_delta: MSER delta of the ``rgb_lp`` method.
     """
@@ -240,6 +264,9 @@ class DetectorConfig:
     horizon_every: int = 3
     horizon_window: int = 15
     horizon_memory: int = 90
+    camera_match: bool = True
+    foreign_prior: float = 0.0
+    camera_tolerance: float = 0.02
     general_max_aspect: float = 1.6
     general_min_fill: float = 0.35
     mser_delta: int = 2
@@ -256,6 +283,8 @@ class DetectorConfig:
             raise ValueError('scale must be >= 1')
         if self.geometry_reference not in ('fixed', 'horizon'):
             raise ValueError("geometry_reference must be 'fixed' or 'horizon'")
+        if not 0.0 <= self.foreign_prior <= 1.0:
+            raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
 
 
 @dataclass
@@ -666,6 +695,40 @@ class ColorDetector:
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
         self._relative = relative_measure(model.metadata)
+        self._intrinsics: Optional[tuple[float, float, float, float]] = None
+
+    def set_camera(self, intrinsics: Optional[Sequence[float]]) -> None:
+        """The frames' intrinsics (fx, fy, cx, cy in pixels, e.g. from CameraInfo; None:
+        unknown), compared with the model's training camera (``camera_match``)."""
+        new = None if intrinsics is None else tuple(float(v) for v in intrinsics)
+        if new is not None and len(new) != 4:
+            raise ValueError('intrinsics are (fx, fy, cx, cy)')
+        if new != self._intrinsics:
+            self._intrinsics = new
+            self._cache.clear()
+
+    def foreign_prior(self) -> float:
+        """The location-free prior used on another camera's frames (``foreign_prior``).
+
+        0 in the config: the model prior's mean over its ROI divided by the orange table's
+        peak.  The seed's posterior multiplies two factors each scaled to a peak of 1 (the
+        heat map by construction; the table is scaled here), so the posterior threshold
+        on another camera is the one the model applies at an average place of its own
+        ROI, relative to its most sign-like colour.
+        """
+        if self.config.foreign_prior > 0.0:
+            return float(self.config.foreign_prior)
+        peak = 1.0
+        if 'orange' in self._idx:
+            peak = max(float(self.model.luts[self._idx['orange']].max()), 1e-3)
+        return float(min(1.0, self.model.prior.expected() / peak))
+
+    def same_camera(self, width: int, height: int) -> bool:
+        """Whether the model's fixed-camera prior and mounting row apply to these frames."""
+        if not self.config.camera_match:
+            return True
+        return self.model.same_camera(width, height, self._intrinsics,
+                                      self.config.camera_tolerance)
 
     def reset(self) -> None:
         """Forget the horizon history (a new camera or clip)."""
@@ -689,24 +752,35 @@ class ColorDetector:
 
     def with_config(self, **changes) -> 'ColorDetector':
         """A detector sharing the model with some parameters changed."""
-        return ColorDetector(self.model, replace(self.config, **changes), self.rgb_lp)
+        det = ColorDetector(self.model, replace(self.config, **changes), self.rgb_lp)
+        det.set_camera(self._intrinsics)
+        return det
 
     # -- geometry caches --
     def _frame_setup(self, width: int, height: int) -> tuple:
         key = (width, height)
         if key not in self._cache:
-            s = int(self.config.scale)
+            cfg = self.config
+            s = int(cfg.scale)
             sw, sh = -(-width // s), -(-height // s)
-            prior = self.model.prior if self.config.use_prior else SpatialPrior.uniform(
-                width, height)
+            own = self.same_camera(width, height)
+            if not cfg.use_prior:
+                prior = SpatialPrior.uniform(width, height)
+            elif own:
+                prior = self.model.prior
+            else:
+                # another camera: the heat map's rows and columns are other directions
+                # there, so only its location-free content is kept (seed 000's prior is a
+                # property of the training camera, not of the signs)
+                prior = SpatialPrior.flat(self.foreign_prior(), width, height)
             p = prior.prior_image(sw, sh)
-            thr = np.clip(np.ceil(self.config.threshold / p * _P_SCALE), 0, 255).astype(np.uint8)
+            thr = np.clip(np.ceil(cfg.threshold / p * _P_SCALE), 0, 255).astype(np.uint8)
             p_full = prior.prior_image(width, height)
-            rx, ry, rw, rh = prior.roi_for(width, height) if self.config.use_prior else (
+            rx, ry, rw, rh = prior.roi_for(width, height) if cfg.use_prior else (
                 0, 0, width, height)
             roi = (max(0, rx // s), max(0, ry // s), min(sw, -(-(rx + rw) // s)),
                    min(sh, -(-(ry + rh) // s)))
-            self._cache[key] = (s, sw, sh, thr, p_full, roi)
+            self._cache[key] = (s, sw, sh, thr, p_full, roi, own)
         return self._cache[key]
 
     # -- the public API --
@@ -728,14 +802,15 @@ class ColorDetector:
             raise ValueError(f'expected an (H, W, 3) uint8 BGR image, got {bgr.shape} '
                              f'{bgr.dtype}')
         height, width = bgr.shape[:2]
-        s, sw, sh, thr_base, p_full, roi = self._frame_setup(width, height)
+        s, sw, sh, thr_base, p_full, roi, own = self._frame_setup(width, height)
         cfg = self.config
         self._ref_row = None
         if self._geometry is not None and cfg.use_geometry:
             if cfg.geometry_reference == 'horizon':
                 self._update_horizon(bgr)
                 self._ref_row = self.horizon()
-            else:
+            elif own:
+                # the training camera's horizon row; on another camera the row is unknown
                 self._ref_row = self._geometry[0] * height
         # LiDAR ROIs in mask coordinates, expanded by roi_margin.
         lboxes = []

@@ -27,7 +27,9 @@ same way: nonzero mask = work-zone sign face), then
    at all, e.g. on a portable stand, and how low it usually gets, ``--geometry-quantile``,
    relative to the image middle: unlike the prior this test is tied to the training
    camera's height and horizon; for another camera retrain it or set the detector's
-   ``use_geometry`` false);
+   ``use_geometry`` false).  Both are stored with the training camera (metadata ``camera``:
+   the frame size and, with ``--camera FX FY CX CY``, the intrinsics): the detector applies
+   them only to frames of that camera and uses a location-free prior on any other;
 7. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
 8. writes the versioned model file and prints training / validation pixel metrics.
 
@@ -220,6 +222,11 @@ def main(argv: Optional[list[str]] = None) -> int:
                         'training folders: renders from our fixed camera (synth pixels '
                         '--fixed-camera), whose horizon is the --horizon-row; the detector '
                         'compares with the horizon it estimates per frame')
+    p.add_argument('--camera', type=float, nargs=4, metavar=('FX', 'FY', 'CX', 'CY'),
+                   help='intrinsics (pixels) of the camera the training frames come from, '
+                        'stored in the model (metadata camera): the detector applies the '
+                        'prior and the fixed mounting row only to frames of this camera '
+                        '(without it: frames of the training size)')
     p.add_argument('--horizon-row', type=float, default=0.5,
                    help='true horizon row of the geometry renders, fraction of the height '
                         '(our level camera: 0.5)')
@@ -391,6 +398,11 @@ def main(argv: Optional[list[str]] = None) -> int:
         'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
+    if size is not None:
+        # the camera the prior and the mounting geometry belong to
+        meta['camera'] = {'width': int(size[0]), 'height': int(size[1])}
+        if args.camera:
+            meta['camera'].update(zip(('fx', 'fy', 'cx', 'cy'), map(float, args.camera)))
     # mounting geometry: sign bottoms relative to the horizon row, in sign heights
     g_boxes, g_size = boxes, size
     if args.geometry_from:

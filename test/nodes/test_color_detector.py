@@ -7,7 +7,7 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CameraInfo, Image
 from std_msgs.msg import String
 
 from workzone_ros import interfaces
@@ -15,7 +15,13 @@ from workzone_ros.core import color_model as cm
 from workzone_ros.interfaces import Box, Roi, Rois
 from workzone_ros.nodes.base import ConfigError
 from workzone_ros.nodes.color_detector import ColorDetectorNode
-from workzone_ros.nodes.conversions import make_header, numpy_to_image, payload_to_string
+from workzone_ros.nodes.conversions import (
+    CameraInfoData,
+    make_header,
+    numpy_to_camera_info,
+    numpy_to_image,
+    payload_to_string,
+)
 
 ORANGE = (0, 110, 245)
 
@@ -178,3 +184,34 @@ def test_geometry_reference_parameter(ros, model_path):
     assert node._detector.config.geometry_reference == 'fixed'
     assert not node.set_parameters([Parameter('geometry_reference',
                                               value='sky')])[0].successful
+
+
+def test_camera_info_decides_whether_the_model_prior_applies(ros, tmp_path):
+    """The model's fixed-camera prior applies to its own camera's frames only: CameraInfo
+    of the training camera keeps it, another lens at the same 640x480 size does not, and an
+    invalid CameraInfo is dropped with the last valid intrinsics kept."""
+    path = tmp_path / 'cam.npz'
+    cam = dict(width=640, height=480, fx=554.3, fy=554.3, cx=320.0, cy=240.0)
+    cm.save_model(cm.default_model(metadata={'camera': cam}), path)
+    node = _node(ros, str(path), use_prior=True, camera_info_topic='c/info')
+    peer = ros.add(rclpy.create_node('peer_info', context=ros.context))
+    pub = peer.create_publisher(CameraInfo, 'c/info', 10)
+
+    def info(fx):
+        return numpy_to_camera_info(CameraInfoData(640, 480, np.array(
+            [[fx, 0, 320.0], [0, fx, 240.0], [0, 0, 1]])))
+
+    assert node._detector.same_camera(640, 480)            # no CameraInfo yet: by size
+    assert ros.spin_until(lambda: node._intrinsics is not None,
+                          each=lambda: pub.publish(info(554.3)))
+    assert node._detector.same_camera(640, 480)
+    assert ros.spin_until(lambda: not node._detector.same_camera(640, 480),
+                          each=lambda: pub.publish(info(320.0)))     # a wide-angle lens
+    # a live parameter change keeps the camera
+    assert node.set_parameters([Parameter('threshold', value=0.6)])[0].successful
+    assert not node._detector.same_camera(640, 480)
+    bad = info(320.0)
+    bad.k = [0.0] * 9
+    assert ros.spin_until(lambda: any(s.dropped for s in node.topic_stats().values()),
+                          each=lambda: pub.publish(bad))
+    assert node._intrinsics[0] == 320.0

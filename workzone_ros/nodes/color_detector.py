@@ -22,7 +22,7 @@ import os
 import time
 from typing import Any, Optional
 
-from sensor_msgs.msg import CompressedImage, Image
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import String
 
 from workzone_ros import interfaces
@@ -41,7 +41,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
-         'lidar_only_threshold', 'geometry_reference')
+         'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -96,17 +96,26 @@ class ColorDetectorNode(WorkzoneNode):
               'fixed reference row (fixed: our camera) or from the horizon estimated from the '
               "lane lines' vanishing point (horizon: any camera; off while unreliable)",
               choices=('fixed', 'horizon')),
+        Param('camera_info_topic', '/camera/camera_info', "the frames' CameraInfo: the model's "
+              "spatial prior and fixed mounting row apply only to its own camera's frames "
+              '(camera_match); empty = judge by the frame size alone', read_only=True),
+        Param('camera_match', True, "apply the model's fixed-camera prior and mounting row "
+              "only to frames of the model's camera (size and normalised intrinsics); other "
+              'cameras get a location-free prior (foreign_prior)'),
+        Param('foreign_prior', 0.0, 'location-free prior on another camera (0: the model '
+              "prior's ROI mean relative to its table's peak)", min=0.0, max=1.0),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
         Param('rois_wait', 0.25, 'hold an image at most this long (wall time, s) for its '
               'ROIs when the ROI topic has a publisher; 0 = never wait', min=0.0, max=5.0),
         Param('rois_queue', 4, 'images held for their ROIs at most', min=1, max=50),
     )
-    INPUT_TOPICS = ('image_topic', 'rois_topic')
+    INPUT_TOPICS = ('image_topic', 'rois_topic', 'camera_info_topic')
 
     def __init__(self, **kwargs: Any) -> None:
         """Create the node; raises ConfigError on an unreadable model file."""
         super().__init__('color_detector', **kwargs)
         p = self.params
+        self._intrinsics: Optional[tuple[float, float, float, float]] = None
         path = p.model_path or DEFAULT_MODEL
         try:
             if p.model_path or os.path.exists(path):
@@ -141,6 +150,10 @@ class ColorDetectorNode(WorkzoneNode):
             self._rois_sub = self.reliable_subscription(String, p.rois_topic, self._on_rois,
                                                         depth=10)
             self._timer = self.create_timer(0.02, self._expire)
+        self._info_sub = None
+        if p.camera_info_topic:
+            self._info_sub = self.reliable_subscription(CameraInfo, p.camera_info_topic,
+                                                        self._on_info, depth=1)
 
     def _make_detector(self) -> ColorDetector:
         p = self.params
@@ -148,7 +161,9 @@ class ColorDetectorNode(WorkzoneNode):
         lp = None
         if 'rgb_lp_thresholds' in self._model.extras:
             lp = RgbLpModel(self._model.extras['rgb_lp_thresholds'])
-        return ColorDetector(self._model, cfg, lp)
+        det = ColorDetector(self._model, cfg, lp)
+        det.set_camera(self._intrinsics)
+        return det
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Rebuild the detector with the new values (rejected values never get here)."""
@@ -158,6 +173,20 @@ class ColorDetectorNode(WorkzoneNode):
             self.get_logger().error(f'parameter change not applied: {exc}')
 
     # -- callbacks --
+    def _on_info(self, msg: CameraInfo) -> None:
+        """The frames' intrinsics, for the detector's camera match (an invalid CameraInfo
+        raises ConversionError: dropped with its reason, the last valid one is kept)."""
+        k = conv.camera_info_to_numpy(msg).K
+        intrinsics = (float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]))
+        if intrinsics != self._intrinsics:
+            self._intrinsics = intrinsics
+            self._detector.set_camera(intrinsics)
+            same = self._detector.same_camera(int(msg.width), int(msg.height))
+            self.get_logger().info(
+                f'camera {msg.width}x{msg.height} fx {intrinsics[0]:.1f}: '
+                + ("the model's camera (its prior and mounting row apply)" if same else
+                   "not the model's camera: location-free prior, no fixed mounting row"))
+
     def _on_rois(self, msg: String) -> None:
         rois = conv.string_to_payload(msg, interfaces.Rois)
         stamp = rois.header.stamp.to_ns()

@@ -530,3 +530,72 @@ def test_relative_measurement_does_not_grow_over_an_inside_border_line():
                                           'blur_rel': 0.5}), cfg)
     assert old == pytest.approx(cfg.border_frac)
     assert rel._border_growth(hmask, dark, like, 40, 0.5)[0] == 0.0
+
+
+def _aa_diamond_mask(cx, cy, a, b, shape=(120, 120), ss=8):
+    """Coverage of a diamond at sub-pixel centre / half-diagonals, thresholded at 0.5."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h * ss, 0:w * ss]
+    inside = np.abs((xs + 0.5) / ss - cx) / a + np.abs((ys + 0.5) / ss - cy) / b <= 1.0
+    cover = inside.reshape(h, ss, w, ss).mean(axis=(1, 3))
+    return (cover >= 0.5).astype(np.uint8)
+
+
+@pytest.mark.parametrize('cx, cy, a, b', [(40.3, 50.6, 10.2, 10.7), (60.8, 55.1, 24.5, 23.0),
+                                          (58.4, 61.9, 41.0, 44.3)])
+def test_fit_diamond_recovers_a_diamond_with_flags_on_top(cx, cy, a, b):
+    mask = _aa_diamond_mask(cx, cy, a, b)
+    fit = dt.fit_diamond(mask)
+    assert fit is not None
+    assert abs(fit[0] - cx) < 0.5 and abs(fit[1] - cy) < 0.75
+    assert abs(fit[2] - a) < 1.0 and abs(fit[3] - b) < 1.0 and fit[4] > 0.8
+    # a portable stand's two orange flags just above the top corner
+    flags = mask.copy()
+    fy = int(cy - b)
+    for dx in (-0.35 * a, 0.35 * a):
+        r = max(2, int(0.3 * a))
+        cv2.fillConvexPoly(flags, np.array([[cx + dx, fy - 2 * r], [cx + dx + r, fy - r],
+                                            [cx + dx, fy], [cx + dx - r, fy - r]], np.int32),
+                           1)
+    ys = np.nonzero(flags.any(axis=1))[0]
+    assert ys[0] < cy - b - 2                 # the blob's box reaches over the flags
+    fit = dt.fit_diamond(flags)
+    assert fit is not None
+    assert abs(fit[1] - cy) < 1.0 and abs(fit[2] - a) < 1.0 and abs(fit[3] - b) < 1.5
+
+
+def test_fit_diamond_rejects_what_is_no_diamond():
+    rect = np.zeros((60, 60), np.uint8)
+    rect[10:40, 12:50] = 1
+    fit = dt.fit_diamond(rect)
+    assert fit is None or fit[4] < 0.5
+    assert dt.fit_diamond(np.zeros((10, 10), np.uint8)) is None
+    assert dt.fit_diamond(rect[:3]) is None
+
+
+def _flagged_diamond(img, cx, cy, r):
+    """A diamond on a portable stand with two orange flags above its top corner."""
+    gt = _diamond(img, cx, cy, r)
+    for dx in (-r // 3, r // 3):
+        q = max(3, r // 3)
+        top = cy - r + 2                       # mounted behind the top corner
+        cv2.fillConvexPoly(img, np.array([[cx + dx, top - 2 * q], [cx + dx + q, top - q],
+                                          [cx + dx, top], [cx + dx - q, top - q]], np.int32),
+                           ORANGE)
+    return gt
+
+
+@pytest.mark.parametrize('r', [12, 20, 35])
+def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
+    img = _background()
+    gt = _flagged_diamond(img, 420, 150, r)
+    d = _one(detector.detect(img), gt, 0.5)
+    _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
+    assert d.kind == 'warning'
+    assert precision > 0.8 and recall > 0.9
+    assert d.box.y >= gt[1] - 0.12 * gt[3] - 1      # the top edge at the top corner
+    # without the diamond fit the flags are part of the box (the test measures the change)
+    old = [c for c in detector.with_config(diamond_trim=-1.0).detect(img)
+           if c.box.iou(Box(*map(float, gt))) > 0.3]
+    assert old and old[0].box.y < min(d.box.y, gt[1]) - 0.1 * gt[3]
+    assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.05

@@ -131,6 +131,11 @@ class DetectorConfig:
             margin + 3 % black line, the margin blending into the background).  When the
             ring just outside the orange hull is dark enough (``border_dark``), the hull's
             box grows by this fraction of its size on every side.
+        diamond_trim: a blob that is not wide (w/h below ``ext_min_aspect``) and whose rows
+            mostly follow a fitted diamond (:func:`fit_diamond`) loses the rows more than
+            ``0.5 + diamond_trim x b`` px beyond the diamond's top or bottom corner (b: its
+            half-height) before its kind and box are measured: a portable stand's orange
+            flags above the top corner (negative: off).
         border_dark: share of dark pixels in the ring outside the hull that means "border
             line outside" (0: compare with the band just inside the hull instead).
         border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
@@ -206,6 +211,7 @@ class DetectorConfig:
     close_frac: float = 0.12
     weak_threshold: float = 0.3
     border_frac: float = 0.04
+    diamond_trim: float = 0.0
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -367,6 +373,74 @@ def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) 
     hist, edges = np.histogram(values, bins=bins, range=(lo, hi))
     i = int(np.argmax(hist))
     return float(0.5 * (edges[i] + edges[i + 1]))
+
+
+def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row centre, left edge, right edge) of every non-empty row of a binary mask.
+
+    Edges in continuous coordinates (pixel ``i`` spans ``[i, i + 1)``).
+    """
+    m = mask > 0
+    rows = np.nonzero(m.any(axis=1))[0]
+    if rows.size == 0:
+        return rows.astype(float), rows.astype(float), rows.astype(float)
+    sub = m[rows]
+    left = np.argmax(sub, axis=1).astype(float)
+    right = (m.shape[1] - np.argmax(sub[:, ::-1], axis=1)).astype(float)
+    return rows + 0.5, left, right
+
+
+def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float] = (0.7, 1.4)
+                ) -> Optional[tuple[float, float, float, float, float]]:
+    """Fit a diamond (axis-aligned diagonals) to a blob: ``(cx, cy, a, b, inliers)``.
+
+    A diamond ``|x - cx| / a + |y - cy| / b <= 1`` has half-width ``a - s |y - cy|`` at
+    row ``y`` (``s = a / b``): a tent over the rows, centred on ``cx`` on every row.  A
+    warning sign is a square diamond facing the road, so ``s`` lies near 1 (``slopes``:
+    the range allowed, for yaw and lens distortion).  The tent is found by consensus: for
+    every apex row ``cy`` on a half-pixel grid and slope in ``slopes`` the peak ``a`` is
+    the median over the rows, and the (cy, s) with the most rows within ``max(1, a/10)`` px
+    of the tent wins; least squares over those rows refines it.  An appendage of the same
+    colour (a portable stand's flags above the top corner, a post) does not follow the
+    tent and is left out; corners thinned by blur are extrapolated from the straight
+    edges.  ``inliers``: the share of the blob's rows on the tent.  Continuous
+    coordinates (pixel ``i`` spans ``[i, i + 1)``).  None: fewer than ``min_rows`` rows
+    or no tent.
+    """
+    yc, left, right = _row_extents(mask)
+    n = yc.size
+    if n < min_rows:
+        return None
+    half = 0.5 * (right - left)
+    mid = 0.5 * (right + left)
+    cys = np.arange(yc[0], yc[-1] + 0.01, 0.5)
+    ss = np.linspace(slopes[0], slopes[1], 15)
+    d = np.abs(yc[None, :] - cys[:, None])                        # (ncy, n)
+    base = half[None, None, :] + ss[None, :, None] * d[:, None, :]  # a estimates
+    a = np.median(base, axis=2)                                   # (ncy, ns)
+    res = np.abs(base - a[..., None])
+    tol = np.maximum(1.0, 0.1 * a)[..., None]
+    score = (res <= tol).sum(axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
+    k = int(np.argmax(score))
+    ic, js = divmod(k, ss.size)
+    keep = res[ic, js] <= tol[ic, js, 0]
+    if keep.sum() < min_rows:
+        return None
+    # least squares on the consensus rows, apex row refined on a quarter-pixel grid
+    best = None
+    for cy in np.arange(cys[ic] - 0.75, cys[ic] + 0.76, 0.25):
+        dd = np.abs(yc[keep] - cy)
+        A = np.column_stack([np.ones_like(dd), -dd])
+        sol = np.linalg.lstsq(A, half[keep], rcond=None)[0]
+        r = half[keep] - A @ sol
+        if slopes[0] * 0.8 <= sol[1] <= slopes[1] * 1.25 and (best is None or r @ r < best[0]):
+            best = (float(r @ r), float(cy), float(sol[0]), float(sol[1]))
+    if best is None:
+        best = (0.0, float(cys[ic]), float(a[ic, js]), float(ss[js]))
+    _, cy, aa, slope = best
+    if aa <= 0:
+        return None
+    return float(np.median(mid[keep])), cy, aa, aa / slope, float(keep.mean())
 
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
@@ -1096,6 +1170,20 @@ class ColorDetector:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
                 return None
+        if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
+            # rows beyond a fitted diamond's corners are not the face (a portable stand's
+            # orange flags above the top corner): shape, kind and box go without them
+            trimmed = self._trim_to_diamond(pix, cfg.diamond_trim)
+            if trimmed is not None:
+                # the cut-off part must not come back as the border's blur rings
+                like = np.where((pix > 0) & (trimmed == 0), np.float32(0), like)
+                pix = trimmed
+                hull = cv2.convexHull(cv2.findNonZero(pix))
+                bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
+                hmask = np.zeros_like(pix)
+                cv2.fillConvexPoly(hmask, hull, 1)
+                hull_fill = max(float(cv2.contourArea(hull)), 1.0) / (bw * bh)
+                aspect = bw / bh
         # diamonds are about square; a wide blob is a rectangle (or the orange top of one)
         kind = ('warning' if hull_fill < cfg.diamond_hull_fill
                 and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
@@ -1126,6 +1214,32 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    @staticmethod
+    def _trim_to_diamond(pix: np.ndarray, tol: float) -> Optional[np.ndarray]:
+        """``pix`` without the rows beyond the fitted diamond's corners (None: none are).
+
+        Rows further than ``0.5 + tol x b`` px above the top corner or below the bottom
+        corner of :func:`fit_diamond`'s diamond are dropped (the margin keeps a corner that
+        the fit's noisy slope put a little short).
+        """
+        fd = fit_diamond(pix)
+        if fd is None:
+            return None
+        _, cy, _, b, inl = fd
+        if inl < 0.5:
+            return None
+        margin = 0.5 + tol * b
+        lo, hi = int(math.floor(cy - b - margin)), int(math.ceil(cy + b + margin))
+        rows = np.nonzero(pix.any(axis=1))[0]
+        if rows.size == 0 or (rows[0] >= lo and rows[-1] < hi):
+            return None
+        out = pix.copy()
+        out[:max(lo, 0)] = 0
+        out[max(hi, 0):] = 0
+        if np.count_nonzero(out) < 0.5 * np.count_nonzero(pix):
+            return None
+        return out
 
     @staticmethod
     def _relative_levels(like: np.ndarray, strong: np.ndarray, region: np.ndarray,

@@ -487,7 +487,8 @@ def test_relative_measurement_keeps_boxes_tight_on_smooth_tables():
     img = _background()
     gt = Box(*map(float, _diamond(img, 420, 150, 25)))
     img = cv2.GaussianBlur(img, (0, 0), 2.0)
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False)
+    # the hull path (a diamond's box from the fitted diamond is tight either way, below)
+    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False, diamond_scale=0.0)
     old = dt.ColorDetector(_smooth_model(), cfg).detect(img)
     new = dt.ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.5,
                                           'blur_rel': 0.5}), cfg).detect(img)
@@ -498,6 +499,8 @@ def test_relative_measurement_keeps_boxes_tight_on_smooth_tables():
     # absolute mode in the metadata is the old behaviour
     same = dt.ColorDetector(_smooth_model({'mode': 'absolute'}), cfg).detect(img)
     assert same[0].box == old[0].box
+    fitted = dt.ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07)).detect(img)
+    assert len(fitted) == 1 and min(dt.box_metrics(fitted[0].box, gt)[1:]) > 0.95
 
 
 def test_relative_measure_metadata():
@@ -578,14 +581,14 @@ def _flagged_diamond(img, cx, cy, r):
     gt = _diamond(img, cx, cy, r)
     for dx in (-r // 3, r // 3):
         q = max(3, r // 3)
-        top = cy - r + 2                       # mounted behind the top corner
+        top = cy - r + 2                       # on the mast, behind the top corner
         cv2.fillConvexPoly(img, np.array([[cx + dx, top - 2 * q], [cx + dx + q, top - q],
                                           [cx + dx, top], [cx + dx - q, top - q]], np.int32),
                            ORANGE)
     return gt
 
 
-@pytest.mark.parametrize('r', [12, 20, 35])
+@pytest.mark.parametrize('r', [14, 20, 35])
 def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     img = _background()
     gt = _flagged_diamond(img, 420, 150, r)
@@ -593,9 +596,49 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
     assert d.kind == 'warning'
     assert precision > 0.8 and recall > 0.9
-    assert d.box.y >= gt[1] - 0.12 * gt[3] - 1      # the top edge at the top corner
+    assert d.box.y >= gt[1] - 0.15 * gt[3] - 1      # the top edge at the top corner
     # without the diamond fit the flags are part of the box (the test measures the change)
-    old = [c for c in detector.with_config(diamond_trim=-1.0).detect(img)
+    old = [c for c in detector.with_config(diamond_trim=-1.0, diamond_scale=0.0).detect(img)
            if c.box.iou(Box(*map(float, gt))) > 0.3]
-    assert old and old[0].box.y < min(d.box.y, gt[1]) - 0.1 * gt[3]
-    assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.05
+    assert old and old[0].box.y < gt[1] - 0.2 * gt[3]
+    assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
+
+
+def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7):
+    """The simulator's sign art warped to a sub-pixel box (its outer edge at x, y and
+    x + size, y + size), blended by its alpha and blurred a little like a camera; the
+    ground-truth box as ``synth`` labels it (pixels more than half covered)."""
+    from workzone_ros.sim import signart
+    art = signart.sign_face(key, next(a for a in (32, 48, 64, 96, 128, 192, 256, 384)
+                                      if a >= 1.5 * size))
+    s = size / art.shape[1]
+    hm = np.array([[s, 0, x - 0.5 + 0.5 * s], [0, s, y - 0.5 + 0.5 * s], [0, 0, 1.0]])
+    warped = cv2.warpPerspective(art, hm, (img.shape[1], img.shape[0]),
+                                 flags=cv2.INTER_LINEAR)
+    alpha = warped[..., 3:].astype(np.float32) / 255.0
+    out = (img * (1 - alpha) + warped[..., :3] * alpha).astype(np.uint8)
+    ys, xs = np.nonzero(alpha[..., 0] > 0.5)
+    box = (int(xs.min()), int(ys.min()), int(xs.max() + 1 - xs.min()),
+           int(ys.max() + 1 - ys.min()))
+    return cv2.GaussianBlur(out, (0, 0), blur), box
+
+
+@pytest.mark.parametrize('size', [28, 40, 64])
+def test_art_diamond_box_within_a_pixel(detector, size):
+    """A warning diamond with its black border (the simulator's art): the box is the
+    fitted diamond scaled out by the border, each edge within about a pixel of the truth,
+    where the orange hull's box grown by a fixed fraction misses by up to 3 px."""
+    errs, old_errs = [], []
+    for off in (0.0, 0.3, 0.6):
+        img, gt = _render_art_sign(_background(), 400.3 + off, 140.6 + off, size)
+        g = Box(*map(float, gt))
+        for det, out in ((detector, errs), (detector.with_config(diamond_scale=0.0), old_errs)):
+            d = _one(det.detect(img), gt, 0.7)
+            assert d.kind == 'warning'
+            out.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
+    errs, old_errs = np.abs(errs), np.abs(old_errs)
+    assert errs.max() <= 1.25 and errs.mean() <= 0.6
+    if size != 40:          # at 40 px the fixed 4 % growth happens to fit the border too
+        assert old_errs.mean() > errs.mean() + 0.1
+    if size == 64:
+        assert old_errs.max() >= 2.0

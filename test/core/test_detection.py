@@ -642,3 +642,28 @@ def test_art_diamond_box_within_a_pixel(detector, size):
         assert old_errs.mean() > errs.mean() + 0.1
     if size == 64:
         assert old_errs.max() >= 2.0
+
+
+def _snow(seed=0, shape=(480, 640)):
+    """A winter scene: pale sky, dark trees at the sign's height, snow below."""
+    rng = np.random.default_rng(seed)
+    img = np.empty((*shape, 3), np.uint8)
+    img[:] = (225, 222, 215)                               # overcast sky
+    img[150:215] = (70, 90, 75)                            # tree line
+    img[215:] = (236, 236, 234)                            # snow
+    return cv2.add(img, rng.integers(0, 8, img.shape, dtype=np.uint8))
+
+
+@pytest.mark.parametrize('size', [34, 44])
+def test_regulatory_extension_ends_at_the_bottom_border_over_snow(detector, size):
+    """A work-zone speed limit sign in front of snow: the white part runs on to the end of
+    the reach; it ends at the sign's black bottom border.  (Limit: at about 24 px wide a
+    bold, blurred legend row is as dark as the border and the part ends there.)"""
+    img, gt = _render_art_sign(_snow(), 400.3, 190.4, size, key='work_zone_speed_limit')
+    g = Box(*map(float, gt))
+    d = _one(detector.detect(img), gt, 0.5)
+    assert d.color == 'orange'
+    assert abs(d.box.y2 - g.y2) <= 2.0 and dt.box_metrics(d.box, g)[0] > 0.8
+    old = [c for c in detector.with_config(ext_frame=False).detect(img)
+           if c.box.iou(g) > 0.2]
+    assert not old or old[0].box.iou(g) < 0.5

@@ -172,6 +172,9 @@ class DetectorConfig:
             white part must also end (a bottom edge) within its reach.
         ext_max_wratio: the extension may also reach this many times the orange width
             (a thin orange plaque over a tall white sign: R2-1 + G20-5aP is 1.75 w high).
+        ext_frame: when the white runs to the end of the reach (snow, a pale sky or wall
+            behind the sign continue it), end it at its black bottom border
+            (``_bottom_border``): a row at least ``ext_border_share`` dark.
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
@@ -245,6 +248,8 @@ class DetectorConfig:
     ext_max_wratio: float = 1.8
     ext_gap_w: float = 0.6
     ext_gap_s: int = 60
+    ext_frame: bool = True
+    ext_border_share: float = 0.9
     roi_prior: float = 1.0
     roi_threshold: float = 0.3
     roi_margin: float = 0.25
@@ -1440,6 +1445,16 @@ class ColorDetector:
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
+        if cfg.ext_frame and y_top + run >= y_max - 1:
+            # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
+            # pale sky or wall behind the sign.  The white part ends with its black bottom
+            # border
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h)
+            if end:
+                run = end
+        if self.debug is not None:
+            self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
+                                   ext_frac=np.round(frac, 2).tolist()))
         if run < 0.3 * cand.h or y_top + run >= y_max - 1:
             return              # too short, or no bottom edge found (sky, a white wall)
         # a sign's white part carries a black legend and border; sky and walls do not
@@ -1451,6 +1466,29 @@ class ColorDetector:
             return
         cand.h = float(run + cand.h)
         cand.extended = True
+
+    def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float) -> int:
+        """The row just after the white part's black bottom border (0: none seen).
+
+        ``white``, ``value``: the white mask and brightness of the strip below the orange
+        part.  A border row is dark (below ``dark_rel`` x the white sheeting's level, the
+        strip's 90th percentile of brightness) across at least ``ext_border_share`` of
+        the width (its outer tenth on each side left out: the strip may reach past the
+        sign); a legend's strokes, however bold, leave gaps.  The first border row at
+        least ``0.3`` orange heights down ends the white part.
+        """
+        cfg = self.config
+        w = white.shape[1]
+        if w < 4 or white.shape[0] < 2:
+            return 0
+        m = max(1, w // 10)
+        ref = float(np.percentile(value, 90))
+        share = (value[:, m:w - m] < cfg.dark_rel * ref).mean(axis=1)
+        if self.debug is not None:
+            self.debug.append(dict(border_share=np.round(share, 2).tolist()))
+        rows = np.nonzero(share >= cfg.ext_border_share)[0]
+        rows = rows[rows + 1 >= 0.3 * orange_h]
+        return int(rows[0] + 1) if rows.size else 0
 
     # -- seed 002 MSER path --
     def _mser_blobs(self, count: np.ndarray, bgr: np.ndarray, off: tuple[int, int],

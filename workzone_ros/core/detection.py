@@ -417,9 +417,10 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     row ``y`` (``s = a / b``): a tent over the rows, centred on ``cx`` on every row.  A
     warning sign is a square diamond facing the road, so ``s`` lies near 1 (``slopes``:
     the range allowed, for yaw and lens distortion).  The tent is found by consensus: for
-    every apex row ``cy`` on a half-pixel grid and slope in ``slopes`` the peak ``a`` is
-    the median over the rows, and the (cy, s) with the most rows within ``max(1, a/10)`` px
-    of the tent wins; least squares over those rows refines it.  An appendage of the same
+    every apex row ``cy`` on a grid (half a pixel, coarser for large blobs) and slope in
+    ``slopes`` the peak ``a`` is the median over (at most ~24 of) the rows, and the
+    (cy, s) with the most rows within ``max(1, a/10)`` px of the tent wins; least squares
+    over those rows, the apex row on a quarter-pixel grid, refines it.  An appendage of the same
     colour (a portable stand's flags above the top corner, a post) does not follow the
     tent and is left out; corners thinned by blur are extrapolated from the straight
     edges.  ``inliers``: the share of the blob's rows on the tent.  Continuous

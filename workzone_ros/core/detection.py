@@ -139,6 +139,22 @@ class DetectorConfig:
             margin + 3 % black line, the margin blending into the background).  When the
             ring just outside the orange hull is dark enough (``border_dark``), the hull's
             box grows by this fraction of its size on every side.
+        diamond_trim: a blob that is not wide (w/h below ``ext_min_aspect``) and whose rows
+            mostly follow a fitted diamond (:func:`fit_diamond`) loses the rows more than
+            ``0.5 + diamond_trim x b`` px beyond the diamond's top or bottom corner (b: its
+            half-height) before its kind and box are measured: a portable stand's orange
+            flags above the top corner (negative: off).
+        diamond_scale, diamond_clamp: a warning (diamond) blob's box is the box of the diamond
+            fitted to its face (:func:`fit_diamond_2d`, corners extrapolated from the
+            straight edges), its half-diagonals times ``diamond_scale`` (the black border
+            and outer margin outside the orange, less the blend the face mask already
+            takes in), but no side further out than ``diamond_clamp`` x the half-diagonal
+            beyond the face's own pixels (a corner hidden behind a barrier is not
+            invented); 0: the hull box grown by ``border_frac`` as for other blobs.  The
+            scale applies only when the black border lies outside the fitted face:
+            ``diamond_ring_test`` compares the dark share of the rings just outside and
+            just inside the fitted diamond's edge (``2 border_frac a`` px wide; off: the
+            hull's ``border_mode`` test decides); ``border_frac`` 0 means no border.
         border_dark: share of dark pixels in the ring outside the hull that means "border
             line outside" (0: compare with the band just inside the hull instead).
         border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
@@ -164,6 +180,9 @@ class DetectorConfig:
             white part must also end (a bottom edge) within its reach.
         ext_max_wratio: the extension may also reach this many times the orange width
             (a thin orange plaque over a tall white sign: R2-1 + G20-5aP is 1.75 w high).
+        ext_frame: when the white runs to the end of the reach (snow, a pale sky or wall
+            behind the sign continue it), end it at its black bottom border
+            (``_bottom_border``): a row at least ``ext_border_share`` dark.
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
@@ -230,6 +249,10 @@ class DetectorConfig:
     close_frac: float = 0.12
     weak_threshold: float = 0.3
     border_frac: float = 0.04
+    diamond_trim: float = 0.0
+    diamond_scale: float = 1.07
+    diamond_clamp: float = 0.12
+    diamond_ring_test: bool = True
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -249,6 +272,8 @@ class DetectorConfig:
     ext_max_wratio: float = 1.8
     ext_gap_w: float = 0.6
     ext_gap_s: int = 60
+    ext_frame: bool = True
+    ext_border_share: float = 0.9
     roi_prior: float = 1.0
     roi_threshold: float = 0.3
     roi_margin: float = 0.25
@@ -396,6 +421,118 @@ def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) 
     hist, edges = np.histogram(values, bins=bins, range=(lo, hi))
     i = int(np.argmax(hist))
     return float(0.5 * (edges[i] + edges[i + 1]))
+
+
+def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row centre, left edge, right edge) of every non-empty row of a binary mask.
+
+    Edges in continuous coordinates (pixel ``i`` spans ``[i, i + 1)``).
+    """
+    m = mask > 0
+    rows = np.nonzero(m.any(axis=1))[0]
+    if rows.size == 0:
+        return rows.astype(float), rows.astype(float), rows.astype(float)
+    sub = m[rows]
+    left = np.argmax(sub, axis=1).astype(float)
+    right = (m.shape[1] - np.argmax(sub[:, ::-1], axis=1)).astype(float)
+    return rows + 0.5, left, right
+
+
+def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float] = (0.7, 1.4)
+                ) -> Optional[tuple[float, float, float, float, float]]:
+    """Fit a diamond (axis-aligned diagonals) to a blob: ``(cx, cy, a, b, inliers)``.
+
+    A diamond ``|x - cx| / a + |y - cy| / b <= 1`` has half-width ``a - s |y - cy|`` at
+    row ``y`` (``s = a / b``): a tent over the rows, centred on ``cx`` on every row.  A
+    warning sign is a square diamond facing the road, so ``s`` lies near 1 (``slopes``:
+    the range allowed, for yaw and lens distortion).  The tent is found by consensus: for
+    every apex row ``cy`` on a grid (half a pixel, coarser for large blobs) and slope in
+    ``slopes`` the peak ``a`` is the median over (at most ~24 of) the rows, and the
+    (cy, s) with the most rows within ``max(1, a/10)`` px of the tent wins; least squares
+    over those rows, the apex row on a quarter-pixel grid, refines it.  An appendage of the same
+    colour (a portable stand's flags above the top corner, a post) does not follow the
+    tent and is left out; corners thinned by blur are extrapolated from the straight
+    edges.  ``inliers``: the share of the blob's rows on the tent.  Continuous
+    coordinates (pixel ``i`` spans ``[i, i + 1)``).  None: fewer than ``min_rows`` rows
+    or no tent.
+    """
+    yc, left, right = _row_extents(mask)
+    n = yc.size
+    if n < min_rows:
+        return None
+    half = 0.5 * (right - left)
+    mid = 0.5 * (right + left)
+    # consensus on at most ~24 rows and ~20 apex rows (large blobs: the cost stays small)
+    sub = np.arange(0, n, max(1, n // 24))
+    step = max(0.5, (yc[-1] - yc[0]) / 20.0)
+    cys = np.arange(yc[0], yc[-1] + 0.01, step)
+    ss = np.linspace(slopes[0], slopes[1], 6)
+    d = np.abs(yc[sub][None, :] - cys[:, None])                        # (ncy, n)
+    base = half[sub][None, None, :] + ss[None, :, None] * d[:, None, :]  # a estimates
+    a = np.median(base, axis=2)                                        # (ncy, ns)
+    res = np.abs(base - a[..., None])
+    tol = np.maximum(1.0, 0.1 * a)[..., None]
+    score = (res <= tol).sum(axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
+    k = int(np.argmax(score))
+    ic, js = divmod(k, ss.size)
+    a0, s0 = float(a[ic, js]), float(ss[js])
+    keep = np.abs(half + s0 * np.abs(yc - cys[ic]) - a0) <= max(1.0, 0.1 * a0)
+    if keep.sum() < min_rows:
+        return None
+    # least squares on the consensus rows, apex row refined on a quarter-pixel grid
+    # (closed form of the two-parameter line fit, every candidate apex row at once)
+    cyr = np.arange(cys[ic] - step - 0.25, cys[ic] + step + 0.26, 0.25)
+    hk = half[keep]
+    dd = np.abs(yc[keep][None, :] - cyr[:, None])
+    dm, hm = dd.mean(axis=1), float(hk.mean())
+    var = (dd * dd).mean(axis=1) - dm * dm
+    cov = (dd * hk[None, :]).mean(axis=1) - dm * hm
+    slope_r = -cov / np.maximum(var, 1e-9)
+    a_r = hm + slope_r * dm
+    sse = ((hk[None, :] - (a_r[:, None] - slope_r[:, None] * dd)) ** 2).sum(axis=1)
+    okr = (var > 1e-9) & (slope_r >= slopes[0] * 0.8) & (slope_r <= slopes[1] * 1.25)
+    if okr.any():
+        i = int(np.argmin(np.where(okr, sse, np.inf)))
+        best = (float(sse[i]), float(cyr[i]), float(a_r[i]), float(slope_r[i]))
+    else:
+        best = (0.0, float(cys[ic]), a0, s0)
+    _, cy, aa, slope = best
+    if aa <= 0:
+        return None
+    return float(np.median(mid[keep])), cy, aa, aa / slope, float(keep.mean())
+
+
+def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = None
+                   ) -> Optional[tuple[float, float, float, float, float]]:
+    """:func:`fit_diamond` over the rows and over the columns, combined.
+
+    Each fit measures two things well: the peak of its tent (the half-width ``a`` from
+    the rows, the half-height ``b`` from the columns: many rows or columns near the
+    middle agree on it) and the centre across the tent (``cx`` from the rows' midpoints,
+    ``cy`` from the columns'); the apex position along the tent and the slope, from the
+    few short rows near the corners, are the noisy parts and are not used.  Returns
+    ``(cx, cy, a, b, inliers)`` (the smaller inlier share) or None.  ``rows``: the row
+    fit of this mask when already known.
+    """
+    fr = rows if rows is not None else fit_diamond(mask, min_rows)
+    fc = fit_diamond(np.ascontiguousarray(mask.T), min_rows)
+    if fr is None or fc is None:
+        return None
+    return fr[0], fc[0], fr[2], fc[2], min(fr[4], fc[4])
+
+
+def diamond_rings(shape: tuple, fit: tuple, width: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Boolean (inner, outer) rings of ``width`` px either side of a fitted diamond's edge.
+
+    The signed normal distance of a pixel centre from the edge of ``fit``'s diamond
+    ``(cx, cy, a, b)`` is ``(|x - cx| / a + |y - cy| / b - 1) a b / sqrt(a^2 + b^2)``.
+    """
+    cx, cy, a, b = (float(v) for v in fit[:4])
+    ys, xs = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
+    n = (np.abs(xs + 0.5 - cx) / a + np.abs(ys + 0.5 - cy) / b - 1.0) * (
+        a * b / math.hypot(a, b))
+    return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
@@ -1171,10 +1308,28 @@ class ColorDetector:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
                 return None
+        cut, row_fit = None, None
+        if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
+            # rows beyond a fitted diamond's corners are not the face (a portable stand's
+            # orange flags above the top corner): shape, kind and box go without them
+            trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim)
+            if trimmed is not None:
+                row_fit = None
+                # the cut-off part must not come back as the border's blur rings
+                cut = (pix > 0) & (trimmed == 0)
+                like = np.where(cut, np.float32(0), like)
+                pix = trimmed
+                hull = cv2.convexHull(cv2.findNonZero(pix))
+                bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
+                hmask = np.zeros_like(pix)
+                cv2.fillConvexPoly(hmask, hull, 1)
+                hull_fill = max(float(cv2.contourArea(hull)), 1.0) / (bw * bh)
+                aspect = bw / bh
         # diamonds are about square; a wide blob is a rectangle (or the orange top of one)
         kind = ('warning' if hull_fill < cfg.diamond_hull_fill
                 and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
         conf = _mode(like[pix > 0])
+        face_px = pix
         if edge_t is not None:
             # the box from the face's core: its pixels at least ``edge_rel`` of the way
             # from the background's likelihood level to the face's
@@ -1184,12 +1339,44 @@ class ColorDetector:
                 bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
                 hmask = np.zeros_like(pix)
                 cv2.fillConvexPoly(hmask, hull, 1)
+                face_px = core
+                row_fit = None
         grow, feats = self._border_growth(hmask, dark, like, min(bw, bh), blur_t)
         if self.debug is not None:
             self.debug[-1].update(hull_box=(x0 + bx0, y0 + by0, bw, bh), vref=v_ref,
                                   relaxed=relaxed, **feats)
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
-        if grow > 0:
+        outer = None
+        if kind == 'warning' and cfg.diamond_scale > 0:
+            # the box of the diamond fitted to the face (its corners extrapolated from the
+            # straight edges), scaled out by the border; never further out than
+            # ``diamond_clamp`` x the half-diagonal beyond the face seen (an occluded or
+            # cut-off corner is not invented)
+            fd = fit_diamond_2d(face_px, rows=row_fit)
+            if fd is not None and fd[4] >= 0.5:
+                cx_, cy_, a_, b_ = fd[:4]
+                k_, c_ = cfg.diamond_scale, cfg.diamond_clamp
+                if cfg.border_frac <= 0:
+                    k_ = 1.0                    # configured: no border outside the face
+                elif cfg.diamond_ring_test:
+                    # the black border lies outside the fitted face when the ring just
+                    # outside the diamond is darker than the ring just inside it
+                    ri, ro = diamond_rings(pix.shape, fd, max(1.0, cfg.border_frac * 2 * a_))
+                    if np.count_nonzero(dark & ro) / max(np.count_nonzero(ro), 1) <= \
+                            np.count_nonzero(dark & ri) / max(np.count_nonzero(ri), 1):
+                        k_ = 1.0
+                elif grow <= 0:
+                    k_ = 1.0
+                l_ = max(cx_ - k_ * a_, bx0 - c_ * a_)
+                r_ = min(cx_ + k_ * a_, bx0 + bw + c_ * a_)
+                t_ = max(cy_ - k_ * b_, by0 - c_ * b_)
+                u_ = min(cy_ + k_ * b_, by0 + bh + c_ * b_)
+                # a fit far from the face's own box is not trusted
+                if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
+                    outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
+        if outer is not None:
+            cand.x, cand.y, cand.w, cand.h = outer
+        elif grow > 0:
             gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
@@ -1201,6 +1388,34 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    @staticmethod
+    def _trim_to_diamond(pix: np.ndarray, tol: float
+                         ) -> tuple[Optional[np.ndarray], Optional[tuple]]:
+        """(``pix`` without the rows beyond the fitted diamond's corners, or None when none
+        are; :func:`fit_diamond`'s row fit of ``pix``).
+
+        Rows further than ``0.5 + tol x b`` px above the top corner or below the bottom
+        corner of :func:`fit_diamond`'s diamond are dropped (the margin keeps a corner that
+        the fit's noisy slope put a little short).
+        """
+        fd = fit_diamond(pix)
+        if fd is None:
+            return None, fd
+        _, cy, _, b, inl = fd
+        if inl < 0.5:
+            return None, fd
+        margin = 0.5 + tol * b
+        lo, hi = int(math.floor(cy - b - margin)), int(math.ceil(cy + b + margin))
+        rows = np.nonzero(pix.any(axis=1))[0]
+        if rows.size == 0 or (rows[0] >= lo and rows[-1] < hi):
+            return None, fd
+        out = pix.copy()
+        out[:max(lo, 0)] = 0
+        out[max(hi, 0):] = 0
+        if np.count_nonzero(out) < 0.5 * np.count_nonzero(pix):
+            return None, fd
+        return out, fd
 
     @staticmethod
     def _relative_levels(like: np.ndarray, strong: np.ndarray, region: np.ndarray,
@@ -1306,6 +1521,16 @@ class ColorDetector:
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
+        if cfg.ext_frame and y_top + run >= y_max - 1:
+            # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
+            # pale sky or wall behind the sign.  The white part ends with its black bottom
+            # border
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h)
+            if end:
+                run = end
+        if self.debug is not None:
+            self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
+                                   ext_frac=np.round(frac, 2).tolist()))
         if run < 0.3 * cand.h or y_top + run >= y_max - 1:
             return              # too short, or no bottom edge found (sky, a white wall)
         # a sign's white part carries a black legend and border; sky and walls do not
@@ -1317,6 +1542,29 @@ class ColorDetector:
             return
         cand.h = float(run + cand.h)
         cand.extended = True
+
+    def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float) -> int:
+        """The row just after the white part's black bottom border (0: none seen).
+
+        ``white``, ``value``: the white mask and brightness of the strip below the orange
+        part.  A border row is dark (below ``dark_rel`` x the white sheeting's level, the
+        strip's 90th percentile of brightness) across at least ``ext_border_share`` of
+        the width (its outer tenth on each side left out: the strip may reach past the
+        sign); a legend's strokes, however bold, leave gaps.  The first border row at
+        least ``0.3`` orange heights down ends the white part.
+        """
+        cfg = self.config
+        w = white.shape[1]
+        if w < 4 or white.shape[0] < 2:
+            return 0
+        m = max(1, w // 10)
+        ref = float(np.percentile(value, 90))
+        share = (value[:, m:w - m] < cfg.dark_rel * ref).mean(axis=1)
+        if self.debug is not None:
+            self.debug.append(dict(border_share=np.round(share, 2).tolist()))
+        rows = np.nonzero(share >= cfg.ext_border_share)[0]
+        rows = rows[rows + 1 >= 0.3 * orange_h]
+        return int(rows[0] + 1) if rows.size else 0
 
     # -- seed 002 MSER path --
     def _mser_blobs(self, count: np.ndarray, bgr: np.ndarray, off: tuple[int, int],

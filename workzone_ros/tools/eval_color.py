@@ -72,6 +72,17 @@ def kind_of(class_key: str) -> str:
     return 'warning' if catalogue.get(class_key).shape == 'diamond' else 'regulatory'
 
 
+SIZE_BINS = ('<24', '24-32', '32-48', '48-80', '>=80')
+
+
+def size_bin(px: float) -> str:
+    """The ``by_size`` bin of a sign whose shorter side is ``px`` pixels."""
+    for edge, name in zip((24, 32, 48, 80), SIZE_BINS):
+        if px < edge:
+            return name
+    return SIZE_BINS[-1]
+
+
 def match_frame(dets: Sequence[Box], gts: Sequence[Box], tau: float = 0.5
                 ) -> list[tuple[int, int, float, float, float]]:
     """Greedy one-to-one matching, best IoU first; pairs (det, gt, iou, precision, recall)."""
@@ -102,6 +113,8 @@ class TableI:
         self.matched: dict = defaultdict(lambda: defaultdict(int))
         self.false: dict = defaultdict(int)
         self.frames: dict = defaultdict(int)
+        # kind -> size bin -> [eligible, matched, sum precision, sum recall] (per sign)
+        self.sizes: dict = defaultdict(lambda: defaultdict(lambda: [0, 0, 0.0, 0.0]))
 
     def add(self, groups: Iterable[str], dets: Sequence[Box], gts: Sequence[tuple[Box, str]],
             all_signs: Sequence[Box], tau: float = 0.5) -> None:
@@ -113,6 +126,14 @@ class TableI:
         matched_d = {i for i, *_ in pairs}
         false = sum(1 for i, d in enumerate(dets) if i not in matched_d
                     and all(dt.box_metrics(d, s)[0] < 0.1 for s in all_signs))
+        got = {j: (p, r) for _, j, _, p, r in pairs}
+        for j, (g, k) in enumerate(gts):
+            cell = self.sizes[k][size_bin(min(g.w, g.h))]
+            cell[0] += 1
+            if j in got:
+                cell[1] += 1
+                cell[2] += got[j][0]
+                cell[3] += got[j][1]
         for group in groups:
             self.frames[group] += 1
             self.false[group] += false
@@ -123,7 +144,9 @@ class TableI:
                 self.images[group][k].append(tuple(np.mean(v, axis=0)))
 
     def summary(self) -> dict:
-        """group -> {warning: {...}, regulatory: {...}, false_per_frame, frames}."""
+        """group -> {warning: {...}, regulatory: {...}, false_per_frame, frames}; and
+        ``by_size``: kind -> size bin -> eligible, found share, mean area precision and
+        recall per matched sign."""
         out = {}
         for group in sorted(self.frames):
             row: dict[str, Any] = {'frames': self.frames[group],
@@ -137,6 +160,14 @@ class TableI:
                     'detection_rate': (self.matched[group][k] / self.eligible[group][k]
                                        if self.eligible[group][k] else None)}
             out[group] = row
+        if out:
+            # per sign (not per image) by the sign's shorter side: where boxes go wrong
+            out['by_size'] = {k: {b: {'eligible': c[0], 'found': c[1] / c[0] if c[0] else None,
+                                      'precision': c[2] / c[1] if c[1] else None,
+                                      'recall': c[3] / c[1] if c[1] else None}
+                                  for b, c in sorted(bins.items(), key=lambda kv: SIZE_BINS.index(
+                                      kv[0]))}
+                              for k, bins in self.sizes.items()}
         return out
 
 

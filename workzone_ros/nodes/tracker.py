@@ -164,6 +164,15 @@ _CORE_PARAMS = (
     Param('radial_min_offset', _D.radial_min_offset, 'motion cue: the offset estimate '
           'counts when the offset from the focus is at least this many box sizes',
           min=0.0, max=100.0),
+    Param('perspective_scale', _D.perspective_scale, 'candidates also around the size the '
+          "Theil-Sen trend of the track's detected sizes predicts (static-sign perspective)"),
+    Param('perspective_min', _D.perspective_min, 'perspective scale: smallest predicted / '
+          'current size used', min=0.1, max=1.0),
+    Param('perspective_max', _D.perspective_max, 'perspective scale: largest predicted / '
+          'current size used', min=1.0, max=10.0),
+    Param('perspective_min_detections', _D.perspective_min_detections, 'perspective scale: '
+          'detections the trend needs (and it extrapolates no further than they span)',
+          min=3, max=1000),
 )
 
 

@@ -719,10 +719,13 @@ def test_a_sign_among_its_flags_runs_on_its_own_but_a_drift_into_orange_ends(mar
     """Ring drift guard relative to the ring at the detections (``ring_margin``): a sign
     whose stand's flags make its ring high while it is detected keeps running on its own
     through detector misses (the absolute threshold alone loses it); a track whose ring
-    jumps when an orange region surrounds it (a vehicle) still ends."""
+    jumps when an orange region surrounds it (a vehicle) still ends.  (Without the
+    perspective candidates, which with the ablation's absolute threshold keep one more
+    frame by a box that takes the flags in: the test isolates the ring guard.)"""
     bg = background(10)
     for scene in ('flags', 'vehicle'):
-        tracker = MultiTracker(TrackerConfig(ring_margin=margin, **SLOW))
+        tracker = MultiTracker(TrackerConfig(ring_margin=margin, perspective_scale=False,
+                                             **SLOW))
         sources = []
         for i in range(9):
             img = bg.copy()
@@ -931,3 +934,43 @@ def test_a_sign_near_the_camera_is_followed_as_it_grows_faster_than_the_kernels(
         assert min(ious) > 0.7, np.round(ious, 2)
     else:
         assert min(ious) < 0.5, np.round(ious, 2)
+
+
+@pytest.mark.parametrize('from_dets', [True, False])
+def test_the_motion_cue_also_reads_the_detected_sizes(from_dets):
+    """Motion cue (``approach_from_detections``): a track whose own box stopped growing (it
+    started too wide and lags: its history says 'same size, same place') is still
+    published when its detections grew in perspective (``1 / size`` falling 1.5e-3 per
+    frame): the detected sizes measure the same rate, free of the tracker's lag.  Without
+    the rule the cue blocks the sign (the test fails without it)."""
+    tracker = MultiTracker(TrackerConfig(approach_from_detections=from_dets))
+    img = background(25)
+    tracker.step(img, [det(draw_diamond(img, 300.0, 200.0, 40))])
+    tr = tracker._tracks[0]
+    tracker.frames = 20
+    tr.det_sizes = [(float(t), _perspective(t)[2], _perspective(t)[2]) for t in range(0, 12, 2)]
+    tr.motion = [(float(t), 300.0, 200.0, 40.0, 40.0) for t in range(5, 21)]
+    assert tracker._approaching(tr, W, H) == from_dets
+    # A vehicle ahead: its detections keep their size too, so it stays blocked either way.
+    tr.det_sizes = [(float(t), 40.0, 40.0) for t in range(0, 12, 2)]
+    assert not tracker._approaching(tr, W, H)
+
+
+@pytest.mark.parametrize('limit', [0.5, 1.0])
+def test_no_perspective_candidates_for_a_target_like_its_surroundings(limit):
+    """``perspective_max_background``: the second candidate set runs only for targets that
+    stand out from their surroundings (background similarity <= 0.5); on a target like
+    its surroundings (a dusk sign on orange-brown ground) a bigger box costs the score
+    little and the set made the box grow past the sign.  Off (1.0) it runs for both."""
+    tracker = MultiTracker(TrackerConfig(perspective_max_background=limit))
+    bg = background(26)
+    for i in range(7):
+        img = bg.copy()
+        cx, cy, size = _perspective(i, s0=30.0, rate=1.5e-3, ratio=1.5)
+        tracker.step(img, [det(draw_diamond(img, cx, cy, size))])
+    tr = tracker._tracks[0]
+    tracker.frames += 3                 # three missed frames later: the sign grew ~15 %
+    assert tr.target.background_similarity < 0.5
+    assert tracker._perspective_scale(tr) > 1.03          # a sign that stands out: runs
+    tr.target = replace(tr.target, background_similarity=0.7)
+    assert (tracker._perspective_scale(tr) == 1.0) == (limit < 0.7)

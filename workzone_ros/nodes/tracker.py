@@ -164,6 +164,11 @@ _CORE_PARAMS = (
     Param('radial_min_offset', _D.radial_min_offset, 'motion cue: the offset estimate '
           'counts when the offset from the focus is at least this many box sizes',
           min=0.0, max=100.0),
+    Param('approach_from_detections', _D.approach_from_detections, 'motion cue: also the '
+          "trend of the track's detected sizes (free of the tracker's own scale lag)"),
+    Param('perspective_max_background', _D.perspective_max_background, 'perspective scale: '
+          'only for targets whose background similarity is at most this (1 = always)',
+          min=0.0, max=1.0),
     Param('perspective_scale', _D.perspective_scale, 'candidates also around the size the '
           "Theil-Sen trend of the track's detected sizes predicts (static-sign perspective)"),
     Param('perspective_min', _D.perspective_min, 'perspective scale: smallest predicted / '

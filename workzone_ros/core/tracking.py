@@ -240,6 +240,14 @@ class TrackerConfig:
             this many times that of its surroundings (:func:`chroma_contrast`; 0 = off).
             Sign faces on the tuning bags: 1.7 or more in every weather (5 % quantile);
             a tinted dusk sky as saturated as the face passes the median rule alone.
+        chroma_reference: percentile of the surroundings' chroma the chroma gate compares
+            the face's upper decile with (:func:`chroma_contrast`; 90 = the previous rule).
+            The median, as for saturation: the surroundings' upper decile is set by the
+            few most colourful things around a sign (sunlit vegetation, its stand's
+            flags, an orange-brown facade beside it), and 12 detector misses on the
+            tuning bags (a sunny sign on vivid green, a rain sign next to a brown facade)
+            were blocked at ratios 1.1-1.4 with it.  A dim saturated patch in bright
+            surroundings still fails (1.1 against the median).
         min_hits_after_loss: a track that lost its target since its last detection
             (similarity below ``min_similarity``) and found a match again is published on
             its own again only when it has at least this many detections (1 = the previous
@@ -365,6 +373,7 @@ class TrackerConfig:
     min_saturation_contrast: float = 0.2
     saturation_reference: float = 50.0
     min_chroma_contrast: float = 1.5
+    chroma_reference: float = 50.0
     anchor_kind_ratio: float = 1.5
     growth_guard_needs_trend: bool = True
     max_ring_similarity: float = 0.6
@@ -593,9 +602,11 @@ def saturation_contrast(win: SearchWindow, zx: float, zy: float, ax: float,
     return float(s_in - np.percentile(out, reference)) / 255.0
 
 
-def chroma_contrast(win: SearchWindow, zx: float, zy: float, ax: float, ay: float) -> float:
+def chroma_contrast(win: SearchWindow, zx: float, zy: float, ax: float, ay: float,
+                    reference: float = 90.0) -> float:
     """Sign-likeness of the box centred at z, half-size a: the upper decile of its chroma
-    over that of the rest of the window (a ratio).
+    over the ``reference`` percentile of that of the rest of the window (a ratio; the
+    tracker uses the median, ``TrackerConfig.chroma_reference``).
 
     Chroma is ``S * V / 255`` (HSV; the spread ``max - min`` of the RGB channels): how
     colourful a pixel is.  HSV saturation alone is ``(max - min) / max``, which is high on
@@ -620,7 +631,7 @@ def chroma_contrast(win: SearchWindow, zx: float, zy: float, ax: float, ay: floa
     if out.size < 4:
         return 0.0
     c_in = float(np.percentile(chroma[ky0:ky1, kx0:kx1], 90))
-    return c_in / max(float(np.percentile(out, 90)), 1.0)
+    return c_in / max(float(np.percentile(out, reference)), 1.0)
 
 
 # --- target model -------------------------------------------------------------------------
@@ -775,7 +786,7 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     inside[ky0:ky1, kx0:kx1] = True
     ring = win.bins[~inside]
     sat_contrast = saturation_contrast(win, zx, zy, ax, ay, cfg.saturation_reference)
-    chroma = chroma_contrast(win, zx, zy, ax, ay)
+    chroma = chroma_contrast(win, zx, zy, ax, ay, cfg.chroma_reference)
     bg_sim = 1.0
     qw = q
     if ring.size >= 8:

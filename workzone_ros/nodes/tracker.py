@@ -135,6 +135,9 @@ _CORE_PARAMS = (
     Param('min_chroma_contrast', _D.min_chroma_contrast, 'sign-likeness: a target whose '
           'chroma (S*V) upper decile is less than this times that of its surroundings is '
           'never published on its own (0 = off)', min=0.0, max=100.0),
+    Param('chroma_reference', _D.chroma_reference, "sign-likeness: percentile of the "
+          "surroundings' chroma the face's upper decile is compared with (90 = the previous "
+          'rule)', min=0.0, max=100.0),
     Param('min_hits_after_loss', _D.min_hits_after_loss, 'a track that lost its target '
           'since its last detection is published on its own again only with this many '
           'detections (1 = always)', min=0, max=1000),

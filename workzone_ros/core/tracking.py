@@ -70,6 +70,7 @@ search window, same anchors and starts, same track life) is provided for compari
 from __future__ import annotations
 
 import math
+import statistics
 import time
 from dataclasses import dataclass, field, replace
 from typing import Optional, Sequence
@@ -979,21 +980,35 @@ def predicted_size(history: Sequence[tuple[float, float, float]],
         The predicted size, or None with fewer than three distinct frames or a prediction
         that is not positive.
     """
+    fit = inverse_size_fit(history)
+    return None if fit is None else size_from_fit(fit, frame)
+
+
+def inverse_size_fit(history: Sequence[tuple[float, float, float]]
+                     ) -> Optional[tuple[float, float, float, float]]:
+    """Theil-Sen fit of :func:`predicted_size`: ``(slope_w, icpt_w, slope_h, icpt_h)`` of
+    ``1 / size`` over the frame number, or None with fewer than three distinct frames."""
     if len({h[0] for h in history}) < 3:
         return None
-    t = np.array([h[0] for h in history], float)
-    out = []
-    for k in (1, 2):
-        inv = 1.0 / np.maximum(np.array([h[k] for h in history], float), 1.0)
-        i, j = np.triu_indices(len(t), 1)
-        ok = t[j] != t[i]
-        slope = float(np.median((inv[j][ok] - inv[i][ok]) / (t[j][ok] - t[i][ok])))
-        icpt = float(np.median(inv - slope * t))
-        v = icpt + slope * frame
-        if v <= 1e-4:
-            return None
-        out.append(1.0 / v)
-    return out[0], out[1]
+    t = [float(h[0]) for h in history]
+    n = len(t)
+    pairs = [(a, b) for a in range(n) for b in range(a + 1, n) if t[a] != t[b]]
+    out: list[float] = []
+    for k in (1, 2):            # plain Python: a handful of points (numpy's overhead rules)
+        inv = [1.0 / max(float(h[k]), 1.0) for h in history]
+        slope = statistics.median((inv[b] - inv[a]) / (t[b] - t[a]) for a, b in pairs)
+        out += [slope, statistics.median(v - slope * x for v, x in zip(inv, t))]
+    return out[0], out[1], out[2], out[3]
+
+
+def size_from_fit(fit: tuple[float, float, float, float],
+                  frame: float) -> Optional[tuple[float, float]]:
+    """The size (w, h) an :func:`inverse_size_fit` gives at ``frame`` (None when it is not
+    positive)."""
+    vw, vh = fit[1] + fit[0] * frame, fit[3] + fit[2] * frame
+    if vw <= 1e-4 or vh <= 1e-4:
+        return None
+    return 1.0 / vw, 1.0 / vh
 
 
 def _theil_sen(t: np.ndarray, v: np.ndarray) -> float:
@@ -1099,6 +1114,7 @@ class _Track:
     was_lost: bool = False           # similarity below min_similarity since the last detection
     motion: list = field(default_factory=list)      # (frame, cx, cy, w, h) of the anchor
     approach: Optional[float] = None  # last approach_rate (None: not judged)
+    size_fit: Optional[tuple] = None  # (key, inverse_size_fit of det_sizes), cached
 
 
 @dataclass
@@ -1157,8 +1173,8 @@ class MultiTracker:
         if cfg.use_velocity:
             zx += tr.velocity[0]
             zy += tr.velocity[1]
-        g = self._perspective_scale(tr)
-        alt = cfg.method == 'meanshift' and not min(cfg.scales) <= g <= max(cfg.scales)
+        g = self._perspective_scale(tr) if cfg.method == 'meanshift' else 1.0
+        alt = not min(cfg.scales) <= g <= max(cfg.scales)
         big = max(g, 1.0) if alt else 1.0          # the window holds both candidate sets
         smax = max(cfg.scales) * big
         mx = ax * (smax + cfg.search_margin) + 2
@@ -1513,11 +1529,17 @@ class MultiTracker:
         if not cfg.perspective_scale \
                 or tr.target.background_similarity > cfg.perspective_max_background:
             return 1.0
-        frames = sorted({d[0] for d in tr.det_sizes})
-        if len(frames) < cfg.perspective_min_detections \
-                or self.frames - frames[-1] > frames[-1] - frames[0]:
+        sizes = tr.det_sizes
+        if len(sizes) < cfg.perspective_min_detections \
+                or self.frames - sizes[-1][0] > sizes[-1][0] - sizes[0][0]:
             return 1.0
-        pred = predicted_size(tr.det_sizes, self.frames)
+        key = (len(sizes), sizes[-1][0])
+        if tr.size_fit is None or tr.size_fit[0] != key:
+            tr.size_fit = (key, inverse_size_fit(sizes))       # refit only after a detection
+        fit = tr.size_fit[1]
+        if fit is None or len({d[0] for d in sizes}) < cfg.perspective_min_detections:
+            return 1.0
+        pred = size_from_fit(fit, self.frames)
         if pred is None:
             return 1.0
         g = math.sqrt(pred[0] * pred[1] / max(tr.anchor[2] * tr.anchor[3], 1.0))

@@ -135,6 +135,9 @@ _CORE_PARAMS = (
     Param('min_chroma_contrast', _D.min_chroma_contrast, 'sign-likeness: a target whose '
           'chroma (S*V) upper decile is less than this times that of its surroundings is '
           'never published on its own (0 = off)', min=0.0, max=100.0),
+    Param('chroma_reference', _D.chroma_reference, "sign-likeness: percentile of the "
+          "surroundings' chroma the face's upper decile is compared with (90 = the previous "
+          'rule)', min=0.0, max=100.0),
     Param('min_hits_after_loss', _D.min_hits_after_loss, 'a track that lost its target '
           'since its last detection is published on its own again only with this many '
           'detections (1 = always)', min=0, max=1000),
@@ -164,6 +167,20 @@ _CORE_PARAMS = (
     Param('radial_min_offset', _D.radial_min_offset, 'motion cue: the offset estimate '
           'counts when the offset from the focus is at least this many box sizes',
           min=0.0, max=100.0),
+    Param('approach_from_detections', _D.approach_from_detections, 'motion cue: also the '
+          "trend of the track's detected sizes (free of the tracker's own scale lag)"),
+    Param('perspective_max_background', _D.perspective_max_background, 'perspective scale: '
+          'only for targets whose background similarity is at most this (1 = always)',
+          min=0.0, max=1.0),
+    Param('perspective_scale', _D.perspective_scale, 'candidates also around the size the '
+          "Theil-Sen trend of the track's detected sizes predicts (static-sign perspective)"),
+    Param('perspective_min', _D.perspective_min, 'perspective scale: smallest predicted / '
+          'current size used', min=0.1, max=1.0),
+    Param('perspective_max', _D.perspective_max, 'perspective scale: largest predicted / '
+          'current size used', min=1.0, max=10.0),
+    Param('perspective_min_detections', _D.perspective_min_detections, 'perspective scale: '
+          'detections the trend needs (and it extrapolates no further than they span)',
+          min=3, max=1000),
 )
 
 

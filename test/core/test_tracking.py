@@ -114,9 +114,9 @@ def center(b):
 
 
 #: The hand-drawn paths grow about 2 % per frame at 40-90 px: an approach several times slower
-#: than the motion cue's minimum (``min_approach_rate``, a camera at 15 fps approaching at
+#: than the motion cue's minimum (``min_approach_speed``, a camera at 15 fps approaching at
 #: 10 m/s or more); tests of localisation and track life run without the cue.
-SLOW = dict(min_approach_rate=0.0)
+SLOW = dict(min_approach_speed=0.0)
 
 
 def path(i):
@@ -883,13 +883,13 @@ def test_approach_rate_is_the_fall_of_the_inverse_size():
 
 @pytest.mark.parametrize('cue', [True, False])
 def test_a_target_that_keeps_its_place_and_size_is_not_published_on_its_own(cue):
-    """Motion cue (``min_approach_rate``): an orange target that stays at the same image
+    """Motion cue (``min_approach_speed``): an orange target that stays at the same image
     place and size for a second (a vehicle driving ahead) is not published while the
     detector misses it; a sign approached in perspective (growing, moving away from the
     focus of expansion) is.  Detections pass unchanged either way.  Without the cue
-    (``min_approach_rate=0``) both are published (the test fails without the rule)."""
-    cfg = TrackerConfig() if cue else TrackerConfig(min_approach_rate=0.0)
-    assert cfg.min_approach_rate > 0 or not cue
+    (``min_approach_speed=0``) both are published (the test fails without the rule)."""
+    cfg = TrackerConfig() if cue else TrackerConfig(min_approach_speed=0.0)
+    assert cfg.min_approach_speed > 0 or not cue
     bg = background(2)
     for moving in (False, True):
         tracker = MultiTracker(cfg)
@@ -1010,3 +1010,46 @@ def test_a_sign_among_vivid_vegetation_passes_the_chroma_gate(reference):
             (t.box.x, t.box.y, t.box.w, t.box.h), gt) > 0.5 for t in out)
     c = tracker._tracks[0].target.chroma_contrast
     assert alone == (7 if reference == 50.0 else 0), (alone, c)
+
+
+def test_motion_cue_threshold_is_physical_on_any_camera_and_frame_rate():
+    """The motion cue's per-frame minimum is ``v / (f S fps)``: 0.001 / px per frame for the
+    simulator's camera (640 px, 60 deg, f 554 px) at 15 fps and 10 m/s; half of it at 30 fps
+    (the frame rate read from the stamps), so a sign approached at urban speed by a 30 fps
+    dashcam still passes; a wider image has a longer focal length at the same field of
+    view."""
+    tracker = MultiTracker(TrackerConfig())
+    assert tracker.approach_threshold(640) == pytest.approx(0.001, rel=0.01)
+    frame = background(3)
+    for i in range(5):
+        tracker.step(frame, [], stamp=100.0 + i / 30.0)
+    assert tracker.frame_rate == pytest.approx(30.0)
+    assert tracker.approach_threshold(640) == pytest.approx(0.0005, rel=0.01)
+    assert tracker.approach_threshold(1280) == pytest.approx(0.00025, rel=0.01)
+    tracker.reset()
+    assert tracker.frame_rate == 15.0
+    with pytest.raises(TrackingError, match='camera_hfov_deg'):
+        TrackerConfig(camera_hfov_deg=0.0)
+
+
+def test_sign_at_30_fps_runs_on_its_own_where_a_vehicle_ahead_does_not():
+    """A 30 fps stream of a sign approached at 10 m/s (the inverse size falls by
+    ``10 / (554 x 1.2 x 30)`` per frame, under the 15 fps minimum) is published on its own
+    once the stamps tell the frame rate; without stamps (15 fps assumed) it is not."""
+    rate = 10.0 / (554.3 * 1.2 * 30.0) * 1.05
+    bg = background(2)
+    for stamped in (True, False):
+        tracker = MultiTracker(TrackerConfig())
+        sources = []
+        for i in range(24):
+            img = bg.copy()
+            cx, cy, size = _perspective(i, s0=30.0, rate=rate)
+            gt = draw_diamond(img, cx, cy, size)
+            out = tracker.step(img, [det(gt)] if i < 14 else [],
+                               stamp=5.0 + i / 30.0 if stamped else None)
+            sources.append([t.source for t in out])
+        alone = [s == ['tracking'] for s in sources[14:]]
+        if stamped:
+            assert all(alone), sources[14:]
+        else:
+            assert not any(alone), sources[14:]

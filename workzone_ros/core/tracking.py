@@ -57,7 +57,7 @@ instead (the ablation).  A track is published on its own only when its target do
 like its surroundings nor has white bands (drums, cones): ``max_coast_*``; and (sign-likeness)
 its face is more saturated and more colourful (chroma) than its surroundings
 (``min_saturation_contrast``, ``min_chroma_contrast``); and (motion cue) its own history
-shows the camera approaching it (``min_approach_rate``): a static sign grows and moves away
+shows the camera approaching it (``min_approach_speed``): a static sign grows and moves away
 from the focus of expansion as it is approached (``1 / size`` falls by ``v / (f S)`` per
 second, whatever its distance), a vehicle driving ahead at the ego speed keeps its size and
 place, whatever its colour (the rear of an orange truck at dusk).  A track
@@ -275,21 +275,29 @@ class TrackerConfig:
             the trend (the first measurement is taken as it is, not averaged with 0); a track
             started by one detection would otherwise count its real perspective growth as
             drift and end after a few frames (False: the previous rule).
-        min_approach_rate: motion cue (not in the seed): a track is published on its own
+        min_approach_speed: motion cue (not in the seed): a track is published on its own
             only when its own history (anchor centre and size on its detected and tracked
             frames, :func:`approach_rate`) shows the camera approaching it at least this
-            fast: the fall per frame of ``1 / size`` (1/px per frame), which for a static
-            object of size ``S`` approached at speed ``v`` is ``v / (f S)`` per second
-            whatever its distance (``size = f S / Z``), also measured from its offset from
-            the focus of expansion, which scales like its size.  A vehicle driving ahead at
-            the ego speed keeps its image size and place (about 0): colour cannot tell the
-            rear of an orange truck at dusk from a dusk sign (chroma ratio 1.59-1.79 vs
-            1.55-2.05), its motion can.  0.001 = ``v`` 10 m/s, ``S`` 1.2 m, ``f`` 554 px,
-            15 fps (the simulator's camera; signs on the tuning bags, at 20-27 m/s: 0.0017 -
-            0.004; the truck ahead on dusk tuning random 2100: -0.0006 - 0.0004, up to
-            0.0012 on a track's first frames).  A sign approached slower than that (ego
-            stopped or crawling) is not published on its own either.  Histories shorter
-            than ``motion_min_frames`` are not judged (published).  0 = off (seed rule).
+            fast (m/s).  A static object of size ``S`` approached at speed ``v`` has
+            ``size = f S / Z``, so ``1 / size`` falls by ``v / (f S)`` per second whatever
+            its distance; the fall is also measured from its offset from the focus of
+            expansion, which scales like its size.  The per-frame threshold is
+            ``min_approach_speed / (f sign_size_m fps)`` with ``f`` from the image width and
+            ``camera_hfov_deg`` and ``fps`` from the frames' stamps (``frame_rate`` without
+            them), so the cue means the same on any camera and frame rate.  A vehicle
+            driving ahead at the ego speed keeps its image size and place (about 0): colour
+            cannot tell the rear of an orange truck at dusk from a dusk sign (chroma ratio
+            1.59-1.79 vs 1.55-2.05), its motion can.  10 m/s with the simulator's camera
+            (f 554 px, 15 fps) is 0.001 / px per frame (signs on the tuning bags, at 20-27
+            m/s: 0.0017-0.004; the truck ahead on dusk tuning random 2100: -0.0006-0.0004,
+            up to 0.0012 on a track's first frames).  A sign approached slower than that
+            (ego stopped or crawling) is not published on its own either.  Histories
+            shorter than ``motion_min_frames`` are not judged (published).  0 = off (seed
+            rule).
+        sign_size_m: the nominal sign face size ``S`` of the motion cue (48-in diamond).
+        camera_hfov_deg: horizontal field of view for the cue's focal length (the
+            simulator's camera: 60 deg, f 554 px at 640 px).
+        frame_rate: frames per second assumed when :meth:`MultiTracker.step` gets no stamps.
         motion_window: frames of history the motion cue fits (Theil-Sen; 15 = 1 s).
         motion_min_frames: the motion cue judges a track only when its history in the
             window spans at least this many frames.
@@ -383,7 +391,10 @@ class TrackerConfig:
     max_growth_excess: float = 0.3
     size_history: int = 8
     min_hits_after_loss: int = 2
-    min_approach_rate: float = 0.001
+    min_approach_speed: float = 10.0
+    sign_size_m: float = 1.2
+    camera_hfov_deg: float = 60.0
+    frame_rate: float = 15.0
     motion_window: int = 15
     motion_min_frames: int = 8
     focus_of_expansion: tuple[float, float] = (0.5, 0.5)
@@ -411,6 +422,10 @@ class TrackerConfig:
             raise TrackingError(f'scales must be positive, got {self.scales!r}')
         if self.max_samples < 16:
             raise TrackingError('max_samples must be at least 16')
+        if self.min_approach_speed < 0 or self.sign_size_m <= 0 or self.frame_rate <= 0 \
+                or not 1.0 <= self.camera_hfov_deg <= 179.0:
+            raise TrackingError('min_approach_speed must be >= 0, sign_size_m and frame_rate '
+                                '> 0, camera_hfov_deg in [1, 179]')
         if self.motion_window < 2 or self.motion_min_frames < 2:
             raise TrackingError('motion_window and motion_min_frames must be at least 2')
         if len(self.focus_of_expansion) != 2:
@@ -433,7 +448,7 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
                    truncated_aspect=0.0, anchor_kind_ratio=0.0,
                    min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0,
                    ring_margin=-1.0, size_history=0, min_hits_after_loss=1,
-                   min_approach_rate=0.0, perspective_scale=False)
+                   min_approach_speed=0.0, perspective_scale=False)
 
 
 # --- histograms ---------------------------------------------------------------------------
@@ -1146,6 +1161,7 @@ class MultiTracker:
         self._next_id = 1
         self.frames = 0
         self._frame: Optional[np.ndarray] = None
+        self._stamps: list[float] = []       # the last frames' stamps (s), for the frame rate
         #: seconds spent in localisation per track in the last step (for the bench).
         self.last_localise_s: list[float] = []
 
@@ -1157,6 +1173,7 @@ class MultiTracker:
     def reset(self) -> None:
         """Drop every track (e.g. when the bag loops or time jumps back)."""
         self._tracks.clear()
+        self._stamps.clear()
 
     @property
     def active_ids(self) -> list[int]:
@@ -1201,12 +1218,15 @@ class MultiTracker:
 
     # -- the frame step ------------------------------------------------------------------
 
-    def step(self, frame: np.ndarray, detections: Sequence[Detection] = ()) -> list[Track]:
+    def step(self, frame: np.ndarray, detections: Sequence[Detection] = (),
+             stamp: Optional[float] = None) -> list[Track]:
         """Process one frame and its detections; returns the tracks to publish.
 
         Args:
             frame: BGR uint8 image (H, W, 3).
             detections: the detector's output for this very frame (empty when it missed).
+            stamp: the frame's time in seconds (the image header), for the frame rate the
+                motion cue needs (``TrackerConfig.frame_rate`` when never given).
 
         Returns:
             One :class:`~workzone_ros.interfaces.Track` per published track, detections first
@@ -1223,6 +1243,9 @@ class MultiTracker:
         cfg = self.config
         self.frames += 1
         self._frame = frame
+        if stamp is not None:
+            self._stamps.append(float(stamp))
+            del self._stamps[:-31]
         H, W = frame.shape[:2]
         tracking = cfg.mode == 'detection_and_tracking'
         self.last_localise_s = []
@@ -1410,10 +1433,25 @@ class MultiTracker:
         tr.anchor, tr.box = anchor, box
         self._record_motion(tr)
 
+    @property
+    def frame_rate(self) -> float:
+        """Frames per second: the median gap of the last stamps given to :meth:`step`
+        (``TrackerConfig.frame_rate`` before two increasing stamps)."""
+        gaps = np.diff(self._stamps) if len(self._stamps) > 1 else np.zeros(0)
+        gaps = gaps[gaps > 0]
+        return float(1.0 / np.median(gaps)) if gaps.size else self.config.frame_rate
+
+    def approach_threshold(self, width: int) -> float:
+        """The motion cue's minimum fall of ``1 / size`` per frame (1/px) for frames
+        ``width`` pixels wide: ``min_approach_speed / (f sign_size_m fps)``."""
+        cfg = self.config
+        f = 0.5 * width / math.tan(math.radians(cfg.camera_hfov_deg) / 2.0)
+        return cfg.min_approach_speed / (f * cfg.sign_size_m * self.frame_rate)
+
     def _record_motion(self, tr: _Track) -> None:
         """Remember the anchor of this frame for :func:`approach_rate`."""
         cfg = self.config
-        if cfg.min_approach_rate <= 0:
+        if cfg.min_approach_speed <= 0:
             return
         a = tr.anchor
         tr.motion.append((float(self.frames), a[0] + a[2] / 2, a[1] + a[3] / 2, a[2], a[3]))
@@ -1422,22 +1460,23 @@ class MultiTracker:
 
     def _approaching(self, tr: _Track, W: int, H: int) -> bool:
         """Motion cue: the track does not behave like a vehicle driving ahead (see
-        ``TrackerConfig.min_approach_rate``)."""
+        ``TrackerConfig.min_approach_speed``)."""
         cfg = self.config
-        if cfg.min_approach_rate <= 0:
+        if cfg.min_approach_speed <= 0:
             return True
+        minimum = self.approach_threshold(W)
         fx, fy = cfg.focus_of_expansion
         tr.approach = approach_rate(tr.motion, (fx * W, fy * H), cfg.motion_window,
                                     cfg.motion_min_frames, cfg.radial_min_offset)
         if cfg.approach_from_detections and tr.approach is not None \
-                and tr.approach < cfg.min_approach_rate:
+                and tr.approach < minimum:
             # The detected sizes measure the same rate, free of the tracker's own scale lag
             # (a box that started too wide grows too slowly).
             det = approach_rate([(f, 0.0, 0.0, w, h) for f, w, h in tr.det_sizes], None,
                                 max(cfg.motion_window, self.frames), cfg.motion_min_frames)
             if det is not None:
                 tr.approach = max(tr.approach, det)
-        return tr.approach is None or tr.approach >= cfg.min_approach_rate
+        return tr.approach is None or tr.approach >= minimum
 
     def _may_coast(self, target: TargetModel) -> bool:
         """The track may be published while it runs on its own: a coloured target that does

@@ -154,10 +154,16 @@ _CORE_PARAMS = (
           'only once two detections measured the trend'),
     # Off unless configured (config/workzone.yaml turns it on): the node's own test draws a
     # sign approached far slower (2 %/frame at 50 px) than the cue's minimum.
-    Param('min_approach_rate', 0.0, 'motion cue: a track whose inverse size (or offset from '
-          'the focus of expansion) falls slower than this per frame (1/px; v / (f S fps)) '
-          'is not published on its own (a vehicle ahead; 0 = off; core default '
-          f'{_D.min_approach_rate})', min=0.0, max=1.0),
+    Param('min_approach_speed', 0.0, 'motion cue: a track that the camera approaches slower '
+          'than this (m/s, from the fall of its inverse size or offset from the focus of '
+          'expansion) is not published on its own (a vehicle ahead; 0 = off; core default '
+          f'{_D.min_approach_speed})', min=0.0, max=100.0),
+    Param('sign_size_m', _D.sign_size_m, 'motion cue: nominal sign face size (m)', min=0.05,
+          max=10.0),
+    Param('camera_hfov_deg', _D.camera_hfov_deg, "motion cue: the camera's horizontal field "
+          'of view (deg) for its focal length', min=1.0, max=179.0),
+    Param('frame_rate', _D.frame_rate, 'motion cue: frames per second until the image stamps '
+          'tell', min=0.1, max=1000.0),
     Param('motion_window', _D.motion_window, 'motion cue: frames of track history used',
           min=2, max=1000),
     Param('motion_min_frames', _D.motion_min_frames, 'motion cue: judged only on a history '
@@ -261,7 +267,7 @@ class TrackerNode(WorkzoneNode):
             else:
                 raise InputError('detections older than the last processed frame')
         frame = image_to_numpy(image, desired_encoding='bgr8')
-        tracks = self._tracker.step(frame, dets.detections)
+        tracks = self._tracker.step(frame, dets.detections, stamp=ns * 1e-9)
         self._last_ns = ns
         for old in [k for k in self._images if k <= ns]:
             del self._images[old]

@@ -298,7 +298,7 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
                 started.add(s.sign_id)
         frame_out = {}
         for name, tracker in trackers.items():
-            out = tracker.step(frame, dets)
+            out = tracker.step(frame, dets, stamp=ns * 1e-9)
             frame_out[name] = out
             times[name] += tracker.last_localise_s
             a = acc[name]

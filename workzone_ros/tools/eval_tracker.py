@@ -56,8 +56,9 @@ from typing import Any, Optional
 import numpy as np
 
 from workzone_ros.resources import config_path
+from workzone_ros.tools.eval_color import REALDATA as _REALDATA
 
-__all__ = ['main', 'CONFIGS', 'evaluate_bag', 'area_pr']
+__all__ = ['main', 'CONFIGS', 'evaluate_bag', 'evaluate_real', 'area_pr']
 
 TAU = 0.5
 DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
@@ -474,7 +475,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     """Evaluate the tracker on synthetic bags; prints a table and optionally writes JSON."""
     p = argparse.ArgumentParser(prog='workzone-ros evaluate tracker', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument('bags', nargs='+', help='synthetic bag directories (workzone-ros synth)')
+    p.add_argument('bags', nargs='*', help='synthetic bag directories (workzone-ros synth)')
+    p.add_argument('--real', nargs='?', const=str(_REALDATA / 'us_workzone_video'), default=None,
+                   help='also the real dashcam clips in this folder (default '
+                        '../shared/realdata/us_workzone_video)')
     p.add_argument('--detector', choices=('color', 'gt'), default='color',
                    help='colour detector core (default) or GT boxes with simulated misses')
     p.add_argument('--color-model', default=None, help='trained colour model (.npz)')
@@ -498,9 +502,12 @@ def main(argv: Optional[list[str]] = None) -> int:
         print(f'unknown configurations {bad}; choose from {list(all_cfgs)}', file=sys.stderr)
         return 2
     cfgs = {c: all_cfgs[c] for c in chosen}
+    if not args.bags and not args.real:
+        print('give synthetic bags and/or --real', file=sys.stderr)
+        return 2
     import cv2
     cv2.setNumThreads(1)
-    results = []
+    results: list = []
     for k, bag in enumerate(args.bags):
         if not Path(bag).exists():
             print(f'{bag}: no such bag', file=sys.stderr)
@@ -531,12 +538,93 @@ def main(argv: Optional[list[str]] = None) -> int:
             out = write_overlay(path, frames)
             print(f'overlay: {out}')
             frames.clear()
+    real = None
+    if args.real:
+        folder = Path(args.real)
+        if not folder.is_dir():
+            print(f'{folder}: no such folder (the real clips)', file=sys.stderr)
+            return 2
+        real = evaluate_real(folder, args.color_model, cfgs, args.max_frames)
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, 'w') as fh:
-            json.dump(results, fh, indent=2)
+            json.dump(results if real is None else {'synthetic': results, 'real': real},
+                      fh, indent=2)
         print(f'figures written to {args.json}')
     return 0
+
+
+def evaluate_real(folder: Path, model_path: Optional[str], cfgs: dict,
+                  max_frames: int = 0) -> dict:
+    """The trackers on the real dashcam clips (camera only, native size, 30 fps stamps).
+
+    Per clip and configuration, with the hand-made approximate sign boxes of
+    ``evaluate color --real`` (evaluation only): the share of the visible labelled sign
+    frames where an output box has IoU >= 0.3 with the label (``sign_share``); of the frames
+    where the detector missed the sign, the share an output covers (``covered`` of
+    ``misses``); outputs per frame in the README's sign-free range (``false_per_frame``) and
+    those of them that are tracking-only (``false_tracking_per_frame``: cones, drums,
+    vests and trucks are in that range).
+    """
+    import cv2
+
+    from workzone_ros.core.tracking import MultiTracker
+    from workzone_ros.tools.eval_color import REAL_CLIPS, load_real_labels
+    labels = load_real_labels()
+    out: dict = {}
+    for clip, (_, (f0, f1)) in REAL_CLIPS.items():
+        path = folder / clip
+        if not path.exists():
+            out[clip] = {'skipped': f'{path} not found'}
+            continue
+        det = _ColorDetector(model_path)
+        trackers = {name: MultiTracker(cfg) for name, cfg in cfgs.items()}
+        lab = labels.get(clip, {})
+        res = {name: defaultdict(int) for name in cfgs}
+        cap = cv2.VideoCapture(str(path))
+        fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
+        k = -1
+        while not max_frames or k + 1 < max_frames:
+            ok, img = cap.read()
+            if not ok:
+                break
+            k += 1
+            dets = [d for d in det(img, None) if d.color == 'orange']
+            label = lab.get(k)
+            det_hit = bool(label and label[1]
+                           and any(d.box.iou(label[0]) >= 0.3 for d in dets))
+            for name, tracker in trackers.items():
+                outs = tracker.step(img, dets, stamp=k / fps)
+                r = res[name]
+                if label and label[1]:
+                    hit = any(t.box.iou(label[0]) >= 0.3 for t in outs)
+                    r['sign_frames'] += 1
+                    r['sign_hits'] += hit
+                    if not det_hit:
+                        r['misses'] += 1
+                        r['covered'] += hit
+                elif f0 <= k <= f1:
+                    r['free_frames'] += 1
+                    r['false'] += len(outs)
+                    r['false_tracking'] += sum(1 for t in outs if t.source == 'tracking')
+        cap.release()
+        clip_out = {}
+        for name, r in res.items():
+            n, free = r['sign_frames'], max(r['free_frames'], 1)
+            clip_out[name] = {
+                'sign_frames': n, 'sign_share': _r(r['sign_hits'] / n) if n else None,
+                'misses': r['misses'], 'covered': r['covered'],
+                'false_per_frame': _r(r['false'] / free),
+                'false_tracking_per_frame': _r(r['false_tracking'] / free)}
+        out[clip] = clip_out
+        print(f'\n== {clip} (real, {k + 1} frames; approximate hand-made labels)')
+        print(f"   {'config':22s} {'sign share':>10s} {'covered':>9s} {'false/fr':>9s} "
+              f"{'trk-only false/fr':>18s}")
+        for name, r in clip_out.items():
+            share = '-' if r['sign_share'] is None else f"{r['sign_share']:.3f}"
+            print(f"   {name:22s} {share:>10s} {r['covered']:>4d}/{r['misses']:<4d} "
+                  f"{r['false_per_frame']:>9.3f} {r['false_tracking_per_frame']:>18.3f}")
+    return out
 
 
 def _print(res: dict, names: Optional[list] = None) -> None:

@@ -765,3 +765,72 @@ def test_regulatory_extension_ends_at_the_bottom_border_over_snow(detector, size
     old = [c for c in detector.with_config(ext_frame=False).detect(img)
            if c.box.iou(g) > 0.2]
     assert not old or old[0].box.iou(g) < 0.5
+
+
+def _cone(img, cx, base_y, h):
+    """A traffic cone side on (MUTCD 6F.63): an orange truncated cone, its top a quarter of
+    its base, with a white retro-reflective band across it at 55-70 % of its height."""
+    w = int(0.55 * h)
+    top_y = base_y - h
+    pts = np.array([[cx - w // 8, top_y], [cx + w // 8, top_y], [cx + w // 2, base_y],
+                    [cx - w // 2, base_y]], np.int32)
+    cv2.fillConvexPoly(img, pts, ORANGE)
+    b0, b1 = top_y + int(0.3 * h), top_y + int(0.45 * h)
+    band = np.zeros(img.shape[:2], np.uint8)
+    cv2.fillConvexPoly(band, pts, 1)
+    band[:b0] = 0
+    band[b1:] = 0
+    img[band > 0] = WHITE
+    return (cx - w // 2, b1, w, base_y - b1)
+
+
+def _drum(img, x, y, w, h, stripes=5):
+    """A channelizing drum (MUTCD 6F.64): alternating horizontal orange and white stripes
+    over its whole width, orange at the top and the bottom."""
+    step = h / stripes
+    for k in range(stripes):
+        cv2.rectangle(img, (x, int(y + k * step)), (x + w - 1, int(y + (k + 1) * step) - 1),
+                      ORANGE if k % 2 == 0 else WHITE, -1)
+    return (x, y, w, h)
+
+
+def test_banded_rows_cone_drum_and_two_colour_sign():
+    """The band test on row masks: a white band with orange beyond it (cone, drum) is one;
+    a two-colour sign's white part ending at its black border is not; a plain face is not."""
+    def strip(rows):
+        o = np.array([[c == 'o'] * 10 for c in rows])
+        wh = np.array([[c == 'w'] * 10 for c in rows])
+        d = np.array([[c == 'd'] * 10 for c in rows])
+        return o, wh, d
+    # cone: tip, band, then the blob (rows 10-19)
+    o, wh, d = strip('...oooowww' + 'o' * 10 + '.....')
+    assert dt.banded_rows(o, wh, d, 10, 20, 2, 2, 10)
+    # drum bridged into one blob (rows 3-17) by the closing: bands inside
+    o, wh, d = strip('...' + 'ooowwwooowwwooo' + '...')
+    assert dt.banded_rows(o, wh, d, 3, 18, 2, 2, 15)
+    # two-colour sign: orange top (the blob, rows 3-7), white part, black border, orange dirt
+    o, wh, d = strip('...' + 'ooooo' + 'wwwwwwww' + 'dd' + 'ooo')
+    assert not dt.banded_rows(o, wh, d, 3, 8, 1, 2, 10)
+    # a plain face with a pale sky above and road below
+    o, wh, d = strip('wwwww' + 'o' * 10 + '.....')
+    assert not dt.banded_rows(o, wh, d, 5, 15, 1, 2, 10)
+
+
+@pytest.mark.parametrize('h', [50, 80])
+def test_cone_and_drum_rejected_diamond_beside_them_kept(detector, h):
+    """A cone's lower orange part under its white band and a drum's stripes are rejected by
+    the band test; a diamond beside them is kept.  (The legend test is off here: the plain
+    renders carry no dark pixels; real cones and drums pass it by shading and dirt.)"""
+    img = _background()
+    cone = _cone(img, 120, 60 + h, h)
+    drum = _drum(img, 250, 40, int(0.6 * h), h)
+    sign = _diamond(img, 470, 120, 40)
+    on = detector.with_config(min_dark_inside=0.0)
+    off = on.with_config(band_test=False)
+
+    def near(dets, gt):
+        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.2]
+    d_on, d_off = on.detect(img), off.detect(img)
+    assert near(d_off, cone) and near(d_off, drum)          # without the test: found
+    assert not near(d_on, cone) and not near(d_on, drum)    # with it: rejected
+    assert near(d_on, sign) and near(d_off, sign)

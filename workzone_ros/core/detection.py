@@ -167,6 +167,10 @@ class DetectorConfig:
             orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
             patches, drums, vehicle panels mostly do not).
         dark_rel: dark = value below this fraction of the blob's median orange value.
+        band_test: reject an orange blob of at least ``band_min_px`` (height) that a white
+            band separates from more orange above or below it, or that holds one
+            (:func:`banded_rows`: the retro-reflective bands of traffic cones and drums,
+            MUTCD 6F.63 / 6F.64; a sign face has none).  Not inside LiDAR ROIs.
         structure_min_px: blobs smaller than this (shorter side) skip the legend test.
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
@@ -259,6 +263,8 @@ class DetectorConfig:
     blur_max_frac: float = 0.15
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
+    band_test: bool = True
+    band_min_px: float = 6.0
     dark_rel: float = 0.6
     structure_min_px: float = 18.0
     nms_iou: float = 0.3
@@ -520,6 +526,59 @@ def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = 
         return None
     return fr[0], fc[0], fr[2], fc[2], min(fr[4], fc[4])
 
+
+def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: int, bottom: int,
+                min_run: int, gap: int, max_band: int, min_white: float = 0.5,
+                min_orange: float = 0.2, line: float = 0.9) -> bool:
+    """True when a white band separates the blob from more orange above or below it.
+
+    ``orange``, ``white``, ``dark``: boolean masks of a strip of columns over a blob (its
+    orange, white and dark pixels; the strip's rows reach beyond the blob above and
+    below); the blob spans rows ``top`` .. ``bottom - 1``.  Traffic cones and drums (MUTCD
+    6F.63, 6F.64) carry horizontal white retro-reflective bands across their whole width
+    between orange parts.  From the blob's top edge upward (and from its bottom edge
+    downward): at most ``gap`` rows of blend, then a band of at most ``max_band`` rows
+    holding at least ``min_run`` rows that are at least ``min_white`` white and no row that
+    is at least ``min_orange`` orange, then such an orange row; or, inside the blob, such a
+    band between orange rows.  A row at least ``line`` dark ends the search (a two-colour
+    sign's white part ends at its black border line).
+    """
+    n = orange.shape[0]
+    if n == 0 or orange.shape[1] == 0:
+        return False
+    w = float(orange.shape[1])
+    is_w = white.sum(axis=1) / w >= min_white
+    is_o = (orange.sum(axis=1) / w >= min_orange) & ~is_w
+    is_d = dark.sum(axis=1) / w >= line
+    for start, step in ((top - 1, -1), (bottom, 1)):
+        i, n_white, first = start, 0, None
+        while 0 <= i < n and not is_d[i]:
+            if is_w[i]:
+                n_white += 1
+                first = i if first is None else first
+            elif is_o[i]:
+                if first is not None and n_white >= min_run:
+                    return True
+                if first is None and abs(i - start) >= gap:
+                    break                       # more orange, no band: not this blob's edge
+            if first is None and abs(i - start) >= gap + 1:
+                break                           # no band right at the edge
+            if first is not None and abs(i - first) >= max_band:
+                break
+            i += step
+    # a band inside the blob (the closing bridged a drum's stripes into one blob)
+    i = top
+    while i < min(bottom, n):
+        if is_o[i] or not (is_w[i] or not is_d[i]) or i == top:
+            i += 1
+            continue
+        j = i
+        while j < min(bottom, n) and not is_o[j] and not is_d[j]:
+            j += 1
+        if j < min(bottom, n) and is_o[j] and is_o[i - 1] and is_w[i:j].sum() >= min_run:
+            return True
+        i = j + 1
+    return False
 
 def diamond_rings(shape: tuple, fit: tuple, width: float
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -1308,6 +1367,11 @@ class ColorDetector:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
                 return None
+        if cfg.band_test and bh >= cfg.band_min_px and not relaxed:
+            if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
+                if self.debug is not None:
+                    self.debug[-1]['banded'] = True
+                return None
         cut, row_fit = None, None
         if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
             # rows beyond a fitted diamond's corners are not the face (a portable stand's
@@ -1388,6 +1452,36 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
+                v_ref: float, t: float) -> bool:
+        """:func:`banded_rows` on a strip over the blob's middle half of columns, reaching
+        a blob height and two blends above and below it (a drum's stripes are as high as
+        its orange ones) (the white and dark levels relative to the
+        blob's median value ``v_ref``, orange: likelihood at least ``t``)."""
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        # the strip's columns: the middle half of the blob's (a cone's tip is narrow)
+        q = max(1, bw // 4)
+        c0, c1 = max(0, bx + q), min(W, bx + bw - q)
+        gap = max(2, int(round(0.15 * bh)))
+        reach = bh + 2 * gap + 2             # a band as high as the blob, blend either side
+        r0, r1 = max(0, by - reach), min(H, by + bh + reach)
+        if c1 <= c0 or r1 <= r0:
+            return False
+        strip = bgr[r0:r1, c0:c1]
+        if self._gains is not None:
+            strip = apply_gains(strip, self._gains)
+        hsv = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
+        i = self._idx['orange']
+        like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
+        v = hsv[..., 2]
+        # the orange beyond a band (a cone's tip) at the blob's own threshold
+        orange = (like >= t - 1e-6) & (v >= self.model.v_min[i])
+        white = (hsv[..., 1] <= cfg.white_s_max) & (v >= cfg.white_v_rel * v_ref)
+        dark = v < cfg.dark_rel * v_ref
+        run = max(1, int(round(0.05 * bh)))
+        return banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap)
 
     @staticmethod
     def _trim_to_diamond(pix: np.ndarray, tol: float

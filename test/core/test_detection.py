@@ -834,3 +834,41 @@ def test_cone_and_drum_rejected_diamond_beside_them_kept(detector, h):
     assert near(d_off, cone) and near(d_off, drum)          # without the test: found
     assert not near(d_on, cone) and not near(d_on, drum)    # with it: rejected
     assert near(d_on, sign) and near(d_off, sign)
+
+
+def test_row_taper_and_white_cap():
+    """A diamond is symmetric about its middle row, a cone's body widens downward; a white
+    band right over a blob is a cap, one further away is not."""
+    img = np.zeros((120, 120), np.uint8)
+    cv2.fillConvexPoly(img, np.array([[60, 10], [110, 60], [60, 110], [10, 60]]), 1)
+    assert 0.9 < dt.row_taper(img) < 1.1
+    cone = np.zeros((120, 120), np.uint8)
+    cv2.fillConvexPoly(cone, np.array([[45, 20], [75, 20], [95, 110], [25, 110]]), 1)
+    assert dt.row_taper(cone) < 0.8
+    white = np.zeros((30, 10), bool)
+    white[10:16] = True
+    assert dt.white_cap(white, 17, 3, 2)
+    assert not dt.white_cap(white, 25, 3, 2)
+
+
+def test_cone_with_white_top_rejected(detector):
+    """A cone whose top above its white band is lost (white, or too thin to see): the band
+    caps a blob that widens downward and is rejected; the same blob upside down (wider at
+    the top, no cap) and a diamond under a white sky are kept."""
+    img = _background()
+    img[:240] = (236, 236, 234)                             # pale overcast sky
+    on = detector.with_config(min_dark_inside=0.0)
+    h = 70
+    pts = np.array([[120 - 12, 60], [120 + 12, 60], [120 + 22, 60 + h], [120 - 22, 60 + h]],
+                   np.int32)
+    cv2.fillConvexPoly(img, pts, ORANGE)
+    img[60:60 + int(0.3 * h), 90:150][img[60:60 + int(0.3 * h), 90:150, 0] < 100] = WHITE
+    body = (98, 60 + int(0.3 * h), 45, h - int(0.3 * h))
+    sign = _diamond(img, 400, 140, 40)
+
+    def near(dets, gt):
+        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.2]
+    assert near(on.with_config(cone_taper=0.0).detect(img), body)
+    d_on = on.detect(img)
+    assert not near(d_on, body)
+    assert near(d_on, sign)

@@ -170,7 +170,13 @@ class DetectorConfig:
         band_test: reject an orange blob of at least ``band_min_px`` (height) that a white
             band separates from more orange above or below it, or that holds one
             (:func:`banded_rows`: the retro-reflective bands of traffic cones and drums,
-            MUTCD 6F.63 / 6F.64; a sign face has none).  Not inside LiDAR ROIs.
+            MUTCD 6F.63 / 6F.64; a sign face has none).  Not inside LiDAR ROIs.  White:
+            saturation at most ``white_s_max`` and luma at least ``band_white_luma`` x the
+            blob's median luma (white sheeting is brighter than orange under the same light;
+            orange (255, 120, 20) has luma 149, white sheeting about 240).  A blob at least as
+            tall as wide whose :func:`row_taper` is at most ``cone_taper`` (widening
+            downward like a cone) and that a white band caps (:func:`white_cap`) is rejected
+            too.
         structure_min_px: blobs smaller than this (shorter side) skip the legend test.
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
@@ -265,6 +271,8 @@ class DetectorConfig:
     min_dark_inside: float = 0.02
     band_test: bool = True
     band_min_px: float = 6.0
+    band_white_luma: float = 1.25
+    cone_taper: float = 0.88
     dark_rel: float = 0.6
     structure_min_px: float = 18.0
     nms_iou: float = 0.3
@@ -527,8 +535,45 @@ def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = 
     return fr[0], fc[0], fr[2], fc[2], min(fr[4], fc[4])
 
 
+def row_taper(mask: np.ndarray) -> float:
+    """A blob's mean width over its upper rows (15-40 % of its height from the top) over its
+    mean width over its lower rows (60-85 %): about 1 for a diamond or a rectangle (symmetric
+    about the middle row), about 0.7-0.8 for the orange part of a traffic cone below its
+    band (a truncated cone, its top about a fifth of its base: MUTCD 6F.63).  1.0 for a blob
+    of fewer than 5 rows."""
+    yc, left, right = _row_extents(mask)
+    if yc.size < 5:
+        return 1.0
+    y0 = yc[0] - 0.5
+    t = (yc - y0) / (yc[-1] + 0.5 - y0)
+    w = right - left
+    up, lo = (t >= 0.15) & (t <= 0.4), (t >= 0.6) & (t <= 0.85)
+    if not (up.any() and lo.any()):
+        return 1.0
+    return float(w[up].mean() / max(w[lo].mean(), 1e-6))
+
+
+def white_cap(white: np.ndarray, top: int, min_run: int, gap: int, min_white: float = 0.5
+              ) -> bool:
+    """True when at least ``min_run`` rows at least ``min_white`` white lie right above row
+    ``top`` of a strip (within ``gap`` rows of it): a cone's white band over its orange
+    body."""
+    w = float(max(white.shape[1], 1))
+    is_w = white.sum(axis=1) / w >= min_white
+    n = 0
+    for i in range(top - 1, max(-1, top - 1 - gap - min_run - 1), -1):
+        if is_w[i]:
+            n += 1
+            if n >= min_run:
+                return True
+        elif n:
+            break
+    return False
+
+
 def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: int, bottom: int,
-                min_run: int, gap: int, max_band: int, min_white: float = 0.5,
+                min_run: int, gap: int, max_band: int, min_beyond: int = 3,
+                min_white: float = 0.5,
                 min_orange: float = 0.2, line: float = 0.9) -> bool:
     """True when a white band separates the blob from more orange above or below it.
 
@@ -538,8 +583,9 @@ def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: in
     6F.63, 6F.64) carry horizontal white retro-reflective bands across their whole width
     between orange parts.  From the blob's top edge upward (and from its bottom edge
     downward): at most ``gap`` rows of blend, then a band of at most ``max_band`` rows
-    holding at least ``min_run`` rows that are at least ``min_white`` white and no row that
-    is at least ``min_orange`` orange, then such an orange row; or, inside the blob, such a
+    holding at least ``min_run`` rows that are at least ``min_white`` white, then at least
+    ``min_beyond`` consecutive rows that are at least ``min_orange`` orange (fewer are part of
+    the band: a legend's edges blended with a reddish light); or, inside the blob, such a
     band between orange rows.  A row at least ``line`` dark ends the search (a two-colour
     sign's white part ends at its black border line).
     """
@@ -557,10 +603,16 @@ def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: in
                 n_white += 1
                 first = i if first is None else first
             elif is_o[i]:
-                if first is not None and n_white >= min_run:
+                k = i
+                while 0 <= k < n and is_o[k]:
+                    k += step
+                if first is not None and n_white >= min_run and abs(k - i) >= min_beyond:
                     return True
                 if first is None and abs(i - start) >= gap:
                     break                       # more orange, no band: not this blob's edge
+                if first is not None:
+                    i = k                       # a few orange rows (legend blend): go on
+                    continue
             if first is None and abs(i - start) >= gap + 1:
                 break                           # no band right at the edge
             if first is not None and abs(i - first) >= max_band:
@@ -1478,10 +1530,28 @@ class ColorDetector:
         v = hsv[..., 2]
         # the orange beyond a band (a cone's tip) at the blob's own threshold
         orange = (like >= t - 1e-6) & (v >= self.model.v_min[i])
-        white = (hsv[..., 1] <= cfg.white_s_max) & (v >= cfg.white_v_rel * v_ref)
+        # white sheeting reflects every channel: brighter (luma) than the orange face under
+        # the same light, where a legend or a grey patch lifted by rain or fog is not
+        luma = cv2.cvtColor(strip, cv2.COLOR_BGR2GRAY)
+        face = orange[by - r0:by + bh - r0]
+        if not face.any():
+            return False
+        y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
+        white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
         dark = v < cfg.dark_rel * v_ref
-        run = max(1, int(round(0.05 * bh)))
-        return banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap)
+        # MUTCD bands: a cone's narrower band (4 in.) is over a quarter of the orange part
+        # below it, a drum's stripes are as high as its orange ones; a sign's white outline
+        # or margin is a few per cent of its size
+        run = max(2, int(round(0.2 * bh)))
+        # the orange beyond: a cone's tip is thin and blurred, half a band's rows will do
+        beyond = max(3, int(round(0.1 * bh)))
+        if banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap, beyond):
+            return True
+        # a cone whose tip is white or lost: a white band right over a blob that is taller
+        # than wide and widens downward (a diamond is symmetric; a diamond's top half alone
+        # is twice as wide as high)
+        return (bh >= bw and row_taper(pix) <= cfg.cone_taper
+                and white_cap(white, by - r0, run, gap))
 
     @staticmethod
     def _trim_to_diamond(pix: np.ndarray, tol: float

@@ -872,3 +872,40 @@ def test_cone_with_white_top_rejected(detector):
     d_on = on.detect(img)
     assert not near(d_on, body)
     assert near(d_on, sign)
+
+
+def _dirt(img, x0, y0, x1, y1, seed=5):
+    """A dirt pile: warm mid-saturation soil (0.75 in the step table) speckled with clods of
+    saturated orange-brown (0.98: the sign's own level), a dense patch of them in the middle
+    with a few dark stones."""
+    rng = np.random.default_rng(seed)
+    soil = cv2.cvtColor(np.uint8([[[9, 120, 165]]]), cv2.COLOR_HSV2BGR)[0, 0].tolist()
+    clod = cv2.cvtColor(np.uint8([[[12, 200, 210]]]), cv2.COLOR_HSV2BGR)[0, 0].tolist()
+    img[y0:y1, x0:x1] = soil
+    speck = rng.random((y1 - y0, x1 - x0)) < 0.15
+    img[y0:y1, x0:x1][speck] = clod
+    cx, cy = (x0 + x1) // 2, (y0 + y1) // 2
+    img[cy - 25:cy + 25, cx - 25:cx + 25] = clod
+    stones = rng.random((50, 50)) < 0.05
+    img[cy - 25:cy + 25, cx - 25:cx + 25][stones] = (30, 30, 30)
+    return (cx - 25, cy - 25, 50, 50)
+
+
+def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
+    """A patch of sign-coloured clods in a dirt pile: its surroundings are more sign-coloured
+    than not (mean likelihood above 0.5) and hold the face's own colour, so it is a part of
+    a surface, not an object; a diamond on the road side is kept (its surroundings are
+    not sign-coloured), as is a diamond in front of a brick wall (warm, but not at the
+    face's level: test_sign_in_front_of_a_brick_wall_is_separated)."""
+    prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
+    det = dt.ColorDetector(_step_model(prior), dt.DetectorConfig(colors=('orange',)))
+    img = _background(shape=(406, 722))
+    patch = _dirt(img, 60, 60, 300, 300)
+    sign = _diamond(img, 520, 130, 36)
+
+    def near(dets, gt):
+        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.3]
+    assert near(det.with_config(max_surround_like=1.0).detect(img), patch)
+    dets = det.detect(img)
+    assert not near(dets, patch)
+    assert near(dets, sign)

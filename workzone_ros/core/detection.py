@@ -177,6 +177,16 @@ class DetectorConfig:
             tall as wide whose :func:`row_taper` is at most ``cone_taper`` (widening
             downward like a cone) and that a white band caps (:func:`white_cap`) is rejected
             too.
+        max_surround_like, min_surround_face, surround_in, surround_out: reject an orange
+            blob whose surroundings (the ring ``surround_in`` .. ``surround_out`` x its size
+            outside its hull, beyond the border and blur) have a mean colour likelihood
+            above ``max_surround_like`` and more than ``min_surround_face`` of their pixels
+            at the blob's own threshold: the surface around it is more sign-coloured than
+            not and carries the face's colour, the blob is a patch of it (dirt piles, brick,
+            vehicle panels), not an object on its own.  A sign in front of a warm wall
+            (likely, but below the face's level) is kept.  Limit: a fragment of a sign
+            split by an occluder has the rest of the face in its ring.  1: off.  Not inside
+            LiDAR ROIs.
         structure_min_px: blobs smaller than this (shorter side) skip the legend test.
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
@@ -273,6 +283,10 @@ class DetectorConfig:
     band_min_px: float = 6.0
     band_white_luma: float = 1.25
     cone_taper: float = 0.88
+    max_surround_like: float = 0.5
+    surround_in: float = 0.1
+    min_surround_face: float = 0.05
+    surround_out: float = 0.2
     dark_rel: float = 0.6
     structure_min_px: float = 18.0
     nms_iou: float = 0.3
@@ -1411,6 +1425,15 @@ class ColorDetector:
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(np.median(vch[pix > 0]))
+        if cfg.max_surround_like < 1.0 and not relaxed:
+            # a sign is an object on its own: beyond its border the background is not the
+            # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
+            # brick wall, a vehicle's panel) is
+            sl, sh = self._surround_like(hmask, like, max(bw, bh), t - 1e-6)
+            if self.debug is not None:
+                self.debug[-1].update(surround=sl, surround_face=sh)
+            if sl > cfg.max_surround_like and sh > cfg.min_surround_face:
+                return None
         dark = vch < cfg.dark_rel * v_ref
         if min(bw, bh) >= cfg.structure_min_px and not relaxed:
             inside = hmask > 0
@@ -1504,6 +1527,22 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float
+                       ) -> tuple[float, float]:
+        """(mean likelihood, share of pixels of likelihood >= ``level``) of the ring from
+        ``surround_in`` to ``surround_out`` x ``size`` outside the blob's hull (beyond a
+        sign's border and the blur of its edge); zeros when the ring is empty."""
+        cfg = self.config
+        r1 = max(1, int(round(cfg.surround_in * size)))
+        r2 = max(r1 + 1, int(round(cfg.surround_out * size)))
+        d1 = cv2.dilate(hmask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
+        d2 = cv2.dilate(hmask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
+        ring = (d2 > 0) & (d1 == 0)
+        if not ring.any():
+            return 0.0, 0.0
+        lr = like[ring]
+        return float(lr.mean()), float(np.count_nonzero(lr >= level) / lr.size)
 
     def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
                 v_ref: float, t: float) -> bool:

@@ -176,7 +176,8 @@ class DetectorConfig:
             orange (255, 120, 20) has luma 149, white sheeting about 240).  A blob at least as
             tall as wide whose :func:`row_taper` is at most ``cone_taper`` (widening
             downward like a cone) and that a white band caps (:func:`white_cap`) is rejected
-            too.
+            too.  A band (and a cap) has at least ``band_min_rows`` x the blob's height
+            (at least 2) white rows.
         max_surround_like, min_surround_face, surround_in, surround_out: reject an orange
             blob whose surroundings (the ring ``surround_in`` .. ``surround_out`` x its size
             outside its hull, beyond the border and blur) have a mean colour likelihood
@@ -282,6 +283,7 @@ class DetectorConfig:
     band_test: bool = True
     band_min_px: float = 6.0
     band_white_luma: float = 1.25
+    band_min_rows: float = 0.12
     cone_taper: float = 0.88
     max_surround_like: float = 0.5
     surround_in: float = 0.1
@@ -1578,10 +1580,11 @@ class ColorDetector:
         y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
         white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
         dark = v < cfg.dark_rel * v_ref
-        # MUTCD bands: a cone's narrower band (4 in.) is over a quarter of the orange part
-        # below it, a drum's stripes are as high as its orange ones; a sign's white outline
-        # or margin is a few per cent of its size
-        run = max(2, int(round(0.2 * bh)))
+        # MUTCD bands: a cone's narrower band (4 in.) is about a quarter of the orange part
+        # below it with the base (less the blend of its two edges when small), a drum's
+        # stripes are as high as its orange ones; a sign's white outline or margin is a few
+        # per cent of its size
+        run = max(2, int(round(cfg.band_min_rows * bh)))
         # the orange beyond: a cone's tip is thin and blurred, half a band's rows will do
         beyond = max(3, int(round(0.1 * bh)))
         if banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap, beyond):

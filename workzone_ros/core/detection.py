@@ -1548,23 +1548,27 @@ class ColorDetector:
 
     def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
                 v_ref: float, t: float) -> bool:
-        """:func:`banded_rows` on a strip over the blob's middle half of columns, reaching
-        a blob height and two blends above and below it (a drum's stripes are as high as
-        its orange ones) (the white and dark levels relative to the
-        blob's median value ``v_ref``, orange: likelihood at least ``t``)."""
+        """:func:`banded_rows` (and the cone cap) on a strip over the blob's middle half of
+        columns, reaching a blob height and two blends above and below it (a drum's stripes
+        are as high as its orange ones).  Orange: likelihood at least ``t``; white: see
+        ``band_test``, and not a row whose white runs on past both of the blob's sides
+        (half its width either side: the background); dark relative to ``v_ref``."""
         cfg = self.config
         H, W = bgr.shape[:2]
-        # the strip's columns: the middle half of the blob's (a cone's tip is narrow)
+        # the strip's columns: the middle half of the blob's (a cone's tip is narrow), with
+        # flanks of half the blob's width either side
         q = max(1, bw // 4)
         c0, c1 = max(0, bx + q), min(W, bx + bw - q)
+        f0, f1 = max(0, bx - bw // 2), min(W, bx + bw + bw // 2)
         gap = max(2, int(round(0.15 * bh)))
         reach = bh + 2 * gap + 2             # a band as high as the blob, blend either side
         r0, r1 = max(0, by - reach), min(H, by + bh + reach)
         if c1 <= c0 or r1 <= r0:
             return False
-        strip = bgr[r0:r1, c0:c1]
+        wide = bgr[r0:r1, f0:f1]
         if self._gains is not None:
-            strip = apply_gains(strip, self._gains)
+            wide = apply_gains(wide, self._gains)
+        strip = wide[:, c0 - f0:c1 - f0]
         hsv = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
         i = self._idx['orange']
         like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
@@ -1579,6 +1583,16 @@ class ColorDetector:
             return False
         y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
         white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
+        # a band is the object's own: bounded by its silhouette; white that runs on past
+        # the blob's sides on both flanks is the background (an overcast sky, snow, a
+        # wall), e.g. above a sign's top corner, below its portable stand's flags
+        whsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
+        wwhite = (whsv[..., 1] <= cfg.white_s_max) & (
+            cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY) >= cfg.band_white_luma * y_ref)
+        lf, rf = wwhite[:, :max(0, bx - f0)], wwhite[:, min(f1, bx + bw) - f0:]
+        if lf.shape[1] and rf.shape[1]:
+            open_rows = (lf.mean(axis=1) >= 0.5) & (rf.mean(axis=1) >= 0.5)
+            white = white & ~open_rows[:, None]
         dark = v < cfg.dark_rel * v_ref
         # MUTCD bands: a cone's narrower band (4 in.) is about a quarter of the orange part
         # below it with the base (less the blend of its two edges when small), a drum's

@@ -167,6 +167,27 @@ class DetectorConfig:
             orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
             patches, drums, vehicle panels mostly do not).
         dark_rel: dark = value below this fraction of the blob's median orange value.
+        band_test: reject an orange blob of at least ``band_min_px`` (height) that a white
+            band separates from more orange above or below it, or that holds one
+            (:func:`banded_rows`: the retro-reflective bands of traffic cones and drums,
+            MUTCD 6F.63 / 6F.64; a sign face has none).  Not inside LiDAR ROIs.  White:
+            saturation at most ``white_s_max`` and luma at least ``band_white_luma`` x the
+            blob's median luma (white sheeting is brighter than orange under the same light;
+            orange (255, 120, 20) has luma 149, white sheeting about 240).  A blob at least as
+            tall as wide whose :func:`row_taper` is at most ``cone_taper`` (widening
+            downward like a cone) and that a white band caps (:func:`white_cap`) is rejected
+            too.  A band (and a cap) has at least ``band_min_rows`` x the blob's height
+            (at least 2) white rows.
+        max_surround_like, min_surround_face, surround_in, surround_out: reject an orange
+            blob whose surroundings (the ring ``surround_in`` .. ``surround_out`` x its size
+            outside its hull, beyond the border and blur) have a mean colour likelihood
+            above ``max_surround_like`` and more than ``min_surround_face`` of their pixels
+            at the blob's own threshold: the surface around it is more sign-coloured than
+            not and carries the face's colour, the blob is a patch of it (dirt piles, brick,
+            vehicle panels), not an object on its own.  A sign in front of a warm wall
+            (likely, but below the face's level) is kept.  Limit: a fragment of a sign
+            split by an occluder has the rest of the face in its ring.  1: off.  Not inside
+            LiDAR ROIs.
         structure_min_px: blobs smaller than this (shorter side) skip the legend test.
         nms_iou: boxes overlapping a larger kept box by more than this IoU are suppressed;
             a box lying mostly (``nms_contain``) inside a larger one too.
@@ -259,6 +280,15 @@ class DetectorConfig:
     blur_max_frac: float = 0.15
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
+    band_test: bool = True
+    band_min_px: float = 6.0
+    band_white_luma: float = 1.25
+    band_min_rows: float = 0.12
+    cone_taper: float = 0.88
+    max_surround_like: float = 0.5
+    surround_in: float = 0.1
+    min_surround_face: float = 0.05
+    surround_out: float = 0.2
     dark_rel: float = 0.6
     structure_min_px: float = 18.0
     nms_iou: float = 0.3
@@ -520,6 +550,103 @@ def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = 
         return None
     return fr[0], fc[0], fr[2], fc[2], min(fr[4], fc[4])
 
+
+def row_taper(mask: np.ndarray) -> float:
+    """A blob's mean width over its upper rows (15-40 % of its height from the top) over its
+    mean width over its lower rows (60-85 %): about 1 for a diamond or a rectangle (symmetric
+    about the middle row), about 0.7-0.8 for the orange part of a traffic cone below its
+    band (a truncated cone, its top about a fifth of its base: MUTCD 6F.63).  1.0 for a blob
+    of fewer than 5 rows."""
+    yc, left, right = _row_extents(mask)
+    if yc.size < 5:
+        return 1.0
+    y0 = yc[0] - 0.5
+    t = (yc - y0) / (yc[-1] + 0.5 - y0)
+    w = right - left
+    up, lo = (t >= 0.15) & (t <= 0.4), (t >= 0.6) & (t <= 0.85)
+    if not (up.any() and lo.any()):
+        return 1.0
+    return float(w[up].mean() / max(w[lo].mean(), 1e-6))
+
+
+def white_cap(white: np.ndarray, top: int, min_run: int, gap: int, min_white: float = 0.5
+              ) -> bool:
+    """True when at least ``min_run`` rows at least ``min_white`` white lie right above row
+    ``top`` of a strip (within ``gap`` rows of it): a cone's white band over its orange
+    body."""
+    w = float(max(white.shape[1], 1))
+    is_w = white.sum(axis=1) / w >= min_white
+    n = 0
+    for i in range(top - 1, max(-1, top - 1 - gap - min_run - 1), -1):
+        if is_w[i]:
+            n += 1
+            if n >= min_run:
+                return True
+        elif n:
+            break
+    return False
+
+
+def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: int, bottom: int,
+                min_run: int, gap: int, max_band: int, min_beyond: int = 3,
+                min_white: float = 0.5,
+                min_orange: float = 0.2, line: float = 0.9) -> bool:
+    """True when a white band separates the blob from more orange above or below it.
+
+    ``orange``, ``white``, ``dark``: boolean masks of a strip of columns over a blob (its
+    orange, white and dark pixels; the strip's rows reach beyond the blob above and
+    below); the blob spans rows ``top`` .. ``bottom - 1``.  Traffic cones and drums (MUTCD
+    6F.63, 6F.64) carry horizontal white retro-reflective bands across their whole width
+    between orange parts.  From the blob's top edge upward (and from its bottom edge
+    downward): at most ``gap`` rows of blend, then a band of at most ``max_band`` rows
+    holding at least ``min_run`` rows that are at least ``min_white`` white, then at least
+    ``min_beyond`` consecutive rows that are at least ``min_orange`` orange (fewer are part of
+    the band: a legend's edges blended with a reddish light); or, inside the blob, such a
+    band between orange rows.  A row at least ``line`` dark ends the search (a two-colour
+    sign's white part ends at its black border line).
+    """
+    n = orange.shape[0]
+    if n == 0 or orange.shape[1] == 0:
+        return False
+    w = float(orange.shape[1])
+    is_w = white.sum(axis=1) / w >= min_white
+    is_o = (orange.sum(axis=1) / w >= min_orange) & ~is_w
+    is_d = dark.sum(axis=1) / w >= line
+    for start, step in ((top - 1, -1), (bottom, 1)):
+        i, n_white, first = start, 0, None
+        while 0 <= i < n and not is_d[i]:
+            if is_w[i]:
+                n_white += 1
+                first = i if first is None else first
+            elif is_o[i]:
+                k = i
+                while 0 <= k < n and is_o[k]:
+                    k += step
+                if first is not None and n_white >= min_run and abs(k - i) >= min_beyond:
+                    return True
+                if first is None and abs(i - start) >= gap:
+                    break                       # more orange, no band: not this blob's edge
+                if first is not None:
+                    i = k                       # a few orange rows (legend blend): go on
+                    continue
+            if first is None and abs(i - start) >= gap + 1:
+                break                           # no band right at the edge
+            if first is not None and abs(i - first) >= max_band:
+                break
+            i += step
+    # a band inside the blob (the closing bridged a drum's stripes into one blob)
+    i = top
+    while i < min(bottom, n):
+        if is_o[i] or not (is_w[i] or not is_d[i]) or i == top:
+            i += 1
+            continue
+        j = i
+        while j < min(bottom, n) and not is_o[j] and not is_d[j]:
+            j += 1
+        if j < min(bottom, n) and is_o[j] and is_o[i - 1] and is_w[i:j].sum() >= min_run:
+            return True
+        i = j + 1
+    return False
 
 def diamond_rings(shape: tuple, fit: tuple, width: float
                   ) -> tuple[np.ndarray, np.ndarray]:
@@ -1300,6 +1427,15 @@ class ColorDetector:
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(np.median(vch[pix > 0]))
+        if cfg.max_surround_like < 1.0 and not relaxed:
+            # a sign is an object on its own: beyond its border the background is not the
+            # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
+            # brick wall, a vehicle's panel) is
+            sl, sh = self._surround_like(hmask, like, max(bw, bh), t - 1e-6)
+            if self.debug is not None:
+                self.debug[-1].update(surround=sl, surround_face=sh)
+            if sl > cfg.max_surround_like and sh > cfg.min_surround_face:
+                return None
         dark = vch < cfg.dark_rel * v_ref
         if min(bw, bh) >= cfg.structure_min_px and not relaxed:
             inside = hmask > 0
@@ -1307,6 +1443,11 @@ class ColorDetector:
             if self.debug is not None:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
+                return None
+        if cfg.band_test and bh >= cfg.band_min_px and not relaxed:
+            if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
+                if self.debug is not None:
+                    self.debug[-1]['banded'] = True
                 return None
         cut, row_fit = None, None
         if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
@@ -1388,6 +1529,85 @@ class ColorDetector:
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         return cand
+
+    def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float
+                       ) -> tuple[float, float]:
+        """(mean likelihood, share of pixels of likelihood >= ``level``) of the ring from
+        ``surround_in`` to ``surround_out`` x ``size`` outside the blob's hull (beyond a
+        sign's border and the blur of its edge); zeros when the ring is empty."""
+        cfg = self.config
+        r1 = max(1, int(round(cfg.surround_in * size)))
+        r2 = max(r1 + 1, int(round(cfg.surround_out * size)))
+        d1 = cv2.dilate(hmask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
+        d2 = cv2.dilate(hmask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
+        ring = (d2 > 0) & (d1 == 0)
+        if not ring.any():
+            return 0.0, 0.0
+        lr = like[ring]
+        return float(lr.mean()), float(np.count_nonzero(lr >= level) / lr.size)
+
+    def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
+                v_ref: float, t: float) -> bool:
+        """:func:`banded_rows` (and the cone cap) on a strip over the blob's middle half of
+        columns, reaching a blob height and two blends above and below it (a drum's stripes
+        are as high as its orange ones).  Orange: likelihood at least ``t``; white: see
+        ``band_test``, and not a row whose white runs on past both of the blob's sides
+        (half its width either side: the background); dark relative to ``v_ref``."""
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        # the strip's columns: the middle half of the blob's (a cone's tip is narrow), with
+        # flanks of half the blob's width either side
+        q = max(1, bw // 4)
+        c0, c1 = max(0, bx + q), min(W, bx + bw - q)
+        f0, f1 = max(0, bx - bw // 2), min(W, bx + bw + bw // 2)
+        gap = max(2, int(round(0.15 * bh)))
+        reach = bh + 2 * gap + 2             # a band as high as the blob, blend either side
+        r0, r1 = max(0, by - reach), min(H, by + bh + reach)
+        if c1 <= c0 or r1 <= r0:
+            return False
+        wide = bgr[r0:r1, f0:f1]
+        if self._gains is not None:
+            wide = apply_gains(wide, self._gains)
+        strip = wide[:, c0 - f0:c1 - f0]
+        hsv = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
+        i = self._idx['orange']
+        like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
+        v = hsv[..., 2]
+        # the orange beyond a band (a cone's tip) at the blob's own threshold
+        orange = (like >= t - 1e-6) & (v >= self.model.v_min[i])
+        # white sheeting reflects every channel: brighter (luma) than the orange face under
+        # the same light, where a legend or a grey patch lifted by rain or fog is not
+        luma = cv2.cvtColor(strip, cv2.COLOR_BGR2GRAY)
+        face = orange[by - r0:by + bh - r0]
+        if not face.any():
+            return False
+        y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
+        white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
+        # a band is the object's own: bounded by its silhouette; white that runs on past
+        # the blob's sides on both flanks is the background (an overcast sky, snow, a
+        # wall), e.g. above a sign's top corner, below its portable stand's flags
+        whsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
+        wwhite = (whsv[..., 1] <= cfg.white_s_max) & (
+            cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY) >= cfg.band_white_luma * y_ref)
+        lf, rf = wwhite[:, :max(0, bx - f0)], wwhite[:, min(f1, bx + bw) - f0:]
+        if lf.shape[1] and rf.shape[1]:
+            open_rows = (lf.mean(axis=1) >= 0.5) & (rf.mean(axis=1) >= 0.5)
+            white = white & ~open_rows[:, None]
+        dark = v < cfg.dark_rel * v_ref
+        # MUTCD bands: a cone's narrower band (4 in.) is about a quarter of the orange part
+        # below it with the base (less the blend of its two edges when small), a drum's
+        # stripes are as high as its orange ones; a sign's white outline or margin is a few
+        # per cent of its size
+        run = max(2, int(round(cfg.band_min_rows * bh)))
+        # the orange beyond: a cone's tip is thin and blurred, half a band's rows will do
+        beyond = max(3, int(round(0.1 * bh)))
+        if banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap, beyond):
+            return True
+        # a cone whose tip is white or lost: a white band right over a blob that is taller
+        # than wide and widens downward (a diamond is symmetric; a diamond's top half alone
+        # is twice as wide as high)
+        return (bh >= bw and row_taper(pix) <= cfg.cone_taper
+                and white_cap(white, by - r0, run, gap))
 
     @staticmethod
     def _trim_to_diamond(pix: np.ndarray, tol: float

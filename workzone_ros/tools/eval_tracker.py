@@ -476,7 +476,9 @@ def main(argv: Optional[list[str]] = None) -> int:
     p = argparse.ArgumentParser(prog='workzone-ros evaluate tracker', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument('bags', nargs='*', help='synthetic bag directories (workzone-ros synth)')
-    p.add_argument('--real', nargs='?', const=str(_REALDATA / 'us_workzone_video'), default=None,
+    p.add_argument('--real', nargs='?', default=None,
+                   const=os.environ.get('WORKZONE_REALDATA', str(_REALDATA)).rstrip('/')
+                   + '/us_workzone_video',
                    help='also the real dashcam clips in this folder (default '
                         '../shared/realdata/us_workzone_video)')
     p.add_argument('--detector', choices=('color', 'gt'), default='color',
@@ -504,6 +506,9 @@ def main(argv: Optional[list[str]] = None) -> int:
     cfgs = {c: all_cfgs[c] for c in chosen}
     if not args.bags and not args.real:
         print('give synthetic bags and/or --real', file=sys.stderr)
+        return 2
+    if args.real and not Path(args.real).is_dir():
+        print(f'{args.real}: no such folder (the real clips)', file=sys.stderr)
         return 2
     import cv2
     cv2.setNumThreads(1)
@@ -540,11 +545,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             frames.clear()
     real = None
     if args.real:
-        folder = Path(args.real)
-        if not folder.is_dir():
-            print(f'{folder}: no such folder (the real clips)', file=sys.stderr)
-            return 2
-        real = evaluate_real(folder, args.color_model, cfgs, args.max_frames)
+        real = evaluate_real(Path(args.real), args.color_model, cfgs, args.max_frames)
     if args.json:
         os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
         with open(args.json, 'w') as fh:

@@ -925,3 +925,28 @@ def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
     dets = det.detect(img)
     assert not near(dets, patch)
     assert near(dets, sign)
+
+
+def _foliage(seed=0, shape=(480, 640)):
+    """Dark green roadside foliage behind the whole sign (no white background)."""
+    rng = np.random.default_rng(seed)
+    img = np.empty((*shape, 3), np.uint8)
+    img[:] = (60, 100, 70)
+    img[300:] = (85, 88, 84)
+    return cv2.add(img, rng.integers(0, 16, img.shape, dtype=np.uint8))
+
+
+@pytest.mark.parametrize('size', [40, 56])
+def test_speed_limit_under_a_thin_plaque_is_extended_over_its_legend(detector, size):
+    """R2-1 + G20-5aP (the simulator's art): a thin orange WORK ZONE plaque over a tall white
+    speed-limit sign whose large black numerals split the white rows.  The extension reaches
+    ``ext_max_wratio`` x the plaque's width (not only ``ext_max_ratio`` x its small height)
+    and bridges achromatic legend rows (``ext_gap_w``); with neither (the previous rule) the
+    box stops at the plaque or at the numerals."""
+    img, gt = _render_art_sign(_foliage(), 300.3, 60.4, size, key='work_zone_speed_limit')
+    g = Box(*map(float, gt))
+    d = _one(detector.detect(img), gt, 0.6)
+    assert d.kind == 'regulatory' and abs(d.box.y2 - g.y2) <= 0.08 * g.h
+    old = detector.with_config(ext_max_wratio=0.0, ext_gap_w=0.0)
+    short = [c for c in old.detect(img) if c.box.iou(g) > 0.1]
+    assert short and all(c.box.y2 < g.y2 - 0.15 * g.h for c in short)

@@ -491,7 +491,7 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
                    truncated_aspect=0.0, anchor_kind_ratio=0.0,
                    min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0,
                    ring_margin=-1.0, size_history=0, min_hits_after_loss=1,
-                   min_approach_speed=0.0, perspective_scale=False)
+                   min_approach_speed=0.0, perspective_scale=False, cone_test=False)
 
 
 # --- histograms ---------------------------------------------------------------------------

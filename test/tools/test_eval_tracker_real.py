@@ -1,4 +1,4 @@
-"""``evaluate tracker --real``: the trackers on the real dashcam clips (skipped without them)."""
+"""``evaluate tracker``: the trackers on the real dashcam clips (skipped without them); errors."""
 import os
 from pathlib import Path
 
@@ -10,10 +10,11 @@ REAL = Path(os.environ.get('WORKZONE_REALDATA')
             or Path(__file__).resolve().parents[2].parent / 'shared' / 'realdata') \
     / 'us_workzone_video'
 
-pytestmark = pytest.mark.skipif(not (REAL / 'charlotte.mp4').exists(),
+_needs_real = pytest.mark.skipif(not (REAL / 'charlotte.mp4').exists(),
                                 reason=f'real clips not found in {REAL}')
 
 
+@_needs_real
 def test_tracking_on_the_real_approach_keeps_the_sign_the_detector_finds():
     """On the first 110 frames of the Charlotte clip (the work-zone diamond approached,
     labelled by hand) the mean-shift tracker's outputs cover at least the sign frames the
@@ -32,3 +33,10 @@ def test_tracking_on_the_real_approach_keeps_the_sign_the_detector_finds():
 def test_missing_real_folder_is_a_clear_error(tmp_path, capsys):
     assert et.main(['--real', str(tmp_path / 'nope')]) == 2
     assert 'no such folder' in capsys.readouterr().err
+
+
+def test_a_folder_that_is_not_a_bag_is_a_one_line_error(tmp_path, capsys):
+    (tmp_path / 'pixels').mkdir()
+    assert et.main([str(tmp_path / 'pixels'), '--detector', 'gt']) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'pixels' in err[0] and 'Traceback' not in err[0]

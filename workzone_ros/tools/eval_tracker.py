@@ -55,6 +55,7 @@ from typing import Any, Optional
 
 import numpy as np
 
+from workzone_ros.bagio import BagError
 from workzone_ros.resources import config_path
 from workzone_ros.tools.eval_color import REALDATA as _REALDATA
 
@@ -530,7 +531,11 @@ def main(argv: Optional[list[str]] = None) -> int:
             det = _CachedDetector(det, os.path.join(
                 args.det_cache, f'{Path(bag).resolve().name}_{det.key}.jsonl'))
         frames: Optional[list] = [] if args.overlay else None
-        res = evaluate_bag(bag, det, args.min_size, args.max_frames, frames, cfgs)
+        try:
+            res = evaluate_bag(bag, det, args.min_size, args.max_frames, frames, cfgs)
+        except BagError as exc:
+            print(f'{bag}: {exc}', file=sys.stderr)
+            return 2
         res['detector'] = det.name
         res['model_file'] = getattr(det, 'model_file', None)
         results.append(res)

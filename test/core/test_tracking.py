@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
+from workzone_ros.core.detection import open_background_rows
 from workzone_ros.core.tracking import (
     MultiTracker,
     TrackerConfig,
@@ -1145,3 +1146,20 @@ def test_a_track_judged_a_cone_stays_so_until_its_next_detection(sticky):
         alone += sum(t.source == 'tracking'
                      for t in tracker.step(img, [det(cone)] if i < 2 else []))
     assert (alone == 0) == sticky, alone
+
+
+def test_a_sign_leaving_the_frame_with_its_flag_over_the_sky_is_not_a_cone():
+    """A warning diamond on a portable stand at the image's right edge, its orange flag
+    above it and pale sky between them and all around: the sky is background, not a band
+    (the cut-off flank does not count; judged on the visible one).  Without that rule the
+    sky rows count as a band with orange (the flag) beyond it: a cone (tuning random 3605)."""
+    img = background(34)
+    img[150:330, 560:] = WHITE                              # overcast sky behind the stand
+    img[170:200, 612:636] = ORANGE                          # the stand's flag
+    sign = draw_diamond(img, 630, 260, 60)
+    cut = (sign[0], sign[1], W - sign[0], sign[3])          # the part inside the frame
+    assert not cone_like(img, cut, TrackerConfig())
+    left = np.ones((10, 8), bool)
+    assert open_background_rows(left, np.zeros((10, 0), bool), 4).all()
+    assert open_background_rows(left, np.zeros((10, 8), bool), 4).sum() == 0
+    assert open_background_rows(np.zeros((10, 1), bool), np.zeros((10, 0), bool), 4) is None

@@ -94,7 +94,7 @@ from workzone_ros.interfaces import Box, Detection, Roi
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
-    'dominant_color', 'estimate_horizon', 'relative_measure',
+    'dominant_color', 'estimate_horizon', 'relative_measure', 'open_background_rows',
 ]
 
 METHODS = ('learned', 'rgb_lp', 'hsv')
@@ -567,6 +567,17 @@ def row_taper(mask: np.ndarray) -> float:
     if not (up.any() and lo.any()):
         return 1.0
     return float(w[up].mean() / max(w[lo].mean(), 1e-6))
+
+
+def open_background_rows(left: np.ndarray, right: np.ndarray, min_cols: int
+                         ) -> Optional[np.ndarray]:
+    """Rows whose white runs on past a blob on both flanks (``left``, ``right``: the white
+    masks beside it): the background (an overcast sky, snow, a wall), not a band of the
+    object's own.  A flank cut by the image border (narrower than ``min_cols``) does not
+    count, the other one decides (a sign leaving the frame with its stand's flags over the
+    sky); None when neither flank is in the frame."""
+    sides = [m.mean(axis=1) >= 0.5 for m in (left, right) if m.shape[1] >= min_cols]
+    return np.logical_and.reduce(sides) if sides else None
 
 
 def white_cap(white: np.ndarray, top: int, min_run: int, gap: int, min_white: float = 0.5
@@ -1590,8 +1601,8 @@ class ColorDetector:
         wwhite = (whsv[..., 1] <= cfg.white_s_max) & (
             cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY) >= cfg.band_white_luma * y_ref)
         lf, rf = wwhite[:, :max(0, bx - f0)], wwhite[:, min(f1, bx + bw) - f0:]
-        if lf.shape[1] and rf.shape[1]:
-            open_rows = (lf.mean(axis=1) >= 0.5) & (rf.mean(axis=1) >= 0.5)
+        open_rows = open_background_rows(lf, rf, max(1, bw // 4))
+        if open_rows is not None:
             white = white & ~open_rows[:, None]
         dark = v < cfg.dark_rel * v_ref
         # MUTCD bands: a cone's narrower band (4 in.) is about a quarter of the orange part

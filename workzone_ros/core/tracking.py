@@ -78,7 +78,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-from workzone_ros.core.detection import banded_rows, row_taper, white_cap
+from workzone_ros.core.detection import banded_rows, open_background_rows, row_taper, white_cap
 from workzone_ros.interfaces import Box, Detection, Track
 
 __all__ = [
@@ -966,9 +966,8 @@ def cone_like(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig) -> bo
     y_ref = float(np.median(luma[fy0:fy1, fx0:fx1][face]))
     v_ref = float(np.median(hsv[fy0:fy1, fx0:fx1, 2][face]))
     white = (hsv[..., 1] <= cfg.cone_white_s_max) & (luma >= cfg.cone_white_luma * y_ref)
-    lf, rf = white[:, :fx0], white[:, fx1:]
-    if lf.shape[1] and rf.shape[1]:
-        open_rows = (lf.mean(axis=1) >= 0.5) & (rf.mean(axis=1) >= 0.5)
+    open_rows = open_background_rows(white[:, :fx0], white[:, fx1:], max(1, bw // 4))
+    if open_rows is not None:
         white = white & ~open_rows[:, None]
     dark = hsv[..., 2] < cfg.cone_dark_rel * v_ref
     # the strip: the middle third of the box's columns (a cone's band above its body is

@@ -1135,7 +1135,7 @@ def test_a_track_judged_a_cone_stays_so_until_its_next_detection(sticky):
     after the first frame on its own); the track judged a cone is still not published on
     its own (with the flag off, it is once the band is gone: can fail)."""
     bg = background(34)
-    tracker = MultiTracker(TrackerConfig(cone_sticky=sticky, **SLOW))
+    tracker = MultiTracker(TrackerConfig(cone_test=True, cone_sticky=sticky, **SLOW))
     alone = 0
     for i in range(7):
         img = bg.copy()

@@ -71,6 +71,11 @@ def detector(model):
     return dt.ColorDetector(model, dt.DetectorConfig(use_prior=False))
 
 
+def _near(dets, gt, iou=0.2):
+    """The detections overlapping box ``gt`` by more than ``iou``."""
+    return [d for d in dets if d.box.iou(Box(*map(float, gt))) > iou]
+
+
 def _one(dets, gt, iou=0.8):
     hits = [d for d in dets if d.box.iou(Box(*map(float, gt))) >= iou]
     assert len(hits) == 1, (gt, dets)
@@ -828,12 +833,10 @@ def test_cone_and_drum_rejected_diamond_beside_them_kept(detector, h):
     on = detector.with_config(min_dark_inside=0.0)
     off = on.with_config(band_test=False)
 
-    def near(dets, gt):
-        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.2]
     d_on, d_off = on.detect(img), off.detect(img)
-    assert near(d_off, cone) and near(d_off, drum)          # without the test: found
-    assert not near(d_on, cone) and not near(d_on, drum)    # with it: rejected
-    assert near(d_on, sign) and near(d_off, sign)
+    assert _near(d_off, cone) and _near(d_off, drum)          # without the test: found
+    assert not _near(d_on, cone) and not _near(d_on, drum)    # with it: rejected
+    assert _near(d_on, sign) and _near(d_off, sign)
 
 
 def test_row_taper_and_white_cap():
@@ -864,12 +867,10 @@ def test_cone_with_white_top_rejected(detector):
     body = (98, 60 + int(0.3 * h), 45, h - int(0.3 * h))
     sign = _diamond(img, 400, 140, 40)
 
-    def near(dets, gt):
-        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.2]
-    assert near(on.with_config(cone_taper=0.0).detect(img), body)
+    assert _near(on.with_config(cone_taper=0.0).detect(img), body)
     d_on = on.detect(img)
-    assert not near(d_on, body)
-    assert near(d_on, sign)
+    assert not _near(d_on, body)
+    assert _near(d_on, sign)
 
 
 @pytest.mark.parametrize('r', [20, 35])
@@ -919,12 +920,10 @@ def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
     patch = _dirt(img, 60, 60, 300, 300)
     sign = _diamond(img, 520, 130, 36)
 
-    def near(dets, gt):
-        return [d for d in dets if d.box.iou(Box(*map(float, gt))) > 0.3]
-    assert near(det.with_config(max_surround_like=1.0).detect(img), patch)
+    assert _near(det.with_config(max_surround_like=1.0).detect(img), patch, 0.3)
     dets = det.detect(img)
-    assert not near(dets, patch)
-    assert near(dets, sign)
+    assert not _near(dets, patch, 0.3)
+    assert _near(dets, sign, 0.3)
 
 
 def _foliage(seed=0, shape=(480, 640)):

@@ -1579,8 +1579,10 @@ class ColorDetector:
         wide = bgr[r0:r1, f0:f1]
         if self._gains is not None:
             wide = apply_gains(wide, self._gains)
-        strip = wide[:, c0 - f0:c1 - f0]
-        hsv = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
+        # one conversion of the flanked window; the strip is a view of it
+        whsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
+        wluma = cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY)
+        hsv = whsv[:, c0 - f0:c1 - f0]
         i = self._idx['orange']
         like = self.model.luts[i][hsv[..., 0], self._sat(hsv)]
         v = hsv[..., 2]
@@ -1588,7 +1590,7 @@ class ColorDetector:
         orange = (like >= t - 1e-6) & (v >= self.model.v_min[i])
         # white sheeting reflects every channel: brighter (luma) than the orange face under
         # the same light, where a legend or a grey patch lifted by rain or fog is not
-        luma = cv2.cvtColor(strip, cv2.COLOR_BGR2GRAY)
+        luma = wluma[:, c0 - f0:c1 - f0]
         face = orange[by - r0:by + bh - r0]
         if not face.any():
             return False
@@ -1597,9 +1599,7 @@ class ColorDetector:
         # a band is the object's own: bounded by its silhouette; white that runs on past
         # the blob's sides on both flanks is the background (an overcast sky, snow, a
         # wall), e.g. above a sign's top corner, below its portable stand's flags
-        whsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
-        wwhite = (whsv[..., 1] <= cfg.white_s_max) & (
-            cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY) >= cfg.band_white_luma * y_ref)
+        wwhite = (whsv[..., 1] <= cfg.white_s_max) & (wluma >= cfg.band_white_luma * y_ref)
         lf, rf = wwhite[:, :max(0, bx - f0)], wwhite[:, min(f1, bx + bw) - f0:]
         open_rows = open_background_rows(lf, rf, max(1, bw // 4))
         if open_rows is not None:

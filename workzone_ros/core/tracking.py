@@ -1316,6 +1316,7 @@ class MultiTracker:
         self.frames = 0
         self._frame: Optional[np.ndarray] = None
         self._stamps: list[float] = []       # the last frames' stamps (s), for the frame rate
+        self._fps: Optional[float] = None     # frame rate of those stamps (None: not known)
         #: seconds spent in localisation per track in the last step (for the bench).
         self.last_localise_s: list[float] = []
 
@@ -1328,6 +1329,7 @@ class MultiTracker:
         """Drop every track (e.g. when the bag loops or time jumps back)."""
         self._tracks.clear()
         self._stamps.clear()
+        self._fps = None
 
     @property
     def active_ids(self) -> list[int]:
@@ -1400,6 +1402,9 @@ class MultiTracker:
         if stamp is not None:
             self._stamps.append(float(stamp))
             del self._stamps[:-31]
+            gaps = np.diff(self._stamps)
+            gaps = gaps[gaps > 0]
+            self._fps = float(1.0 / np.median(gaps)) if gaps.size else None
         H, W = frame.shape[:2]
         tracking = cfg.mode == 'detection_and_tracking'
         self.last_localise_s = []
@@ -1591,10 +1596,9 @@ class MultiTracker:
     @property
     def frame_rate(self) -> float:
         """Frames per second: the median gap of the last stamps given to :meth:`step`
-        (``TrackerConfig.frame_rate`` before two increasing stamps)."""
-        gaps = np.diff(self._stamps) if len(self._stamps) > 1 else np.zeros(0)
-        gaps = gaps[gaps > 0]
-        return float(1.0 / np.median(gaps)) if gaps.size else self.config.frame_rate
+        (``TrackerConfig.frame_rate`` before two increasing stamps); updated once per
+        step."""
+        return self.config.frame_rate if self._fps is None else self._fps
 
     def approach_threshold(self, width: int) -> float:
         """The motion cue's minimum fall of ``1 / size`` per frame (1/px) for frames

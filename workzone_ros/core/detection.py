@@ -72,6 +72,7 @@ Alternatives, selectable with ``method``:
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass, field, replace
@@ -79,6 +80,7 @@ from typing import Any, Optional, Sequence
 
 import cv2
 import numpy as np
+from scipy.special import ndtr
 
 from workzone_ros.core.color_model import (
     HSV_RANGES,
@@ -155,6 +157,14 @@ class DetectorConfig:
             ``diamond_ring_test`` compares the dark share of the rings just outside and
             just inside the fitted diamond's edge (``2 border_frac a`` px wide; off: the
             hull's ``border_mode`` test decides); ``border_frac`` 0 means no border.
+        diamond_refine: opt-in (off by default: +5 ms p99 per frame): the warning box from
+            the face's edges measured on the brightness at sub-pixel precision
+            (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
+            the face-to-border blend), times ``diamond_face_ratio`` (the art's sign / face
+            half-diagonal, 1 / 0.8876); ``diamond_border_rel`` / ``diamond_margin_rel``: the
+            border line's width and the outer margin normal to the edge, in face
+            half-diagonals.  When an edge shows no face-to-border step the mask fit
+            (``diamond_scale``) is used.
         border_dark: share of dark pixels in the ring outside the hull that means "border
             line outside" (0: compare with the band just inside the hull instead).
         border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
@@ -274,6 +284,10 @@ class DetectorConfig:
     diamond_scale: float = 1.07
     diamond_clamp: float = 0.12
     diamond_ring_test: bool = True
+    diamond_refine: bool = False
+    diamond_face_ratio: float = 1.127
+    diamond_border_rel: float = 0.0676
+    diamond_margin_rel: float = 0.022
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -672,6 +686,149 @@ def diamond_rings(shape: tuple, fit: tuple, width: float
         a * b / math.hypot(a, b))
     return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
+
+
+_PROFILE_U0 = np.arange(-3.0, 3.0 + 1e-6, 0.1, dtype=np.float32)
+_PROFILE_SIG = np.array([0.45, 0.65, 0.9, 1.2, 1.6], np.float32)
+
+
+@functools.lru_cache(maxsize=256)
+def _profile_bases(u_out: float, u_in: float, border: float, margin: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Blurred step-profile bases of a sign edge and their normal-equation inverses.
+
+    Samples ``u`` every quarter pixel from ``-u_out`` (outside) to ``u_in`` (inside).  For
+    every edge offset ``u0`` in :data:`_PROFILE_U0` and blur width in :data:`_PROFILE_SIG`:
+    a face at ``u > u0`` (level ``hi``), the black border line ``border`` px wide outside it
+    (``lo``), a thin outer margin of the face's colour ``margin`` px wide (``hi``), then the
+    background (``bg``), each step blurred by a Gaussian (optics, motion and the pixel's own
+    width).  Returns ``(u, bases, inv(bases^T bases) (k, 3, 3), valid (k,))``; the profile
+    is a linear combination of the hi, lo and bg bases (returned transposed, (k * 3,
+    len(u)), for one matrix product per profile).
+    """
+    u = np.arange(-u_out, u_in + 1e-6, 0.25, dtype=np.float64)
+    d = u[None, None, :] - _PROFILE_U0.astype(np.float64)[:, None, None]
+    sg = _PROFILE_SIG.astype(np.float64)[None, :, None]
+    f_in = ndtr(d / sg)
+    f_bl = ndtr((d + border) / sg)
+    f_mg = ndtr((d + border + margin) / sg)
+    bases = np.stack(np.broadcast_arrays(f_in + (f_mg - f_bl), f_bl - f_in, 1.0 - f_mg),
+                     axis=-1).reshape(-1, u.size, 3)
+    ata = np.einsum('kui,kuj->kij', bases, bases) + 1e-6 * np.eye(3)
+    # offsets that leave at least a pixel of face inside and of background outside
+    ok = (_PROFILE_U0 <= u_in - 1.0) & (_PROFILE_U0 >= border + margin + 1.0 - u_out)
+    return u, np.ascontiguousarray(bases.transpose(0, 2, 1).reshape(-1, u.size)), \
+        np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
+
+
+def _edge_offset(img: np.ndarray, p0: np.ndarray, p1: np.ndarray, nvec: np.ndarray,
+                 prof: tuple, span: tuple[float, float], min_contrast: float
+                 ) -> Optional[float]:
+    """Offset (px, along the inward normal ``nvec``) of the face edge near the segment
+    ``p0``-``p1`` between fractions ``span`` of it: median brightness profile, best fit of
+    the edge model over the offset x blur grid, parabolic sub-grid refinement.  None: no
+    face-to-border step (contrast below ``min_contrast`` of the face) or outside ``img``."""
+    u, bases_t, ata_inv, valid = prof
+    length = float(np.hypot(*(p1 - p0)))
+    ts = np.linspace(span[0], span[1], max(3, int((span[1] - span[0]) * length) + 1))
+    pts = (p0[None, None, :] + ts[:, None, None] * (p1 - p0)[None, None, :]
+           + u[None, :, None] * nvec[None, None, :])
+    mx = (pts[..., 0] - 0.5).astype(np.float32)
+    my = (pts[..., 1] - 0.5).astype(np.float32)
+    h, w = img.shape[:2]
+    if mx.min() < 0 or my.min() < 0 or mx.max() > w - 1 or my.max() > h - 1:
+        return None
+    prof_v = np.median(cv2.remap(img, mx, my, cv2.INTER_LINEAR), axis=0).astype(np.float64)
+    atb = (bases_t @ prof_v).reshape(-1, 3, 1)
+    coef = (ata_inv @ atb)[..., 0]
+    # residual of the least-squares fit: |p|^2 - (A^T p) . coef
+    sse = float(prof_v @ prof_v) - (atb[..., 0] * coef).sum(axis=1)
+    # the border line is dark: a plain step is the face's edge against a background as
+    # dark as the line, never the margin's outer edge with a line as bright as the face
+    hi, lo = coef[:, 0], coef[:, 1]
+    ok = valid & (hi > 0) & (hi - lo >= min_contrast * hi)
+    if not ok.any():
+        return None
+    sse = np.where(ok, sse, np.inf)
+    k = int(np.argmin(sse))
+    ns = _PROFILE_SIG.size
+    i0, isg = divmod(k, ns)
+    off = float(_PROFILE_U0[i0])
+    if 0 < i0 < _PROFILE_U0.size - 1:
+        s_m, s_0, s_p = (float(sse[(i0 + j) * ns + isg]) for j in (-1, 0, 1))
+        den = s_m - 2 * s_0 + s_p
+        if den > 0 and np.isfinite(den):
+            off += 0.1 * 0.5 * (s_m - s_p) / den
+    return off
+
+
+def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 0.0676,
+                   margin_rel: float = 0.022, max_change: float = 0.15,
+                   min_contrast: float = 0.25, iterations: int = 2
+                   ) -> Optional[tuple[float, float, float, float]]:
+    """Sub-pixel edges of a warning diamond's orange face from the brightness image.
+
+    ``fit = (cx, cy, a, b)``: a first estimate of the face's diamond (continuous
+    coordinates, pixel ``i`` spans ``[i, i + 1)``), e.g. :func:`fit_diamond_2d` on the face
+    mask.  The colour table cannot place the face's edge: a blend of the orange face and the
+    black border line keeps the face's hue and saturation and only gets darker, so the mask
+    ends wherever the value gate happens to cut the blend.  The brightness does place it:
+    each of the four edges is measured on two stretches (15-45 % and 55-85 % of its length,
+    away from the corners), each by the median of its brightness profiles along the edge's
+    normal (legend strokes and noise drop out) fitted with the edge model of
+    :func:`_profile_bases` (face, border line ``border_rel`` x a wide, outer margin
+    ``margin_rel`` x a, background, each with its own level: a headlight's hot spot or a
+    bright sky behind one edge does not bias it).  The two points give the edge's line
+    (position and slope); adjacent lines intersect in the corners; ``iterations`` rounds.
+    The defaults are the catalogue's diamond art: the border line's inner edge at 0.888 of
+    the half-diagonal, the line 0.06 of the half-diagonal wide (normal to the edge), the
+    orange margin outside it.
+
+    Returns ``(cx, cy, a, b)`` or None when a stretch shows no face-to-border step
+    (contrast below ``min_contrast`` of the face's brightness: washed out, heavily blurred)
+    or lies outside ``value``, or a half-diagonal moves by more than ``max_change``.
+    """
+    cx, cy, a, b = (float(v) for v in fit[:4])
+    a_in, b_in = a, b
+    if a < 3 or b < 3:
+        return None
+    img = np.ascontiguousarray(value, dtype=np.float32)
+    for _ in range(iterations):
+        m = min(a, b)
+        border, margin = border_rel * m, margin_rel * m
+        u_in = round(2 * min(max(1.5, 0.2 * m), 3.5)) / 2 + 1.0
+        u_out = round(4 * (border + margin)) / 4 + 2.5
+        prof = _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
+        c = {'l': np.array([cx - a, cy]), 't': np.array([cx, cy - b]),
+             'r': np.array([cx + a, cy]), 'b': np.array([cx, cy + b])}
+        lines = []
+        for e0, e1 in (('l', 't'), ('t', 'r'), ('r', 'b'), ('b', 'l')):
+            p0, p1 = c[e0], c[e1]
+            dvec = (p1 - p0) / float(np.hypot(*(p1 - p0)))
+            nvec = np.array([-dvec[1], dvec[0]])
+            if np.dot(nvec, np.array([cx, cy]) - 0.5 * (p0 + p1)) < 0:
+                nvec = -nvec
+            q = []
+            for span in ((0.15, 0.45), (0.55, 0.85)):
+                off = _edge_offset(img, p0, p1, nvec, prof, span, min_contrast)
+                if off is None:
+                    return None
+                q.append(p0 + 0.5 * (span[0] + span[1]) * (p1 - p0) + off * nvec)
+            lines.append((q[0], q[1] - q[0]))
+        corners = []
+        for i, j in ((3, 0), (0, 1), (1, 2), (2, 3)):
+            (qa, da), (qb, db) = lines[i], lines[j]
+            mat = np.array([da, -db]).T
+            if abs(np.linalg.det(mat)) < 1e-9:
+                return None
+            ta = np.linalg.solve(mat, qb - qa)[0]
+            corners.append(qa + ta * da)
+        left, top, right, bottom = corners
+        cx, cy = 0.5 * (left[0] + right[0]), 0.5 * (top[1] + bottom[1])
+        a, b = 0.5 * (right[0] - left[0]), 0.5 * (bottom[1] - top[1])
+        if not (abs(a / a_in - 1) <= max_change and abs(b / b_in - 1) <= max_change):
+            return None
+    return cx, cy, a, b
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
 
@@ -1505,7 +1662,24 @@ class ColorDetector:
             # ``diamond_clamp`` x the half-diagonal beyond the face seen (an occluded or
             # cut-off corner is not invented)
             fd = fit_diamond_2d(face_px, rows=row_fit)
-            if fd is not None and fd[4] >= 0.5:
+            sub = None
+            if fd is not None and fd[4] >= 0.5 and cfg.diamond_refine and cfg.border_frac > 0:
+                sub = refine_diamond(vch, fd[:4], cfg.diamond_border_rel,
+                                     cfg.diamond_margin_rel)
+            if self.debug is not None:
+                self.debug[-1]['refined'] = sub is not None
+            if sub is not None:
+                # the face's edges from the brightness profile; the sign is the face
+                # scaled by the art's ratio (border line and margin outside the face)
+                cx_, cy_, a_, b_ = sub
+                k_, c_ = cfg.diamond_face_ratio, cfg.diamond_clamp
+                l_ = max(cx_ - k_ * a_, bx0 - c_ * a_)
+                r_ = min(cx_ + k_ * a_, bx0 + bw + c_ * a_)
+                t_ = max(cy_ - k_ * b_, by0 - c_ * b_)
+                u_ = min(cy_ + k_ * b_, by0 + bh + c_ * b_)
+                if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
+                    outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
+            elif fd is not None and fd[4] >= 0.5:
                 cx_, cy_, a_, b_ = fd[:4]
                 k_, c_ = cfg.diamond_scale, cfg.diamond_clamp
                 if cfg.border_frac <= 0:

@@ -160,7 +160,10 @@ def _roi(box, cid=7):
 def test_lidar_roi_raises_the_prior(model):
     """A sign where the prior says signs never are is found once a LiDAR ROI points at it."""
     prior = cm.fit_prior([(380, 60, 80, 80)] * 5, (640, 480), floor=0.2)
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5))
+    # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
+    # which the brightness refinement assumes: boxes here come from the orange mask
+    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5,
+                                                                      diamond_refine=False))
     img = _background()
     gt = _diamond(img, 120, 330, 25)
     assert not [d for d in det.detect(img) if d.box.iou(Box(*map(float, gt))) > 0.3]
@@ -415,7 +418,10 @@ def test_geometry_measured_from_the_estimated_horizon(model):
     reliable horizon the test is off."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 0.26])})
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False, use_geometry=True)
+    # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
+    # which the brightness refinement assumes: boxes here come from the orange mask
+    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False, use_geometry=True,
+                            diamond_refine=False)
     img = _road(330)
     sign = _diamond(img, 540, 290, 30)             # bottom 0.1 sign heights below 330
     drum = _diamond(img, 150, 420, 20)             # far below the horizon: on the road
@@ -504,7 +510,10 @@ def test_relative_measurement_keeps_boxes_tight_on_smooth_tables():
     # absolute mode in the metadata is the old behaviour
     same = dt.ColorDetector(_smooth_model({'mode': 'absolute'}), cfg).detect(img)
     assert same[0].box == old[0].box
-    fitted = dt.ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07)).detect(img)
+    # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
+    # which the brightness refinement assumes: boxes here come from the orange mask
+    fitted = dt.ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07,
+                                                           diamond_refine=False)).detect(img)
     assert len(fitted) == 1 and min(dt.box_metrics(fitted[0].box, gt)[1:]) > 0.95
 
 
@@ -735,13 +744,17 @@ def test_art_diamond_box_within_a_pixel(detector, size):
     for off in (0.0, 0.3, 0.6):
         img, gt = _render_art_sign(_background(), 400.3 + off, 140.6 + off, size)
         g = Box(*map(float, gt))
-        for det, out in ((detector, errs), (detector.with_config(diamond_scale=0.0), old_errs)):
+        for det, out in ((detector, errs), (detector.with_config(diamond_scale=0.0,
+                                                                 diamond_refine=False),
+                                            old_errs)):
             d = _one(det.detect(img), gt, 0.7)
             assert d.kind == 'warning'
             out.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
     errs, old_errs = np.abs(errs), np.abs(old_errs)
     assert errs.max() <= 1.25 and errs.mean() <= 0.6
-    if size != 40:          # at 40 px the fixed 4 % growth happens to fit the border too
+    # at 40 px the fixed 4 % growth happens to fit the border too; at 28 px both are at the
+    # ground truth's own half-pixel quantisation
+    if size == 64:
         assert old_errs.mean() > errs.mean() + 0.1
     if size == 64:
         assert old_errs.max() >= 2.0
@@ -999,10 +1012,10 @@ def test_refine_diamond_gives_up_without_an_edge():
 
 
 def test_refined_diamond_box_in_the_detector(detector):
-    """``diamond_refine`` (opt-in): the warning box comes from the face's brightness edges
+    """``diamond_refine`` (default): the warning box comes from the face's brightness edges
     scaled by the art's face ratio.  A catalogue-proportioned sign (face, black line, margin)
-    drawn at a sub-pixel position is boxed within 1 px per side; the same frame without the
-    option still gives its mask-based box."""
+    drawn at a sub-pixel position is boxed within 1 px per side (the mask-based box, option
+    off, is 1.6 px off here); without the option it still gives its mask-based box."""
     img = _background()
     ss, cx, cy, outer = 8, 420.4, 150.7, 22.3
     y0, x0, n = 100, 370, 100
@@ -1019,9 +1032,48 @@ def test_refined_diamond_box_in_the_detector(detector):
     img[y0:y0 + n, x0:x0 + n] = np.clip(patch, 0, 255).astype(np.uint8)
     cv2.putText(img, 'RW', (408, 156), cv2.FONT_HERSHEY_DUPLEX, 0.5, BLACK, 1)
     gt = (cx - outer, cy - outer, 2 * outer, 2 * outer)
-    refined = _one(detector.with_config(diamond_refine=True).detect(img), gt)
+    refined = _one(detector.detect(img), gt)
     b = refined.box
     assert refined.kind == 'warning'
     assert max(abs(b.x - gt[0]), abs(b.y - gt[1]), abs(b.x + b.w - gt[0] - gt[2]),
                abs(b.y + b.h - gt[1] - gt[3])) < 1.0, b
-    assert _one(detector.detect(img), gt, 0.7).kind == 'warning'
+    assert _one(detector.with_config(diamond_refine=False).detect(img), gt, 0.7).kind == \
+        'warning'
+
+
+def _rect_sign_value(x, y, w, h, shape=(80, 80), ss=8, blur=0.6, gain=None, seed=0):
+    """Brightness of a rectangular sign's orange top (catalogue art: a black line 3 % of the
+    width at 1.5-4.5 % from the edge) over a dark background, sub-pixel placed, blurred."""
+    H, W = shape
+    ys, xs = np.mgrid[0:H * ss, 0:W * ss]
+    X, Y = (xs + 0.5) / ss, (ys + 0.5) / ss
+    # distance inside the sign's outline (to the nearest of left / right / top)
+    d = np.minimum(np.minimum(X - x, x + w - X), Y - y)
+    inside = (X >= x) & (X <= x + w) & (Y >= y) & (Y <= y + h)
+    big = np.full(X.shape, 60.0, np.float32)
+    big[inside] = 200.0
+    big[inside & (d >= 0.015 * w) & (d < 0.045 * w)] = 20.0
+    img = big.reshape(H, ss, W, ss).mean(axis=(1, 3))
+    if gain is not None:
+        img = img * (1.0 + gain * np.exp(-((np.arange(W) + 0.5 - x - w / 2) / (0.4 * w)) ** 2))[
+            None]
+    img = cv2.GaussianBlur(img.astype(np.float32), (0, 0), blur)
+    return img + np.random.default_rng(seed).normal(0, 2.0, img.shape).astype(np.float32)
+
+
+@pytest.mark.parametrize('w, tol', [(22.0, 0.7), (40.0, 0.3)])
+@pytest.mark.parametrize('gain', [None, 0.8])
+def test_refine_rectangle_finds_the_orange_face_edges(w, gain, tol):
+    """The orange top of a two-colour sign: from a hull box 1.5 px too wide on one side and
+    1 px too high, the face's left, right and top edges (the border line's inner edge,
+    4.5 % of the width inside the sign) come back within 0.3 px at 40 px; at 22 px the line
+    (0.7 px) is lost in the blur and the error reaches 0.6 px."""
+    x, y = 20.3, 15.6
+    img = _rect_sign_value(x, y, w, 0.6 * w, gain=gain)
+    face = 0.045 * w
+    got = dt.refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w)
+    assert got is not None
+    left, right, top = got
+    assert abs(left - (x + face)) < tol and abs(right - (x + w - face)) < tol
+    assert abs(top - (y + face)) < tol
+    assert dt.refine_rectangle(np.full((60, 60), 90, np.float32), (10, 10, 30, 12), 30) is None

@@ -157,14 +157,20 @@ class DetectorConfig:
             ``diamond_ring_test`` compares the dark share of the rings just outside and
             just inside the fitted diamond's edge (``2 border_frac a`` px wide; off: the
             hull's ``border_mode`` test decides); ``border_frac`` 0 means no border.
-        diamond_refine: opt-in (off by default: +5 ms p99 per frame): the warning box from
-            the face's edges measured on the brightness at sub-pixel precision
+        diamond_refine: the warning box from the face's edges measured on the brightness
+            at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
             the face-to-border blend), times ``diamond_face_ratio`` (the art's sign / face
             half-diagonal, 1 / 0.8876); ``diamond_border_rel`` / ``diamond_margin_rel``: the
             border line's width and the outer margin normal to the edge, in face
             half-diagonals.  When an edge shows no face-to-border step the mask fit
             (``diamond_scale``) is used.
+        rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
+            right and top edges measured on the brightness (:func:`refine_rectangle`), moved
+            out by the border line and margin (``rect_border_rel`` + ``rect_margin_rel`` of
+            the sign's shorter side, the width of a two-colour sign); its bottom (the
+            extension's) is kept.  When an edge shows no face-to-border step the hull box
+            grown by ``border_frac`` is used.
         border_dark: share of dark pixels in the ring outside the hull that means "border
             line outside" (0: compare with the band just inside the hull instead).
         border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
@@ -284,10 +290,13 @@ class DetectorConfig:
     diamond_scale: float = 1.07
     diamond_clamp: float = 0.12
     diamond_ring_test: bool = True
-    diamond_refine: bool = False
+    diamond_refine: bool = True
     diamond_face_ratio: float = 1.127
     diamond_border_rel: float = 0.0676
     diamond_margin_rel: float = 0.022
+    rect_refine: bool = True
+    rect_border_rel: float = 0.03
+    rect_margin_rel: float = 0.015
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -721,44 +730,52 @@ def _profile_bases(u_out: float, u_in: float, border: float, margin: float
         np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
 
 
-def _edge_offset(img: np.ndarray, p0: np.ndarray, p1: np.ndarray, nvec: np.ndarray,
-                 prof: tuple, span: tuple[float, float], min_contrast: float
-                 ) -> Optional[float]:
-    """Offset (px, along the inward normal ``nvec``) of the face edge near the segment
-    ``p0``-``p1`` between fractions ``span`` of it: median brightness profile, best fit of
-    the edge model over the offset x blur grid, parabolic sub-grid refinement.  None: no
-    face-to-border step (contrast below ``min_contrast`` of the face) or outside ``img``."""
+def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
+                  min_contrast: float) -> Optional[np.ndarray]:
+    """Offsets (px, along each inward normal) of the face edge on several edge stretches.
+
+    ``segs`` (n, 2, 2): each stretch's end points; ``nvecs`` (n, 2): its inward unit
+    normal.  Per stretch: the median of its brightness profiles along the normal (bilinear,
+    every quarter pixel), the best fit of the edge model over the offset x blur grid of
+    :func:`_profile_bases`, a parabola through the neighbouring offsets.  None when a
+    stretch lies outside ``img`` or shows no face-to-border step (contrast below
+    ``min_contrast`` of the face at every offset).
+    """
     u, bases_t, ata_inv, valid = prof
-    length = float(np.hypot(*(p1 - p0)))
-    ts = np.linspace(span[0], span[1], max(3, int((span[1] - span[0]) * length) + 1))
-    pts = (p0[None, None, :] + ts[:, None, None] * (p1 - p0)[None, None, :]
-           + u[None, :, None] * nvec[None, None, :])
+    length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
+    ts = np.linspace(0.0, 1.0, max(3, int(length) + 1))
+    pts = (segs[:, None, None, 0, :] + ts[None, :, None, None] * (segs[:, 1] - segs[:, 0])[
+        :, None, None, :] + u[None, None, :, None] * nvecs[:, None, None, :])  # (n, t, u, 2)
     mx = (pts[..., 0] - 0.5).astype(np.float32)
     my = (pts[..., 1] - 0.5).astype(np.float32)
     h, w = img.shape[:2]
     if mx.min() < 0 or my.min() < 0 or mx.max() > w - 1 or my.max() > h - 1:
         return None
-    prof_v = np.median(cv2.remap(img, mx, my, cv2.INTER_LINEAR), axis=0).astype(np.float64)
-    atb = (bases_t @ prof_v).reshape(-1, 3, 1)
-    coef = (ata_inv @ atb)[..., 0]
-    # residual of the least-squares fit: |p|^2 - (A^T p) . coef
-    sse = float(prof_v @ prof_v) - (atb[..., 0] * coef).sum(axis=1)
+    n, nt, nu = mx.shape
+    samples = cv2.remap(img, mx.reshape(n * nt, nu), my.reshape(n * nt, nu), cv2.INTER_LINEAR)
+    prof_v = np.median(samples.reshape(n, nt, nu), axis=1).astype(np.float64)   # (n, u)
+    atb = (bases_t @ prof_v.T).reshape(-1, 3, n)                                # (k, 3, n)
+    coef = ata_inv @ atb
+    # residual of each least-squares fit: |p|^2 - (A^T p) . coef
+    sse = (prof_v * prof_v).sum(axis=1)[None, :] - (atb * coef).sum(axis=1)     # (k, n)
     # the border line is dark: a plain step is the face's edge against a background as
     # dark as the line, never the margin's outer edge with a line as bright as the face
-    hi, lo = coef[:, 0], coef[:, 1]
-    ok = valid & (hi > 0) & (hi - lo >= min_contrast * hi)
-    if not ok.any():
+    hi, lo = coef[:, 0, :], coef[:, 1, :]
+    ok = valid[:, None] & (hi > 0) & (hi - lo >= min_contrast * hi)
+    if not ok.any(axis=0).all():
         return None
     sse = np.where(ok, sse, np.inf)
-    k = int(np.argmin(sse))
+    k = np.argmin(sse, axis=0)                                                  # (n,)
     ns = _PROFILE_SIG.size
-    i0, isg = divmod(k, ns)
-    off = float(_PROFILE_U0[i0])
-    if 0 < i0 < _PROFILE_U0.size - 1:
-        s_m, s_0, s_p = (float(sse[(i0 + j) * ns + isg]) for j in (-1, 0, 1))
-        den = s_m - 2 * s_0 + s_p
-        if den > 0 and np.isfinite(den):
-            off += 0.1 * 0.5 * (s_m - s_p) / den
+    i0, isg = np.divmod(k, ns)
+    off = _PROFILE_U0[i0].astype(np.float64)
+    inner = (i0 > 0) & (i0 < _PROFILE_U0.size - 1)
+    cols = np.arange(n)
+    s_m = sse[np.where(inner, k - ns, k), cols]
+    s_p = sse[np.where(inner, k + ns, k), cols]
+    den = s_m - 2 * sse[k, cols] + s_p
+    good = inner & np.isfinite(den) & (den > 0)
+    off[good] += 0.05 * (s_m[good] - s_p[good]) / den[good]
     return off
 
 
@@ -792,6 +809,11 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     a_in, b_in = a, b
     if a < 3 or b < 3:
         return None
+    # start half-way between the estimate and the face's edge without margin and line
+    # (a mask that took in the orange margin): the face's edge is within the search
+    # either way
+    shrink = 1.0 - 0.5 * (border_rel + margin_rel) * math.sqrt(2)
+    a, b = a * shrink, b * shrink
     img = np.ascontiguousarray(value, dtype=np.float32)
     for _ in range(iterations):
         m = min(a, b)
@@ -801,20 +823,23 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         prof = _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
         c = {'l': np.array([cx - a, cy]), 't': np.array([cx, cy - b]),
              'r': np.array([cx + a, cy]), 'b': np.array([cx, cy + b])}
-        lines = []
+        segs, nvecs, mids = [], [], []
         for e0, e1 in (('l', 't'), ('t', 'r'), ('r', 'b'), ('b', 'l')):
             p0, p1 = c[e0], c[e1]
             dvec = (p1 - p0) / float(np.hypot(*(p1 - p0)))
             nvec = np.array([-dvec[1], dvec[0]])
             if np.dot(nvec, np.array([cx, cy]) - 0.5 * (p0 + p1)) < 0:
                 nvec = -nvec
-            q = []
-            for span in ((0.15, 0.45), (0.55, 0.85)):
-                off = _edge_offset(img, p0, p1, nvec, prof, span, min_contrast)
-                if off is None:
-                    return None
-                q.append(p0 + 0.5 * (span[0] + span[1]) * (p1 - p0) + off * nvec)
-            lines.append((q[0], q[1] - q[0]))
+            for f0, f1 in ((0.15, 0.45), (0.55, 0.85)):
+                segs.append((p0 + f0 * (p1 - p0), p0 + f1 * (p1 - p0)))
+                nvecs.append(nvec)
+                mids.append(p0 + 0.5 * (f0 + f1) * (p1 - p0))
+        nv = np.array(nvecs)
+        off = _edge_offsets(img, np.array(segs), nv, prof, min_contrast)
+        if off is None:
+            return None
+        q = np.array(mids) + off[:, None] * nv
+        lines = [(q[2 * i], q[2 * i + 1] - q[2 * i]) for i in range(4)]
         corners = []
         for i, j in ((3, 0), (0, 1), (1, 2), (2, 3)):
             (qa, da), (qb, db) = lines[i], lines[j]
@@ -829,6 +854,56 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         if not (abs(a / a_in - 1) <= max_change and abs(b / b_in - 1) <= max_change):
             return None
     return cx, cy, a, b
+
+
+def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
+                     border_rel: float = 0.03, margin_rel: float = 0.015,
+                     max_change: float = 0.2, min_contrast: float = 0.25
+                     ) -> Optional[tuple[float, float, float]]:
+    """Sub-pixel left, right and top edges of a rectangular sign's orange face.
+
+    ``box = (x, y, w, h)``: a first estimate of the orange part (continuous coordinates),
+    e.g. its hull's box; ``size``: the sign's shorter side (its width for a two-colour
+    sign, px).  As :func:`refine_diamond`, on the brightness: the left and right edges on
+    two stretches each (20-45 % and 55-80 % of the height), the top edge on two (of the
+    width), each fitted with the face / border line / margin / background model; the line's
+    width and the margin outside it are ``border_rel`` and ``margin_rel`` x ``size``
+    (defaults: the catalogue's rectangles, a line 3 % of the shorter side at 1.5-4.5 % from
+    the edge).  The bottom of the orange part (a divider line over the white part, or the
+    sign's own bottom) is left to the caller.
+
+    Returns the face's ``(left, right, top)`` or None when a stretch shows no face-to-border
+    step or lies outside ``value``, or the width moves by more than ``max_change``.
+    """
+    x, y, w, h = (float(v) for v in box[:4])
+    if w < 6 or h < 4:
+        return None
+    img = np.ascontiguousarray(value, dtype=np.float32)
+    border, margin = border_rel * size, margin_rel * size
+    u_in = round(2 * min(max(1.5, 0.2 * min(0.5 * w, h)), 3.5)) / 2 + 1.0
+    u_out = round(4 * (border + margin)) / 4 + 2.5
+    prof = _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
+    # start half-way between the hull's edge and the face's edge without margin and line:
+    # the face's edge is then within the search either way
+    inset = 0.5 * (border + margin)
+    x, y, w = x + inset, y + inset, w - 2 * inset
+    segs, nvecs = [], []
+    for f0, f1 in ((0.2, 0.45), (0.55, 0.8)):
+        segs.append(((x, y + f0 * h), (x, y + f1 * h)))
+        nvecs.append((1.0, 0.0))
+        segs.append(((x + w, y + f0 * h), (x + w, y + f1 * h)))
+        nvecs.append((-1.0, 0.0))
+        segs.append(((x + f0 * w, y), (x + f1 * w, y)))
+        nvecs.append((0.0, 1.0))
+    off = _edge_offsets(img, np.array(segs, float), np.array(nvecs), prof, min_contrast)
+    if off is None:
+        return None
+    left = x + 0.5 * (off[0] + off[3])
+    right = x + w - 0.5 * (off[1] + off[4])
+    top = y + 0.5 * (off[2] + off[5])
+    if not abs((right - left) / (w + 2 * inset) - 1) <= max_change:
+        return None
+    return left, right, top
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
 
@@ -1711,8 +1786,27 @@ class ColorDetector:
             cand.x -= 0.5 * (sx - 1.0) * cand.w
             cand.y -= 0.5 * (sy - 1.0) * cand.h
             cand.w, cand.h = sx * cand.w, sy * cand.h
+        entry = self.debug[-1] if self.debug is not None else None
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
+        if kind == 'regulatory' and cfg.rect_refine and cfg.border_frac > 0:
+            # the orange part's left, right and top edges from the brightness profile; the
+            # sign's outer edges lie the border line and margin further out (in units of
+            # the sign's shorter side: the width of a two-colour sign)
+            face_frac = 1.0 - 2.0 * (cfg.rect_border_rel + cfg.rect_margin_rel)
+            size = (bw if cand.extended else min(bw, bh)) / face_frac
+            sub = refine_rectangle(vch, (bx0, by0, bw, bh), size, cfg.rect_border_rel,
+                                   cfg.rect_margin_rel)
+            if entry is not None:
+                entry['rect_refined'] = sub is not None
+            if sub is not None:
+                left, right, top = sub
+                out = (cfg.rect_border_rel + cfg.rect_margin_rel) * (
+                    (right - left) / face_frac if cand.extended else size)
+                bottom = cand.y + cand.h
+                cand.x, cand.w = x0 + left - out, right - left + 2 * out
+                cand.y = y0 + top - out
+                cand.h = bottom - cand.y
         return cand
 
     def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float

@@ -42,7 +42,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
-         'diamond_refine')
+         'diamond_refine', 'rect_refine')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -72,8 +72,10 @@ class ColorDetectorNode(WorkzoneNode):
         Param('min_area_px', 40.0, 'smallest blob area (px)', min=0.0),
         Param('nms_iou', 0.3, 'non-maximum suppression IoU', min=0.0, max=1.0),
         Param('extension', True, 'regulatory two-colour box extension (seed 000)'),
-        Param('diamond_refine', False, 'warning boxes from the face edges measured on the '
-              'brightness at sub-pixel precision (opt-in: +5 ms p99 per frame)'),
+        Param('diamond_refine', True, 'warning boxes from the face edges measured on the '
+              'brightness at sub-pixel precision (off: from the orange mask)'),
+        Param('rect_refine', True, 'regulatory boxes from the orange part\'s edges measured '
+              'on the brightness (off: the orange hull grown by the border)'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

@@ -48,7 +48,12 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    the box is taken from the blob's core (pixels at least ``edge_rel`` of the way from its
    own background likelihood level to its face level) and grown by the blur rings judged on
    the same relative scale (:func:`relative_measure`); which blobs are signs is still
-   judged on the absolute face.  The confidence
+   judged on the absolute face.  Warning diamonds and the orange part of regulatory
+   rectangles then get their edges at sub-pixel precision from the brightness
+   (:func:`refine_diamond`, :func:`refine_rectangle`; ``diamond_refine``, ``rect_refine``):
+   the colour table cannot place them, because a blend of the orange face and its black
+   border line keeps the face's hue and saturation; the mask-based box stays the fallback
+   when an edge shows no face-to-border step.  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.
@@ -858,8 +863,9 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
                      border_rel: float = 0.03, margin_rel: float = 0.015,
-                     max_change: float = 0.2, min_contrast: float = 0.25
-                     ) -> Optional[tuple[float, float, float]]:
+                     max_change: float = 0.2, min_contrast: float = 0.25,
+                     bottom: Optional[float] = None
+                     ) -> Optional[tuple[float, float, float, Optional[float]]]:
     """Sub-pixel left, right and top edges of a rectangular sign's orange face.
 
     ``box = (x, y, w, h)``: a first estimate of the orange part (continuous coordinates),
@@ -870,10 +876,13 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     width and the margin outside it are ``border_rel`` and ``margin_rel`` x ``size``
     (defaults: the catalogue's rectangles, a line 3 % of the shorter side at 1.5-4.5 % from
     the edge).  The bottom of the orange part (a divider line over the white part, or the
-    sign's own bottom) is left to the caller.
+    sign's own bottom) is not measured; ``bottom``: the row where the caller found the
+    sign's face to end (the white part's last white row of a two-colour sign), whose edge
+    is measured the same way.
 
-    Returns the face's ``(left, right, top)`` or None when a stretch shows no face-to-border
-    step or lies outside ``value``, or the width moves by more than ``max_change``.
+    Returns the face's ``(left, right, top, bottom)`` (``bottom`` None when not asked for or
+    not measurable) or None when a side or top stretch shows no face-to-border step or lies
+    outside ``value``, or the width moves by more than ``max_change``.
     """
     x, y, w, h = (float(v) for v in box[:4])
     if w < 6 or h < 4:
@@ -903,7 +912,15 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     top = y + 0.5 * (off[2] + off[5])
     if not abs((right - left) / (w + 2 * inset) - 1) <= max_change:
         return None
-    return left, right, top
+    low = None
+    if bottom is not None:
+        yb = float(bottom) - inset
+        ob = _edge_offsets(img, np.array([((x + 0.2 * w, yb), (x + 0.45 * w, yb)),
+                                          ((x + 0.55 * w, yb), (x + 0.8 * w, yb))]),
+                           np.array([(0.0, -1.0), (0.0, -1.0)]), prof, min_contrast)
+        if ob is not None:
+            low = yb - 0.5 * (ob[0] + ob[1])
+    return left, right, top, low
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
 
@@ -1795,15 +1812,25 @@ class ColorDetector:
             # the sign's shorter side: the width of a two-colour sign)
             face_frac = 1.0 - 2.0 * (cfg.rect_border_rel + cfg.rect_margin_rel)
             size = (bw if cand.extended else min(bw, bh)) / face_frac
-            sub = refine_rectangle(vch, (bx0, by0, bw, bh), size, cfg.rect_border_rel,
-                                   cfg.rect_margin_rel)
+            # the white part's bottom edge too when the extension found it (the window
+            # then reaches down over the white part)
+            value, low = vch, None
+            if cand.extended:
+                y_end = min(H, int(cand.y + cand.h) + m)
+                if y_end > y1:
+                    ext = bgr[y0:y_end, x0:x1]
+                    value = (apply_gains(ext, self._gains) if self._gains is not None
+                             else ext).max(axis=2)
+                low = cand.y + cand.h - y0
+            sub = refine_rectangle(value, (bx0, by0, bw, bh), size, cfg.rect_border_rel,
+                                   cfg.rect_margin_rel, bottom=low)
             if entry is not None:
                 entry['rect_refined'] = sub is not None
             if sub is not None:
-                left, right, top = sub
+                left, right, top, low = sub
                 out = (cfg.rect_border_rel + cfg.rect_margin_rel) * (
                     (right - left) / face_frac if cand.extended else size)
-                bottom = cand.y + cand.h
+                bottom = cand.y + cand.h if low is None else y0 + low + out
                 cand.x, cand.w = x0 + left - out, right - left + 2 * out
                 cand.y = y0 + top - out
                 cand.h = bottom - cand.y

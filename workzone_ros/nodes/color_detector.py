@@ -74,7 +74,7 @@ class ColorDetectorNode(WorkzoneNode):
         Param('extension', True, 'regulatory two-colour box extension (seed 000)'),
         Param('diamond_refine', True, 'warning boxes from the face edges measured on the '
               'brightness at sub-pixel precision (off: from the orange mask)'),
-        Param('rect_refine', True, 'regulatory boxes from the orange part\'s edges measured '
+        Param('rect_refine', True, "regulatory boxes from the orange part's edges measured "
               'on the brightness (off: the orange hull grown by the border)'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),

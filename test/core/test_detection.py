@@ -1080,3 +1080,28 @@ def test_refine_rectangle_finds_the_orange_face_edges(w, gain, tol):
     assert abs(top - (y + face)) < tol and abs(low - (y + h - face)) < tol
     assert dt.refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w)[3] is None
     assert dt.refine_rectangle(np.full((60, 60), 90, np.float32), (10, 10, 30, 12), 30) is None
+
+
+def test_soft_mounting_limit_keeps_symbol_and_flag_diamonds(model):
+    """Below the usual mounting a diamond whose black symbol cuts its orange face (a lane
+    shift arrow) passes on its outline, and so does one whose portable stand's flags sit
+    above its top corner; an orange triangle (a cone's shape, solid) and the truck's rear
+    still do not."""
+    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
+                        {'geometry': np.array([0.5, 1.5, 0.26])})
+    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True,
+                                                  band_test=False))
+    img = _background()
+    arrow = _diamond(img, 150, 290, 30)
+    cv2.line(img, (143, 300), (143, 288), BLACK, 6)                  # a bent arrow
+    cv2.line(img, (143, 288), (156, 279), BLACK, 6)
+    flagged = _flagged_diamond(img, 290, 300, 26)
+    tri = np.array([[470, 262], [500, 322], [440, 322]], np.int32)
+    cv2.fillConvexPoly(img, tri, ORANGE)
+    dets = det.detect(img)
+    _one(dets, arrow, 0.6)
+    _one(dets, flagged, 0.6)
+    assert not [d for d in dets if d.box.x > 420]
+    # the old test: a solid face only
+    strict = det.with_config(low_min_inliers=1.01, diamond_trim=-1.0).detect(img)
+    assert not [d for d in strict if d.box.iou(Box(*map(float, arrow))) > 0.3]

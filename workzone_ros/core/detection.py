@@ -288,6 +288,7 @@ class DetectorConfig:
     use_geometry: bool = True
     low_min_solidity: float = 0.85
     low_max_aspect: float = 1.4
+    low_min_inliers: float = 0.7
     close_frac: float = 0.12
     weak_threshold: float = 0.3
     border_frac: float = 0.04
@@ -1678,11 +1679,11 @@ class ColorDetector:
             # Below the usual mounting (soft limit; portable stands stand low) only a clear
             # diamond face passes; below the lowest training sign (hard limit) nothing does.
             rel = (y0 + by0 + bh - self._ref_row) / bh
+            if self.debug is not None:
+                self.debug[-1]['mount'] = rel
             if rel > geo[1]:
                 return None
-            if rel > geo[2] and not (solidity >= cfg.low_min_solidity
-                                     and hull_fill < cfg.diamond_hull_fill
-                                     and max(aspect, 1 / aspect) <= cfg.low_max_aspect):
+            if rel > geo[2] and not self._clear_diamond(pix):
                 return None
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
@@ -1914,6 +1915,45 @@ class ColorDetector:
         # is twice as wide as high)
         return (bh >= bw and row_taper(pix) <= cfg.cone_taper
                 and white_cap(white, by - r0, run, gap))
+
+    def _clear_diamond(self, pix: np.ndarray) -> bool:
+        """Whether a blob is a clear diamond face, what may stand below the usual mounting
+        height (a portable stand's sign): about square, diamond-filled, its rows and
+        columns each a two-sided tent (:func:`fit_diamond`; its corners about the blob's
+        middle: a triangle's rows follow a one-sided tent, its apex at the base), and solid
+        (``low_min_solidity``) or following the tents on ``low_min_inliers`` of its rows and
+        columns (a large black symbol, a lane-shift arrow, cuts the orange face but not its
+        outline).  A blob whose rows beyond the fitted diamond's corners (a stand's flags)
+        spoil this is judged without them."""
+        cfg = self.config
+        for k in range(2):
+            if k == 1:
+                if cfg.diamond_trim < 0:
+                    return False
+                pix, _ = self._trim_to_diamond(pix, cfg.diamond_trim)
+                if pix is None:
+                    return False
+            pts = cv2.findNonZero(pix)
+            if pts is None or len(pts) < 5:
+                return False
+            hull = cv2.convexHull(pts)
+            hull_area = max(float(cv2.contourArea(hull)), 1.0)
+            _, _, w, h = cv2.boundingRect(hull)
+            solidity, fill = len(pts) / hull_area, hull_area / (w * h)
+            if fill >= cfg.diamond_hull_fill or max(w / h, h / w) > cfg.low_max_aspect:
+                continue
+            fr = fit_diamond(pix)
+            fc = fit_diamond(np.ascontiguousarray(pix.T))
+            if fr is None or fc is None:
+                continue
+            ys, xs = np.nonzero(pix)
+            hh, ww = ys.max() + 1 - ys.min(), xs.max() + 1 - xs.min()
+            centred = (abs(fr[1] - (ys.min() + 0.5 * hh)) <= 0.15 * hh
+                       and abs(fc[1] - (xs.min() + 0.5 * ww)) <= 0.15 * ww)
+            if centred and (solidity >= cfg.low_min_solidity
+                            or min(fr[4], fc[4]) >= cfg.low_min_inliers):
+                return True
+        return False
 
     @staticmethod
     def _trim_to_diamond(pix: np.ndarray, tol: float

@@ -1105,3 +1105,23 @@ def test_soft_mounting_limit_keeps_symbol_and_flag_diamonds(model):
     # the old test: a solid face only
     strict = det.with_config(low_min_inliers=1.01, diamond_trim=-1.0).detect(img)
     assert not [d for d in strict if d.box.iou(Box(*map(float, arrow))) > 0.3]
+
+
+@pytest.mark.parametrize('size', [30, 48])
+def test_art_two_colour_sign_box_from_its_edges(detector, size):
+    """The simulator's WORK ZONE BEGINS art at sub-pixel positions: with ``rect_refine``
+    (default) the box's sides are measured on the brightness and land within a pixel of the
+    truth (0.3 px on average), where the orange hull grown by the border misses by up to
+    2 px."""
+    errs, old_errs = [], []
+    for off in (0.0, 0.3, 0.6):
+        img, gt = _render_art_sign(_background(), 380.3 + off, 110.6 + off, size,
+                                   key='work_zone_begin')
+        g = Box(*map(float, gt))
+        for det, out in ((detector, errs), (detector.with_config(rect_refine=False), old_errs)):
+            d = _one(det.detect(img), gt, 0.7)
+            assert d.kind == 'regulatory'
+            out.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
+    errs, old_errs = np.abs(errs), np.abs(old_errs)
+    assert errs.max() <= 1.0 and errs.mean() <= 0.45, errs
+    assert old_errs.mean() > errs.mean() + 0.1, (errs.mean(), old_errs.mean())

@@ -1125,3 +1125,26 @@ def test_art_two_colour_sign_box_from_its_edges(detector, size):
     errs, old_errs = np.abs(errs), np.abs(old_errs)
     assert errs.max() <= 1.0 and errs.mean() <= 0.45, errs
     assert old_errs.mean() > errs.mean() + 0.1, (errs.mean(), old_errs.mean())
+
+
+def test_extension_crosses_large_numerals_with_noisy_black(detector):
+    """A speed-limit sign under an orange WORK ZONE plaque: rows of large black numerals
+    cover most of the width, and a dark stroke's saturation is noise (a camera's black is
+    not grey).  The extension still reaches the sign's bottom: legend rows are judged
+    achromatic on their bright (white) pixels."""
+    img = _background()
+    x, y, w, h = 400, 80, 40, 70
+    cv2.rectangle(img, (x, y), (x + w - 1, y + h - 1), WHITE, -1)
+    cv2.rectangle(img, (x, y), (x + w - 1, y + 13), ORANGE, -1)
+    cv2.rectangle(img, (x + 1, y + 1), (x + w - 2, y + h - 2), BLACK, 2)
+    cv2.putText(img, 'SPEED', (x + 5, y + 24), cv2.FONT_HERSHEY_PLAIN, 0.8, BLACK, 1)
+    cv2.putText(img, '50', (x + 5, y + 58), cv2.FONT_HERSHEY_DUPLEX, 0.9, BLACK, 3)
+    rng = np.random.default_rng(5)
+    sign = img[y:y + h, x:x + w]
+    dark = sign.max(axis=2) < 60
+    noise = rng.integers(0, 28, sign.shape).astype(np.uint8)
+    sign[dark] = cv2.add(sign, noise)[dark]            # dark pixels: S up to ~200
+    gt = (x, y, w, h)
+    d = _one(detector.detect(img), gt, 0.7)
+    assert d.kind == 'regulatory'
+    assert abs(d.box.y2 - (y + h)) <= 2.0, d.box

@@ -2083,7 +2083,14 @@ class ColorDetector:
         # rows of a large black legend (speed-limit numerals) are not white, but they are
         # achromatic like the sheeting around them: such rows may separate white rows by up
         # to ``ext_gap_w`` x the width (background rows, foliage or sky, are coloured)
-        achrom = np.median(sat, axis=1) <= cfg.ext_gap_s
+        # (judged on the row's bright pixels: a dark legend stroke's saturation is noise, a
+        # row of large numerals would otherwise look coloured)
+        bright = strip[..., 2] >= 0.5 * v_ref
+        sat_b = np.where(bright, sat, np.nan).astype(np.float32)
+        with np.errstate(all='ignore'):
+            med_b = np.nanmedian(np.where(bright.sum(axis=1, keepdims=True) >= 3, sat_b,
+                                          np.float32(255)), axis=1)
+        achrom = med_b <= cfg.ext_gap_s
         gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
         run = 0
         for j, f in enumerate(smooth):

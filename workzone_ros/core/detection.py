@@ -166,10 +166,13 @@ class DetectorConfig:
             at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
             the face-to-border blend), times ``diamond_face_ratio`` (the art's sign / face
-            half-diagonal, 1 / 0.8876); ``diamond_border_rel`` / ``diamond_margin_rel``: the
-            border line's width and the outer margin normal to the edge, in face
-            half-diagonals.  When an edge shows no face-to-border step the mask fit
-            (``diamond_scale``) is used.
+            half-diagonal: 1 / 0.8876 as designed, 1.110-1.129 as drawn, the line's width
+            rounded to whole art pixels; 1.115 chosen on tuning bags; MUTCD signs ~1.09),
+            no side more than ``diamond_clamp`` x the half-diagonal + ``diamond_clamp_px``
+            beyond the face's own pixels (blur eats about a pixel of a small face's mask);
+            ``diamond_border_rel`` / ``diamond_margin_rel``: the border line's width and the
+            outer margin normal to the edge, in face half-diagonals.  When an edge shows no
+            face-to-border step the mask fit (``diamond_scale``) is used.
         rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
             right and top edges measured on the brightness (:func:`refine_rectangle`), moved
             out by the border line and margin (``rect_border_rel`` + ``rect_margin_rel`` of
@@ -297,7 +300,8 @@ class DetectorConfig:
     diamond_clamp: float = 0.12
     diamond_ring_test: bool = True
     diamond_refine: bool = True
-    diamond_face_ratio: float = 1.127
+    diamond_face_ratio: float = 1.115
+    diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
     diamond_margin_rel: float = 0.022
     rect_refine: bool = True
@@ -1772,11 +1776,13 @@ class ColorDetector:
                 # the face's edges from the brightness profile; the sign is the face
                 # scaled by the art's ratio (border line and margin outside the face)
                 cx_, cy_, a_, b_ = sub
-                k_, c_ = cfg.diamond_face_ratio, cfg.diamond_clamp
-                l_ = max(cx_ - k_ * a_, bx0 - c_ * a_)
-                r_ = min(cx_ + k_ * a_, bx0 + bw + c_ * a_)
-                t_ = max(cy_ - k_ * b_, by0 - c_ * b_)
-                u_ = min(cy_ + k_ * b_, by0 + bh + c_ * b_)
+                k_ = cfg.diamond_face_ratio
+                ca = cfg.diamond_clamp * a_ + cfg.diamond_clamp_px
+                cb = cfg.diamond_clamp * b_ + cfg.diamond_clamp_px
+                l_ = max(cx_ - k_ * a_, bx0 - ca)
+                r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
+                t_ = max(cy_ - k_ * b_, by0 - cb)
+                u_ = min(cy_ + k_ * b_, by0 + bh + cb)
                 if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
                     outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
             elif fd is not None and fd[4] >= 0.5:

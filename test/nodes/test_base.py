@@ -207,6 +207,31 @@ def test_qos_mismatch_is_diagnosed(ros):
     assert _values(status)['/qos/image messages'] == '0' and not node.got
 
 
+def test_silent_compatible_publisher_is_not_called_a_qos_mismatch(ros):
+    """A publisher with compatible QoS that has sent nothing yet (a replay that has not
+    started) is reported as silent, not as a QoS mismatch."""
+    class Listener(WorkzoneNode):
+        def __init__(self, **kwargs):
+            super().__init__('quiet_listener', **kwargs)
+            self.reliable_subscription(Image, 'qos/quiet', lambda m: None)
+
+    ros.add(Listener(context=ros.context, **FAST))
+    peer = ros.node('quiet_peer')
+    peer.create_publisher(Image, 'qos/quiet', QoSProfile(depth=5))
+    diags = []
+    peer.create_subscription(DiagnosticArray, '/diagnostics', diags.append, 10)
+
+    def silent():
+        return [s for d in diags for s in d.status
+                if s.name == 'quiet_listener' and 'nothing received' in s.message]
+
+    assert ros.spin_until(silent)
+    status = silent()[0]
+    assert status.level == DiagnosticStatus.WARN
+    assert 'QoS mismatch' not in status.message
+    assert 'nothing received yet (their QoS is compatible' in status.message
+
+
 def test_run_node_exit_codes():
     def bad_config():
         raise ConfigError('threshold = 7 is above the maximum 1.0')

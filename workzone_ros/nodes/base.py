@@ -585,8 +585,14 @@ class WorkzoneNode(Node):
                     and now - silent_since > self._silent_warn_s:
                 level = DiagnosticStatus.WARN
                 if arrival is None:
-                    text = f'publisher(s) on {topic} but nothing received: QoS mismatch?'
                     detail = self._qos_detail(stats)
+                    if detail:
+                        text = f'publisher(s) on {topic} but nothing received: QoS mismatch?'
+                    else:
+                        # compatible QoS: the upstream has published nothing yet (a replay
+                        # that has not started, an upstream waiting for its own input)
+                        text = (f'publisher(s) on {topic} but nothing received yet (their QoS '
+                                'is compatible: is the upstream publishing?)')
                     self.warn_throttled(f'silent:{topic}', text + detail)
                 else:
                     text = f'publisher(s) on {topic} but no message for {age:.1f} s'

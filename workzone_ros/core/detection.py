@@ -706,14 +706,13 @@ def diamond_rings(shape: tuple, fit: tuple, width: float
     return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
-
 _PROFILE_U0 = np.arange(-3.0, 3.0 + 1e-6, 0.1, dtype=np.float32)
 _PROFILE_SIG = np.array([0.45, 0.65, 0.9, 1.2, 1.6], np.float32)
 
 
 @functools.lru_cache(maxsize=256)
 def _profile_bases(u_out: float, u_in: float, border: float, margin: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Blurred step-profile bases of a sign edge and their normal-equation inverses.
 
     Samples ``u`` every quarter pixel from ``-u_out`` (outside) to ``u_in`` (inside).  For
@@ -933,6 +932,7 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
         if ob is not None:
             low = yb - 0.5 * (ob[0] + ob[1])
     return left, right, top, low
+
 
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
 

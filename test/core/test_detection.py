@@ -1148,3 +1148,18 @@ def test_extension_crosses_large_numerals_with_noisy_black(detector):
     d = _one(detector.detect(img), gt, 0.7)
     assert d.kind == 'regulatory'
     assert abs(d.box.y2 - (y + h)) <= 2.0, d.box
+
+
+@pytest.mark.parametrize('height', [101, 333])
+@pytest.mark.parametrize('method', ['learned', 'hsv'])
+def test_sign_cut_by_the_bottom_of_an_odd_sized_frame(model, height, method):
+    """A frame of odd height with an orange blob cut by its bottom edge: the half-resolution
+    blob scaled back up reaches a row past the frame; no error (it used to raise a
+    broadcast ValueError and lose the frame)."""
+    img = np.full((height, 240, 3), (90, 90, 90), np.uint8)
+    pts = np.array([[120, height - 30], [150, height - 1], [120, height + 29],
+                    [90, height - 1]], np.int32)
+    cv2.fillConvexPoly(img, pts, ORANGE)
+    det = dt.ColorDetector(model, dt.DetectorConfig(method=method, use_prior=False))
+    dets = det.detect(img)
+    assert all(np.isfinite([d.box.x, d.box.y, d.box.w, d.box.h]).all() for d in dets)

@@ -706,6 +706,14 @@ def diamond_rings(shape: tuple, fit: tuple, width: float
     return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
+def _paste(dst: np.ndarray, src: np.ndarray, oy: int, ox: int) -> None:
+    """``dst[oy:oy + h, ox:ox + w] = src``, clipped to ``dst`` (a blob of a half-resolution
+    mask scaled back up can reach a row or column past an odd-sized frame's edge)."""
+    h = min(src.shape[0], dst.shape[0] - oy)
+    w = min(src.shape[1], dst.shape[1] - ox)
+    if h > 0 and w > 0:
+        dst[oy:oy + h, ox:ox + w] = src[:h, :w]
+
 _PROFILE_U0 = np.arange(-3.0, 3.0 + 1e-6, 0.1, dtype=np.float32)
 _PROFILE_SIG = np.array([0.45, 0.65, 0.9, 1.2, 1.6], np.float32)
 
@@ -1517,7 +1525,7 @@ class ColorDetector:
         hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
-        region[fy - y0:fy - y0 + fh, fx - x0:fx - x0 + fw] = up
+        _paste(region, up, fy - y0, fx - x0)
         if s > 1:
             region = cv2.dilate(region, np.ones((4 * s + 1, 4 * s + 1), np.uint8))
         if cfg.method == 'learned':
@@ -1633,7 +1641,7 @@ class ColorDetector:
             t = t_override
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
-        region[fy - y0:fy - y0 + fh, fx - x0:fx - x0 + fw] = up
+        _paste(region, up, fy - y0, fx - x0)
         if s > 1:
             region = cv2.dilate(region, np.ones((2 * s + 1, 2 * s + 1), np.uint8))
         strong = ((like >= t - 1e-6) & (region > 0)).astype(np.uint8)

@@ -149,6 +149,42 @@ def test_bad_inputs_are_dropped_with_a_reason_and_no_camera_info_is_reported(ros
     assert 'no CameraInfo' in status.message and status.level != b'\x00'
 
 
+def test_images_before_the_first_camera_info_are_held_not_dropped(ros):
+    """A replay's first images can beat its first CameraInfo: within the projector's grace
+    period they are held and projected once it comes; nothing is dropped."""
+    t = _topics()
+    proj = _nodes(ros, t)
+    io = ros.add(rclpy.create_node('io_hold', context=ros.context))
+    pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
+    pub_img = io.create_publisher(Image, t['image'], 10)
+    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    got_rois = []
+    io.create_subscription(String, t['rois'], got_rois.append, 10)
+    cam = SMALL_CAMERA
+    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
+    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
+    cloud = _sign_cloud()
+    base = 1_700_000_000_000_000_000
+    state = {'k': 0}
+
+    def each():
+        k = state['k']
+        state['k'] += 1
+        stamp = interfaces.Time.from_ns(base + k * 100_000_000)
+        pub_img.publish(numpy_to_image(frame, 'bgr8', stamp=stamp, frame_id='camera'))
+        pub_pts.publish(array_to_pointcloud2(cloud, stamp=stamp, frame_id='lidar'))
+
+    image_topic = proj.resolve_topic_name(t['image'])
+    assert ros.spin_until(lambda: len(proj._held) > 0, each=each)
+    first_held = proj._held[0][0].header.stamp
+    pub_info.publish(info)
+    assert ros.spin_until(lambda: proj._camera is not None and got_rois,
+                          each=lambda: pub_info.publish(info))
+    stamps = {interfaces.decode(m.data, interfaces.Rois).header.stamp.to_ns() for m in got_rois}
+    assert interfaces.Time(first_held.sec, first_held.nanosec).to_ns() in stamps
+    assert proj.topic_stats()[image_topic].dropped == 0 and not proj._held
+
+
 def test_bad_extrinsics_are_reported_not_guessed(ros):
     t = _topics()
     proj = ros.add(ProjectorNode(context=ros.context, parameter_overrides=[

@@ -25,6 +25,7 @@ input is dropped with a clear reason in ``/diagnostics`` and the log; nothing is
 from __future__ import annotations
 
 import collections
+import time
 from typing import Any, Optional
 
 import numpy as np
@@ -120,6 +121,8 @@ class ProjectorNode(WorkzoneNode):
               max=100000.0),
     )
     INPUT_TOPICS = ('candidates_topic', 'image_topic', 'camera_info_topic', 'odom_topic')
+    #: wall seconds an image may wait for the first CameraInfo before it is dropped
+    INFO_GRACE_S = 2.0
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('projector', **kwargs)
@@ -129,6 +132,10 @@ class ProjectorNode(WorkzoneNode):
         self._poses = PoseBuffer()
         self._image_stamps: collections.deque = collections.deque(maxlen=64)
         self._counts = collections.Counter()
+        # images (with their candidates) that came before the first CameraInfo: held for
+        # INFO_GRACE_S and projected when it comes (a replay's first image can beat it)
+        self._held: collections.deque = collections.deque(maxlen=64)
+        self._waiting_since: Optional[float] = None
         self._configure()
         self._rois_pub = self.reliable_publisher(String, self.params.rois_topic)
         self._crops_pub = self.sensor_publisher(Image, self.params.crops_topic) \
@@ -178,6 +185,8 @@ class ProjectorNode(WorkzoneNode):
 
     def _on_info(self, msg: CameraInfo) -> None:
         self._camera = CameraModel.from_info(camera_info_to_numpy(msg))
+        while self._held:
+            self._project(*self._held.popleft())
 
     def _on_odom(self, msg: Odometry) -> None:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
@@ -245,13 +254,30 @@ class ProjectorNode(WorkzoneNode):
         base = self._poses.at(t_ns)
         return None if base is None else base @ self._base_to_lidar
 
-    def _ready(self) -> bool:
-        """CameraInfo and extrinsics are there; else drop the image with the reason."""
+    def _ready(self, hold: Optional[tuple] = None) -> bool:
+        """CameraInfo and extrinsics are there; else drop the image with the reason.
+
+        For the first ``INFO_GRACE_S`` (wall) after an image first finds no CameraInfo, the
+        image is not dropped: ``hold`` (image, candidates) is kept to be projected when the
+        CameraInfo comes (a replay's first image can arrive before it).
+        """
         topic = self.resolve_topic_name(self.params.image_topic)
+        if self._camera is None and self._extrinsics is not None:
+            now = time.monotonic()
+            if self._waiting_since is None:
+                self._waiting_since = now
+            if now - self._waiting_since <= self.INFO_GRACE_S:
+                self._counts['held for CameraInfo'] += 1
+                if hold is not None:
+                    self._held.append(hold)
+                return False
         if self._camera is None:
-            self._counts['no camera info'] += 1
-            self.drop(topic, f'no CameraInfo received on {self.params.camera_info_topic}: '
-                             f'cannot project (intrinsics are never guessed)')
+            reason = (f'no CameraInfo received on {self.params.camera_info_topic}: cannot '
+                      f'project (intrinsics are never guessed)')
+            for _ in range(len(self._held) + 1):
+                self._counts['no camera info'] += 1
+                self.drop(topic, reason)
+            self._held.clear()
             return False
         if self._extrinsics is None:
             self._counts['no extrinsics'] += 1
@@ -261,7 +287,7 @@ class ProjectorNode(WorkzoneNode):
 
     def _project(self, image: Image, cands: tuple) -> None:
         topic = self.resolve_topic_name(self.params.image_topic)
-        if not self._ready():
+        if not self._ready(hold=(image, cands)):
             return
         if (int(image.width), int(image.height)) != (self._camera.width, self._camera.height):
             self.drop(topic, f'image {image.width}x{image.height} does not match CameraInfo '

@@ -747,6 +747,16 @@ def _profile_bases(u_out: float, u_in: float, border: float, margin: float
         np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
 
 
+def _edge_profile(extent: float, border: float, margin: float) -> tuple:
+    """:func:`_profile_bases` for a face ``extent`` px from its middle to its edge (inside
+    samples reach a fifth of it, 1.5-3.5 px, plus a pixel) with the line and margin outside
+    (plus 2.5 px of background); widths rounded so that faces of about the same size share
+    the cached bases."""
+    u_in = round(2 * min(max(1.5, 0.2 * extent), 3.5)) / 2 + 1.0
+    u_out = round(4 * (border + margin)) / 4 + 2.5
+    return _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
+
+
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
                   min_contrast: float) -> Optional[np.ndarray]:
     """Offsets (px, along each inward normal) of the face edge on several edge stretches.
@@ -841,9 +851,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     for _ in range(iterations):
         m = min(a, b)
         border, margin = border_rel * m, margin_rel * m
-        u_in = round(2 * min(max(1.5, 0.2 * m), 3.5)) / 2 + 1.0
-        u_out = round(4 * (border + margin)) / 4 + 2.5
-        prof = _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
+        prof = _edge_profile(m, border, margin)
         c = {'l': np.array([cx - a, cy]), 't': np.array([cx, cy - b]),
              'r': np.array([cx + a, cy]), 'b': np.array([cx, cy + b])}
         segs, nvecs, mids = [], [], []
@@ -908,9 +916,7 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
         return None
     img = np.ascontiguousarray(value, dtype=np.float32)
     border, margin = border_rel * size, margin_rel * size
-    u_in = round(2 * min(max(1.5, 0.2 * min(0.5 * w, h)), 3.5)) / 2 + 1.0
-    u_out = round(4 * (border + margin)) / 4 + 2.5
-    prof = _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
+    prof = _edge_profile(min(0.5 * w, h), border, margin)
     # start half-way between the hull's edge and the face's edge without margin and line:
     # the face's edge is then within the search either way
     inset = 0.5 * (border + margin)
@@ -1780,37 +1786,34 @@ class ColorDetector:
                                      cfg.diamond_margin_rel)
             if self.debug is not None:
                 self.debug[-1]['refined'] = sub is not None
+            diamond = None
             if sub is not None:
                 # the face's edges from the brightness profile; the sign is the face
-                # scaled by the art's ratio (border line and margin outside the face)
-                cx_, cy_, a_, b_ = sub
-                k_ = cfg.diamond_face_ratio
-                ca = cfg.diamond_clamp * a_ + cfg.diamond_clamp_px
-                cb = cfg.diamond_clamp * b_ + cfg.diamond_clamp_px
-                l_ = max(cx_ - k_ * a_, bx0 - ca)
-                r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
-                t_ = max(cy_ - k_ * b_, by0 - cb)
-                u_ = min(cy_ + k_ * b_, by0 + bh + cb)
-                if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
-                    outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
+                # scaled by the art's ratio (border line and margin outside the face);
+                # the clamp allows a pixel more (blur eats about a pixel of a small face)
+                diamond = (*sub, cfg.diamond_face_ratio, cfg.diamond_clamp_px)
             elif fd is not None and fd[4] >= 0.5:
-                cx_, cy_, a_, b_ = fd[:4]
-                k_, c_ = cfg.diamond_scale, cfg.diamond_clamp
+                k_ = cfg.diamond_scale
                 if cfg.border_frac <= 0:
                     k_ = 1.0                    # configured: no border outside the face
                 elif cfg.diamond_ring_test:
                     # the black border lies outside the fitted face when the ring just
                     # outside the diamond is darker than the ring just inside it
-                    ri, ro = diamond_rings(pix.shape, fd, max(1.0, cfg.border_frac * 2 * a_))
+                    ri, ro = diamond_rings(pix.shape, fd,
+                                           max(1.0, cfg.border_frac * 2 * fd[2]))
                     if np.count_nonzero(dark & ro) / max(np.count_nonzero(ro), 1) <= \
                             np.count_nonzero(dark & ri) / max(np.count_nonzero(ri), 1):
                         k_ = 1.0
                 elif grow <= 0:
                     k_ = 1.0
-                l_ = max(cx_ - k_ * a_, bx0 - c_ * a_)
-                r_ = min(cx_ + k_ * a_, bx0 + bw + c_ * a_)
-                t_ = max(cy_ - k_ * b_, by0 - c_ * b_)
-                u_ = min(cy_ + k_ * b_, by0 + bh + c_ * b_)
+                diamond = (*fd[:4], k_, 0.0)
+            if diamond is not None:
+                cx_, cy_, a_, b_, k_, pad = diamond
+                ca, cb = cfg.diamond_clamp * a_ + pad, cfg.diamond_clamp * b_ + pad
+                l_ = max(cx_ - k_ * a_, bx0 - ca)
+                r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
+                t_ = max(cy_ - k_ * b_, by0 - cb)
+                u_ = min(cy_ + k_ * b_, by0 + bh + cb)
                 # a fit far from the face's own box is not trusted
                 if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
                     outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)

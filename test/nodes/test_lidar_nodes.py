@@ -52,6 +52,16 @@ def _topics():
                 info=f'/{NS}/camera_info', rois=f'/{NS}/rois', odom=f'/{NS}/odom')
 
 
+def _camera_io(io, t):
+    """Image and CameraInfo publishers on ``io`` for the small test camera (small frames:
+    best-effort images arrive reliably), its CameraInfo message and a black frame."""
+    cam = SMALL_CAMERA
+    pub_img = io.create_publisher(Image, t['image'], 10)
+    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
+    return pub_img, pub_info, info, np.zeros((cam.height, cam.width, 3), np.uint8)
+
+
 def _nodes(ros, t, info=True):
     ros.add(LidarClusterNode(context=ros.context, parameter_overrides=[
         Parameter('points_topic', value=t['points']),
@@ -75,14 +85,11 @@ def test_cloud_camera_info_image_in_candidates_and_rois_out(ros):
     _nodes(ros, t)
     io = ros.add(rclpy.create_node('io', context=ros.context))
     pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
-    pub_img = io.create_publisher(Image, t['image'], 10)
-    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    pub_img, pub_info, info, frame = _camera_io(io, t)
     got_cands, got_rois = [], []
     io.create_subscription(PointCloud2, t['cands'], got_cands.append, 10)
     io.create_subscription(String, t['rois'], got_rois.append, 10)
-    cam = SMALL_CAMERA            # small frames: best-effort images arrive reliably
-    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
-    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
+    cam = SMALL_CAMERA
     cloud = _sign_cloud()
     state = {'k': 0}
 
@@ -156,13 +163,9 @@ def test_images_before_the_first_camera_info_are_held_not_dropped(ros):
     proj = _nodes(ros, t)
     io = ros.add(rclpy.create_node('io_hold', context=ros.context))
     pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
-    pub_img = io.create_publisher(Image, t['image'], 10)
-    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    pub_img, pub_info, info, frame = _camera_io(io, t)
     got_rois = []
     io.create_subscription(String, t['rois'], got_rois.append, 10)
-    cam = SMALL_CAMERA
-    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
-    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
     cloud = _sign_cloud()
     base = 1_700_000_000_000_000_000
     state = {'k': 0}
@@ -211,13 +214,9 @@ def test_nearest_policy_gives_every_image_the_nearest_scan_and_reuses_scans(ros)
         **FAST))
     io = ros.add(rclpy.create_node('io3', context=ros.context))
     pub_cands = io.create_publisher(PointCloud2, t['cands'], 10)
-    pub_img = io.create_publisher(Image, t['image'], 10)
-    pub_info = io.create_publisher(CameraInfo, t['info'], 10)
+    pub_img, pub_info, info, frame = _camera_io(io, t)
     got = []
     io.create_subscription(String, t['rois'], got.append, 50)
-    cam = SMALL_CAMERA
-    info = numpy_to_camera_info(CameraInfoData(cam.width, cam.height, cam.K, cam.D))
-    frame = np.zeros((cam.height, cam.width, 3), np.uint8)
     cands = np.zeros(1, CANDIDATE_DTYPE)
     cands[0] = (*SIGN, 0.6, 200.0, 96, 1)
     t0 = 1_700_000_000_000_000_000

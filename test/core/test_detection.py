@@ -205,7 +205,7 @@ def test_lidar_only_detection_needs_sign_colour(model):
     det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(roi_threshold=0.99,
                                                                         roi_prior=0.2))
     img = _background()
-    gt = _diamond(img, 120, 330, 25)
+    gt = _catalogue_diamond(img, 120.3, 330.6, 25.2)
     roi = _roi((gt[0] - 25, gt[1] - 25, gt[2] + 50, gt[3] + 50), 9)
     assert det.detect(img) == []
     d = _one(det.detect(img, [roi]), gt, 0.75)
@@ -1011,14 +1011,12 @@ def test_refine_diamond_gives_up_without_an_edge():
     assert dt.refine_diamond(img, (45.0, 45.0, 2.0, 2.0)) is None
 
 
-def test_refined_diamond_box_in_the_detector(detector):
-    """``diamond_refine`` (default): the warning box comes from the face's brightness edges
-    scaled by the art's face ratio.  A catalogue-proportioned sign (face, black line, margin)
-    drawn at a sub-pixel position is boxed within 1 px per side (the mask-based box, option
-    off, is 1.6 px off here); without the option it still gives its mask-based box."""
-    img = _background()
-    ss, cx, cy, outer = 8, 420.4, 150.7, 22.3
-    y0, x0, n = 100, 370, 100
+def _catalogue_diamond(img, cx, cy, outer, ss=8):
+    """A warning sign in the catalogue's proportions (orange face, black line from 0.8876 to
+    0.9724 of the half-diagonal, orange margin) with a legend, area-sampled at a sub-pixel
+    centre; returns its continuous box."""
+    n = int(2 * outer) + 12
+    x0, y0 = int(cx - outer) - 6, int(cy - outer) - 6
     ys, xs = np.mgrid[0:n * ss, 0:n * ss]
     d = np.abs((xs + 0.5) / ss + x0 - cx) + np.abs((ys + 0.5) / ss + y0 - cy)
     layers = np.zeros(d.shape, np.float32)       # 0 background, 1 orange, 2 black
@@ -1030,8 +1028,19 @@ def test_refined_diamond_box_in_the_detector(detector):
         cover = (layers == value).reshape(n, ss, n, ss).mean(axis=(1, 3))[..., None]
         patch = patch * (1 - cover) + np.array(colour, np.float32) * cover
     img[y0:y0 + n, x0:x0 + n] = np.clip(patch, 0, 255).astype(np.uint8)
-    cv2.putText(img, 'RW', (408, 156), cv2.FONT_HERSHEY_DUPLEX, 0.5, BLACK, 1)
-    gt = (cx - outer, cy - outer, 2 * outer, 2 * outer)
+    cv2.putText(img, 'RW', (int(cx - 0.55 * outer), int(cy + 0.24 * outer)),
+                cv2.FONT_HERSHEY_DUPLEX, outer / 45, BLACK, 1)
+    return (cx - outer, cy - outer, 2 * outer, 2 * outer)
+
+
+def test_refined_diamond_box_in_the_detector(detector):
+    """``diamond_refine`` (default): the warning box comes from the face's brightness edges
+    scaled by the art's face ratio.  A catalogue-proportioned sign (face, black line, margin)
+    drawn at a sub-pixel position is boxed within 1 px per side (the mask-based box, option
+    off, is 1.6 px off here); without the option it still gives its mask-based box."""
+    img = _background()
+    cx, cy, outer = 420.4, 150.7, 22.3
+    gt = _catalogue_diamond(img, cx, cy, outer)
     refined = _one(detector.detect(img), gt)
     b = refined.box
     assert refined.kind == 'warning'
@@ -1163,3 +1172,78 @@ def test_sign_cut_by_the_bottom_of_an_odd_sized_frame(model, height, method):
     det = dt.ColorDetector(model, dt.DetectorConfig(method=method, use_prior=False))
     dets = det.detect(img)
     assert all(np.isfinite([d.box.x, d.box.y, d.box.w, d.box.h]).all() for d in dets)
+
+
+def test_pixel_boxes_are_the_pixels_whose_centres_are_inside():
+    """``pixel_box`` / ``diamond_pixel_box`` equal the box of the pixel centres inside the
+    outline (brute force), for rectangles and diamonds at random sub-pixel places."""
+    rng = np.random.default_rng(3)
+    cols = np.arange(0, 120) + 0.5
+    for _ in range(200):
+        cx, cy = rng.uniform(40, 80, 2)
+        a, b = rng.uniform(2.0, 30.0, 2)
+        inside = (np.abs(cols[None, :] - cx) / a + np.abs(cols[:, None] - cy) / b) <= 1.0
+        ys, xs = np.nonzero(inside)
+        if xs.size:
+            assert dt.diamond_pixel_box(cx, cy, a, b) == (xs.min(), ys.min(), xs.max() + 1,
+                                                          ys.max() + 1)
+        x, y = cx - a, cy - b
+        xs = np.nonzero((cols >= x) & (cols <= x + 2 * a))[0]
+        ys = np.nonzero((cols >= y) & (cols <= y + 2 * b))[0]
+        assert dt.pixel_box(x, y, 2 * a, 2 * b) == (xs.min(), ys.min(), xs.max() + 1 - xs.min(),
+                                                    ys.max() + 1 - ys.min())
+
+
+def test_refined_warning_boxes_match_whole_pixel_labels(detector):
+    """``pixel_boxes`` (default): a refined warning box is the box of the pixels whose centres
+    lie inside the measured outline, as box labels are drawn.  On catalogue-proportioned
+    signs of 9-30 px half-diagonal at random sub-pixel places, no box edge is more than a
+    pixel from the label's and at least half the boxes equal it."""
+    rng = np.random.default_rng(5)
+    exact = 0
+    for k in range(16):
+        img = _background(k % 8)
+        cx, cy, outer = rng.uniform(300, 500), rng.uniform(120, 170), rng.uniform(9, 30)
+        _catalogue_diamond(img, cx, cy, outer)
+        label = dt.diamond_pixel_box(cx, cy, outer, outer)
+        b = _one(detector.detect(img), (cx - outer, cy - outer, 2 * outer, 2 * outer), 0.7).box
+        err = np.abs(np.array([b.x, b.y, b.x2, b.y2]) - np.array(label))
+        assert err.max() <= 1.0, (outer, b, label)
+        exact += err.max() == 0
+    assert exact >= 8
+
+
+def test_fit_rhombus_drops_a_stroke_taken_for_an_edge():
+    """Eight edge points of a diamond, one of them pulled 3 px inwards (a legend stroke next
+    to the edge): the fit drops it and returns the diamond; with four points off by 2.5-3 px
+    in and out it gives up rather than guess."""
+    cx, cy, a, b = 40.3, 35.8, 14.0, 12.5
+    signs = np.repeat(dt._RHOMBUS_SIGNS, 2, axis=0)
+    t = np.tile([0.3, 0.7], 4)[:, None]
+    # points along each edge from its x-axis corner to its y-axis corner
+    pts = np.column_stack([cx + signs[:, 0] * a * (1 - t[:, 0]), cy + signs[:, 1] * b * t[:, 0]])
+    got = dt.fit_rhombus(pts, signs)
+    assert np.allclose(got, (cx, cy, a, b), atol=1e-6)
+    bad = pts.copy()
+    bad[3] -= 3.0 * signs[3] / np.sqrt(2)
+    assert np.allclose(dt.fit_rhombus(bad, signs), (cx, cy, a, b), atol=1e-6)
+    assert dt.fit_rhombus(bad, signs, max_drop=0) is None
+    worse = pts.copy()
+    for i, shift in ((0, 3.0), (3, -3.0), (4, 3.0), (7, -2.5)):
+        worse[i] -= shift * signs[i] / np.sqrt(2)
+    assert dt.fit_rhombus(worse, signs) is None
+
+
+def test_diamond_holds_judges_the_layout_not_stray_orange():
+    """A face whose catalogue outline holds the orange passes, also with orange flags above
+    it; an orange diamond reaching well beyond the outline all round (its line far inside
+    the edge: not the catalogue's layout) does not."""
+    yy, xx = np.mgrid[0:80, 0:80] + 0.5
+    face = (40.0, 42.0, 16.0, 16.0)
+    sign = (np.abs(xx - 40) + np.abs(yy - 42) <= 16 * 1.1266).astype(np.uint8)
+    assert dt.diamond_holds(sign, face, 1.1266, 0.97)
+    flags = sign.copy()
+    flags[2:14, 30:50] = 1
+    assert dt.diamond_holds(flags, face, 1.1266, 0.97)
+    wide = (np.abs(xx - 40) + np.abs(yy - 42) <= 16 * 1.35).astype(np.uint8)
+    assert not dt.diamond_holds(wide, face, 1.1266, 0.97)

@@ -165,20 +165,32 @@ class DetectorConfig:
         diamond_refine: the warning box from the face's edges measured on the brightness
             at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
-            the face-to-border blend), times ``diamond_face_ratio`` (the art's sign / face
-            half-diagonal: 1 / 0.8876 as designed, 1.110-1.129 as drawn, the line's width
-            rounded to whole art pixels; 1.115 chosen on tuning bags; MUTCD signs ~1.09),
-            no side more than ``diamond_clamp`` x the half-diagonal + ``diamond_clamp_px``
-            beyond the face's own pixels (blur eats about a pixel of a small face's mask);
+            the face-to-border blend), times ``diamond_face_ratio`` (the catalogue's sign /
+            face half-diagonal, 1 / 0.8876; 1.110-1.129 as the art is drawn, the line's
+            width rounded to whole art pixels; MUTCD signs ~1.09), no side more than
+            ``diamond_clamp`` x the half-diagonal + ``diamond_clamp_px`` beyond the face's
+            own pixels (blur eats about a pixel of a small face's mask);
             ``diamond_border_rel`` / ``diamond_margin_rel``: the border line's width and the
-            outer margin normal to the edge, in face half-diagonals.  When an edge shows no
-            face-to-border step the mask fit (``diamond_scale``) is used.
+            outer margin normal to the edge, in face half-diagonals.  The measured face may
+            differ from the mask's diamond by up to ``diamond_max_change`` (the mask's
+            corners are extrapolated from its rows and often 15-40 % off on small signs
+            with a big symbol), but the catalogue's outline must then hold the orange
+            pixels (:func:`diamond_holds`, ``diamond_hold`` of them in at least two of
+            the four quadrants): a sign whose orange reaches beyond it all round has its
+            line further in than the catalogue's and is not measured so.  When an edge
+            shows no face-to-border step, or the check fails, the mask fit
+            (``diamond_scale``) is used.
         rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
             right and top edges measured on the brightness (:func:`refine_rectangle`), moved
             out by the border line and margin (``rect_border_rel`` + ``rect_margin_rel`` of
             the sign's shorter side, the width of a two-colour sign); its bottom (the
             extension's) is kept.  When an edge shows no face-to-border step the hull box
             grown by ``border_frac`` is used.
+        pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels whose
+            centres lie inside the measured outline (:func:`pixel_box`,
+            :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
+            than the sub-pixel box, and equal to the label when the measurement is right to
+            a fraction of a pixel.
         border_dark: share of dark pixels in the ring outside the hull that means "border
             line outside" (0: compare with the band just inside the hull instead).
         border_mode: ``profile`` (per blob, see ``_border_growth``) or ``always`` (grow by
@@ -300,13 +312,16 @@ class DetectorConfig:
     diamond_clamp: float = 0.12
     diamond_ring_test: bool = True
     diamond_refine: bool = True
-    diamond_face_ratio: float = 1.115
+    diamond_face_ratio: float = 1.1266
     diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
     diamond_margin_rel: float = 0.022
+    diamond_max_change: float = 0.4
+    diamond_hold: float = 0.97
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
+    pixel_boxes: bool = True
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -706,6 +721,32 @@ def diamond_rings(shape: tuple, fit: tuple, width: float
     return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
+def pixel_box(x: float, y: float, w: float, h: float) -> tuple[float, float, float, float]:
+    """The whole-pixel box of the pixels whose centres lie inside an upright rectangle
+    ``(x, y, w, h)`` (pixel ``i`` spans ``[i, i + 1)``, its centre at ``i + 0.5``): each edge
+    rounded to the nearest pixel boundary.  Box labels drawn from a sign's pixels are whole
+    pixels; rounding a sub-pixel measurement the same way matches them exactly when it is
+    right to a fraction of a pixel, and is on average never further off than the sub-pixel
+    box itself (the label's rounding is independent of the measurement's error)."""
+    x0, y0 = math.ceil(x - 0.5), math.ceil(y - 0.5)
+    x1, y1 = math.floor(x + w - 0.5) + 1, math.floor(y + h - 0.5) + 1
+    return float(x0), float(y0), float(max(x1 - x0, 1)), float(max(y1 - y0, 1))
+
+
+def diamond_pixel_box(cx: float, cy: float, a: float, b: float) -> tuple[int, int, int, int]:
+    """``(left, top, right, bottom)`` whole-pixel edges of the pixels whose centres lie inside
+    the diamond ``|x - cx| / a + |y - cy| / b <= 1`` (as :func:`pixel_box`): a corner
+    reaches a pixel only when it passes that pixel's centre row or column (on average a
+    quarter pixel of the half-diagonal less than the sub-pixel diamond's box)."""
+    dy = abs(math.floor(cy) + 0.5 - cy)      # the pixel-centre row nearest the middle
+    dx = abs(math.floor(cx) + 0.5 - cx)
+    ha = a * max(0.0, 1.0 - dy / b)           # the diamond's half-width on that row
+    hb = b * max(0.0, 1.0 - dx / a)
+    left, right = math.ceil(cx - ha - 0.5), math.floor(cx + ha - 0.5) + 1
+    top, bottom = math.ceil(cy - hb - 0.5), math.floor(cy + hb - 0.5) + 1
+    return left, top, max(right, left + 1), max(bottom, top + 1)
+
+
 def _paste(dst: np.ndarray, src: np.ndarray, oy: int, ox: int) -> None:
     """``dst[oy:oy + h, ox:ox + w] = src``, clipped to ``dst`` (a blob of a half-resolution
     mask scaled back up can reach a row or column past an odd-sized frame's edge)."""
@@ -806,10 +847,50 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     return off
 
 
+# the (x, y) signs of the diamond's edges in refine_diamond's order: upper left, upper
+# right, lower right, lower left
+_RHOMBUS_SIGNS = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+
+
+def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 0.75,
+                max_drop: int = 2) -> Optional[tuple[float, float, float, float]]:
+    """Least-squares upright diamond ``|x - cx| / a + |y - cy| / b = 1`` through edge points.
+
+    ``points`` (n, 2): points measured on the diamond's edges; ``signs`` (n, 2): the edge
+    each lies on, as the signs of ``x - cx`` and ``y - cy`` on it.  The edge equation is
+    linear in ``(1/a, 1/b, cx/a, cy/b)``; points further than ``outlier_px`` (or 5 % of the
+    smaller half-diagonal) from the fitted outline are dropped one at a time, worst first
+    (a legend stroke near an edge, a pole across it), at most ``max_drop``, while every
+    edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
+    inconsistent)."""
+    keep = np.ones(len(points), bool)
+    for _ in range(max_drop + 1):
+        p, sg = points[keep], signs[keep]
+        mat = np.column_stack([sg[:, 0] * p[:, 0], sg[:, 1] * p[:, 1], -sg[:, 0], -sg[:, 1]])
+        sol, *_ = np.linalg.lstsq(mat, np.ones(len(p)), rcond=None)
+        u, v, pu, rv = sol
+        if u <= 1e-6 or v <= 1e-6:
+            return None
+        a, b = 1.0 / u, 1.0 / v
+        cx, cy = pu * a, rv * b
+        # distance of every point to its edge's line
+        dist = np.abs(signs[:, 0] * (points[:, 0] - cx) / a + signs[:, 1] * (points[:, 1] - cy)
+                      / b - 1.0) * a * b / math.hypot(a, b)
+        worst = np.where(keep, dist, -1.0)
+        k = int(np.argmax(worst))
+        if worst[k] <= max(outlier_px, 0.05 * min(a, b)):
+            return cx, cy, a, b
+        keep[k] = False
+        edges = {tuple(e) for e in signs[keep]}
+        if len(edges) < 4:
+            return None
+    return None
+
+
 def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 0.0676,
                    margin_rel: float = 0.022, max_change: float = 0.15,
                    min_contrast: float = 0.25, iterations: int = 2,
-                   aspect: tuple[float, float] = (0.75, 1.2)
+                   aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 0.75
                    ) -> Optional[tuple[float, float, float, float]]:
     """Sub-pixel edges of a warning diamond's orange face from the brightness image.
 
@@ -823,20 +904,20 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     normal (legend strokes and noise drop out) fitted with the edge model of
     :func:`_profile_bases` (face, border line ``border_rel`` x a wide, outer margin
     ``margin_rel`` x a, background, each with its own level: a headlight's hot spot or a
-    bright sky behind one edge does not bias it).  The two points give the edge's line
-    (position and slope); adjacent lines intersect in the corners; ``iterations`` rounds.
+    bright sky behind one edge does not bias it).  The eight edge points give the diamond by
+    least squares (:func:`fit_rhombus`: a point more than ``outlier_px`` off, a legend
+    stroke or a big symbol next to the edge taken for it, is dropped); ``iterations``
+    rounds.
     The defaults are the catalogue's diamond art: the border line's inner edge at 0.888 of
     the half-diagonal, the line 0.06 of the half-diagonal wide (normal to the edge), the
     orange margin outside it.
 
     Returns ``(cx, cy, a, b)`` or None when a stretch shows no face-to-border step
     (contrast below ``min_contrast`` of the face's brightness: washed out, heavily blurred)
-    or lies outside ``value``, a half-diagonal moves by more than ``max_change`` from the
-    mask's (the guard against a sign whose border line is not where the catalogue puts it;
-    allowing 30 % instead refines a tenth more of the renders' signs, whose mask fit was
-    10-25 % too large, but then trusts the catalogue's proportions over the mask), or the
-    result is no diamond facing the road (``a / b`` outside ``aspect``: turned away by up
-    to ~40 deg, rolled or distorted a little).
+    or lies outside ``value``, the edge points do not agree on a diamond, a half-diagonal
+    moves by more than ``max_change`` from the estimate's, or the result is no diamond facing
+    the road (``a / b`` outside ``aspect``: turned away by up to ~40 deg, rolled or
+    distorted a little).
     """
     cx, cy, a, b = (float(v) for v in fit[:4])
     a_in, b_in = a, b
@@ -870,22 +951,34 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         if off is None:
             return None
         q = np.array(mids) + off[:, None] * nv
-        lines = [(q[2 * i], q[2 * i + 1] - q[2 * i]) for i in range(4)]
-        corners = []
-        for i, j in ((3, 0), (0, 1), (1, 2), (2, 3)):
-            (qa, da), (qb, db) = lines[i], lines[j]
-            mat = np.array([da, -db]).T
-            if abs(np.linalg.det(mat)) < 1e-9:
-                return None
-            ta = np.linalg.solve(mat, qb - qa)[0]
-            corners.append(qa + ta * da)
-        left, top, right, bottom = corners
-        cx, cy = 0.5 * (left[0] + right[0]), 0.5 * (top[1] + bottom[1])
-        a, b = 0.5 * (right[0] - left[0]), 0.5 * (bottom[1] - top[1])
+        fit_ = fit_rhombus(q, np.repeat(_RHOMBUS_SIGNS, 2, axis=0), outlier_px)
+        if fit_ is None:
+            return None
+        cx, cy, a, b = fit_
         if not (abs(a / a_in - 1) <= max_change and abs(b / b_in - 1) <= max_change
                 and aspect[0] <= a / b <= aspect[1]):
             return None
     return cx, cy, a, b
+
+
+def diamond_holds(pixels: np.ndarray, face: Sequence[float], ratio: float, share: float,
+                  slack_px: float = 1.0) -> bool:
+    """Whether the sign outline ``ratio`` x the face diamond ``(cx, cy, a, b)`` (continuous
+    coordinates) holds the nonzero ``pixels`` (their centres; the outline grown by
+    ``slack_px``): False when in three or four of the diamond's quadrants less than
+    ``share`` of the quadrant's pixels lie inside (a sign whose orange reaches out all
+    round: not the catalogue's layout).  Orange beyond one or two sides (flags above a
+    portable stand, a merge with an orange sky or a drum) does not count."""
+    ys, xs = np.nonzero(pixels)
+    if xs.size == 0:
+        return True
+    cx, cy, a, b = (float(v) for v in face[:4])
+    dx, dy = xs + 0.5 - cx, ys + 0.5 - cy
+    out = np.abs(dx) / (ratio * a + slack_px) + np.abs(dy) / (ratio * b + slack_px) > 1.0
+    quad = (dx > 0).astype(np.int64) + 2 * (dy > 0)
+    n = np.bincount(quad, minlength=4)
+    n_out = np.bincount(quad, weights=out, minlength=4)
+    return int(np.count_nonzero(n_out > (1.0 - share) * np.maximum(n, 1))) < 3
 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
@@ -1595,6 +1688,17 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
         return cand
 
+    def _value(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int
+               ) -> tuple[np.ndarray, int, int]:
+        """The HSV value (max of the colour-balanced B, G, R) of ``bgr[y0:y1, x0:x1]``
+        clipped to the frame, and the clipped window's origin."""
+        H, W = bgr.shape[:2]
+        x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)
+        win = bgr[y0:y1, x0:x1]
+        if self._gains is not None:
+            win = apply_gains(win, self._gains)
+        return win.max(axis=2), x0, y0
+
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""
         s = hsv[..., 1]
@@ -1782,8 +1886,20 @@ class ColorDetector:
             fd = fit_diamond_2d(face_px, rows=row_fit)
             sub = None
             if fd is not None and fd[4] >= 0.5 and cfg.diamond_refine and cfg.border_frac > 0:
-                sub = refine_diamond(vch, fd[:4], cfg.diamond_border_rel,
-                                     cfg.diamond_margin_rel)
+                # the brightness a few pixels beyond the blob's window (a mask fit that is
+                # too large puts the edge's outer samples outside it)
+                pad = 3 + int(0.1 * max(bw, bh))
+                value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad)
+                sub = refine_diamond(value, (fd[0] + x0 - ox, fd[1] + y0 - oy, fd[2], fd[3]),
+                                     cfg.diamond_border_rel, cfg.diamond_margin_rel,
+                                     cfg.diamond_max_change)
+                if sub is not None:
+                    sub = (sub[0] - x0 + ox, sub[1] - y0 + oy, sub[2], sub[3])
+                    # the catalogue's outline must hold the sign's orange pixels: a sign
+                    # whose border line lies further in (a wider margin) is not measured so
+                    if not diamond_holds(face_px, sub, cfg.diamond_face_ratio,
+                                         cfg.diamond_hold):
+                        sub = None
             if self.debug is not None:
                 self.debug[-1]['refined'] = sub is not None
             diamond = None
@@ -1810,10 +1926,17 @@ class ColorDetector:
             if diamond is not None:
                 cx_, cy_, a_, b_, k_, pad = diamond
                 ca, cb = cfg.diamond_clamp * a_ + pad, cfg.diamond_clamp * b_ + pad
-                l_ = max(cx_ - k_ * a_, bx0 - ca)
-                r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
-                t_ = max(cy_ - k_ * b_, by0 - cb)
-                u_ = min(cy_ + k_ * b_, by0 + bh + cb)
+                if sub is not None and cfg.pixel_boxes:
+                    # whole pixels, as box labels are drawn (the window's origin is a
+                    # whole pixel)
+                    l_, t_, r_, u_ = diamond_pixel_box(cx_, cy_, k_ * a_, k_ * b_)
+                    l_, t_ = max(l_, round(bx0 - ca)), max(t_, round(by0 - cb))
+                    r_, u_ = min(r_, round(bx0 + bw + ca)), min(u_, round(by0 + bh + cb))
+                else:
+                    l_ = max(cx_ - k_ * a_, bx0 - ca)
+                    r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
+                    t_ = max(cy_ - k_ * b_, by0 - cb)
+                    u_ = min(cy_ + k_ * b_, by0 + bh + cb)
                 # a fit far from the face's own box is not trusted
                 if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
                     outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
@@ -1859,6 +1982,8 @@ class ColorDetector:
                 cand.x, cand.w = x0 + left - out, right - left + 2 * out
                 cand.y = y0 + top - out
                 cand.h = bottom - cand.y
+                if cfg.pixel_boxes:
+                    cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
         return cand
 
     def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float

@@ -1960,18 +1960,18 @@ class ColorDetector:
             # the sign's shorter side: the width of a two-colour sign)
             face_frac = 1.0 - 2.0 * (cfg.rect_border_rel + cfg.rect_margin_rel)
             size = (bw if cand.extended else min(bw, bh)) / face_frac
-            # the white part's bottom edge too when the extension found it (the window
-            # then reaches down over the white part)
-            value, low = vch, None
-            if cand.extended:
-                y_end = min(H, int(cand.y + cand.h) + m)
-                if y_end > y1:
-                    ext = bgr[y0:y_end, x0:x1]
-                    value = (apply_gains(ext, self._gains) if self._gains is not None
-                             else ext).max(axis=2)
-                low = cand.y + cand.h - y0
-            sub = refine_rectangle(value, (bx0, by0, bw, bh), size, cfg.rect_border_rel,
-                                   cfg.rect_margin_rel, bottom=low)
+            # the brightness a few pixels beyond the blob's window, down over the white part
+            # when the extension found it (its bottom edge is measured too)
+            pad = 3 + int(0.05 * max(bw, bh))
+            y_end = max(y1, int(cand.y + cand.h) + m) if cand.extended else y1
+            value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y_end + pad)
+            dx, dy = x0 - ox, y0 - oy
+            low = cand.y + cand.h - oy if cand.extended else None
+            sub = refine_rectangle(value, (bx0 + dx, by0 + dy, bw, bh), size,
+                                   cfg.rect_border_rel, cfg.rect_margin_rel, bottom=low)
+            if sub is not None:
+                sub = (sub[0] - dx, sub[1] - dx, sub[2] - dy,
+                       None if sub[3] is None else sub[3] - dy)
             if entry is not None:
                 entry['rect_refined'] = sub is not None
             if sub is not None:

@@ -1885,20 +1885,28 @@ class ColorDetector:
             # cut-off corner is not invented)
             fd = fit_diamond_2d(face_px, rows=row_fit)
             sub = None
-            if fd is not None and fd[4] >= 0.5 and cfg.diamond_refine and cfg.border_frac > 0:
+            if cfg.diamond_refine and cfg.border_frac > 0:
                 # the brightness a few pixels beyond the blob's window (a mask fit that is
                 # too large puts the edge's outer samples outside it)
-                pad = 3 + int(0.1 * max(bw, bh))
+                pad = 3 + int(0.25 * max(bw, bh))
                 value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad)
-                sub = refine_diamond(value, (fd[0] + x0 - ox, fd[1] + y0 - oy, fd[2], fd[3]),
-                                     cfg.diamond_border_rel, cfg.diamond_margin_rel,
-                                     cfg.diamond_max_change)
-                if sub is not None:
-                    sub = (sub[0] - x0 + ox, sub[1] - y0 + oy, sub[2], sub[3])
-                    # the catalogue's outline must hold the sign's orange pixels: a sign
-                    # whose border line lies further in (a wider margin) is not measured so
-                    if not diamond_holds(face_px, sub, cfg.diamond_face_ratio,
+                dx, dy = x0 - ox, y0 - oy
+                # start from the mask's diamond, else from the diamond in the hull's box (a
+                # big symbol that cuts the face leaves the mask's corners far off)
+                starts = [fd[:4]] if fd is not None and fd[4] >= 0.5 else []
+                starts.append((bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * bw, 0.5 * bh))
+                for st in starts:
+                    sub = refine_diamond(value, (st[0] + dx, st[1] + dy, st[2], st[3]),
+                                         cfg.diamond_border_rel, cfg.diamond_margin_rel,
+                                         cfg.diamond_max_change)
+                    if sub is not None:
+                        sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
+                        # the catalogue's outline must hold the sign's orange pixels: a
+                        # sign whose border line lies further in (a wider margin) is not
+                        # measured so
+                        if diamond_holds(face_px, sub, cfg.diamond_face_ratio,
                                          cfg.diamond_hold):
+                            break
                         sub = None
             if self.debug is not None:
                 self.debug[-1]['refined'] = sub is not None

@@ -867,8 +867,10 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 0.75,
     for _ in range(max_drop + 1):
         p, sg = points[keep], signs[keep]
         mat = np.column_stack([sg[:, 0] * p[:, 0], sg[:, 1] * p[:, 1], -sg[:, 0], -sg[:, 1]])
-        sol, *_ = np.linalg.lstsq(mat, np.ones(len(p)), rcond=None)
-        u, v, pu, rv = sol
+        try:
+            u, v, pu, rv = np.linalg.solve(mat.T @ mat, mat.sum(axis=0))
+        except np.linalg.LinAlgError:
+            return None
         if u <= 1e-6 or v <= 1e-6:
             return None
         a, b = 1.0 / u, 1.0 / v
@@ -1697,7 +1699,7 @@ class ColorDetector:
         win = bgr[y0:y1, x0:x1]
         if self._gains is not None:
             win = apply_gains(win, self._gains)
-        return win.max(axis=2), x0, y0
+        return cv2.max(cv2.max(win[..., 0], win[..., 1]), win[..., 2]), x0, y0
 
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""

@@ -53,7 +53,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    (:func:`refine_diamond`, :func:`refine_rectangle`; ``diamond_refine``, ``rect_refine``):
    the colour table cannot place them, because a blend of the orange face and its black
    border line keeps the face's hue and saturation; the mask-based box stays the fallback
-   when an edge shows no face-to-border step.  The confidence
+   when an edge shows no face-to-border step.  A diamond is fitted to its eight edge points
+   (:func:`fit_rhombus`, outliers dropped), and refined boxes are given in whole pixels, the
+   pixels whose centres lie inside the measured outline, as box labels are drawn
+   (``pixel_boxes``).  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.

@@ -1247,3 +1247,23 @@ def test_diamond_holds_judges_the_layout_not_stray_orange():
     assert dt.diamond_holds(flags, face, 1.1266, 0.97)
     wide = (np.abs(xx - 40) + np.abs(yy - 42) <= 16 * 1.35).astype(np.uint8)
     assert not dt.diamond_holds(wide, face, 1.1266, 0.97)
+
+
+def test_refine_diamond_tolerates_a_stretch_hidden_by_a_symbol():
+    """A black symbol reaching the face's edge over one stretch (a lane-shift arrow, a
+    reverse curve) leaves that stretch without a face-to-border step: the diamond is still
+    measured from the other seven (within 3 % and 0.4 px), and only with no stretch allowed
+    to go missing does it give up."""
+    cx, cy, a_face = 45.3, 44.8, 20.0
+    img = _sign_value(cx, cy, a_face)
+    # dark across the upper-right edge's first stretch, from 9 px inside to 6 px outside
+    yy, xx = np.mgrid[0:img.shape[0], 0:img.shape[1]] + 0.5
+    along = (xx - cx) + (yy - cy)                 # -a at the top corner, a at the right
+    normal = ((xx - cx) - (yy - cy)) / a_face     # 1 on the upper-right edge
+    img[(np.abs(along + 0.4 * a_face) < 0.3 * a_face) & (normal > 0.55) & (normal < 1.3)] = 20.0
+    fit = (cx + 0.5, cy - 0.4, 1.05 * a_face, 0.95 * a_face)
+    got = dt.refine_diamond(img, fit)
+    assert got is not None
+    assert abs(got[0] - cx) < 0.4 and abs(got[1] - cy) < 0.4
+    assert abs(got[2] / a_face - 1) < 0.03 and abs(got[3] / a_face - 1) < 0.03
+    assert dt.refine_diamond(img, fit, max_lost=0) is None

@@ -802,7 +802,7 @@ def _edge_profile(extent: float, border: float, margin: float) -> tuple:
 
 
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
-                  min_contrast: float) -> Optional[np.ndarray]:
+                  min_contrast: float, missing: bool = False) -> Optional[np.ndarray]:
     """Offsets (px, along each inward normal) of the face edge on several edge stretches.
 
     ``segs`` (n, 2, 2): each stretch's end points; ``nvecs`` (n, 2): its inward unit
@@ -810,7 +810,8 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     every quarter pixel), the best fit of the edge model over the offset x blur grid of
     :func:`_profile_bases`, a parabola through the neighbouring offsets.  None when a
     stretch lies outside ``img`` or shows no face-to-border step (contrast below
-    ``min_contrast`` of the face at every offset).
+    ``min_contrast`` of the face at every offset); with ``missing`` such a stretch's offset
+    is NaN instead (None when no stretch shows one).
     """
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
@@ -833,7 +834,8 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     # dark as the line, never the margin's outer edge with a line as bright as the face
     hi, lo = coef[:, 0, :], coef[:, 1, :]
     ok = valid[:, None] & (hi > 0) & (hi - lo >= min_contrast * hi)
-    if not ok.any(axis=0).all():
+    seen = ok.any(axis=0)
+    if not (seen.any() if missing else seen.all()):
         return None
     sse = np.where(ok, sse, np.inf)
     k = np.argmin(sse, axis=0)                                                  # (n,)
@@ -844,9 +846,11 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     cols = np.arange(n)
     s_m = sse[np.where(inner, k - ns, k), cols]
     s_p = sse[np.where(inner, k + ns, k), cols]
-    den = s_m - 2 * sse[k, cols] + s_p
+    with np.errstate(invalid='ignore'):          # inf - inf on stretches without a step
+        den = s_m - 2 * sse[k, cols] + s_p
     good = inner & np.isfinite(den) & (den > 0)
     off[good] += 0.05 * (s_m[good] - s_p[good]) / den[good]
+    off[~seen] = np.nan
     return off
 
 
@@ -855,35 +859,42 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
 _RHOMBUS_SIGNS = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
 
 
-def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 0.75,
+def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
                 max_drop: int = 2) -> Optional[tuple[float, float, float, float]]:
     """Least-squares upright diamond ``|x - cx| / a + |y - cy| / b = 1`` through edge points.
 
     ``points`` (n, 2): points measured on the diamond's edges; ``signs`` (n, 2): the edge
     each lies on, as the signs of ``x - cx`` and ``y - cy`` on it.  The edge equation is
-    linear in ``(1/a, 1/b, cx/a, cy/b)``; points further than ``outlier_px`` (or 5 % of the
-    smaller half-diagonal) from the fitted outline are dropped one at a time, worst first
-    (a legend stroke near an edge, a pole across it), at most ``max_drop``, while every
-    edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
+    linear in ``(1/a, 1/b, cx/a, cy/b)``; points further than ``outlier_px`` (or 7 % of the
+    smaller half-diagonal) from the outline fitted without them are dropped one at a time,
+    worst first (a legend stroke near an edge, a pole across it), at most ``max_drop``,
+    while every edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
     inconsistent)."""
     keep = np.ones(len(points), bool)
+    if len({tuple(e) for e in signs}) < 4:
+        return None
     for _ in range(max_drop + 1):
         p, sg = points[keep], signs[keep]
         mat = np.column_stack([sg[:, 0] * p[:, 0], sg[:, 1] * p[:, 1], -sg[:, 0], -sg[:, 1]])
         try:
-            u, v, pu, rv = np.linalg.solve(mat.T @ mat, mat.sum(axis=0))
+            inv = np.linalg.inv(mat.T @ mat)
         except np.linalg.LinAlgError:
             return None
+        u, v, pu, rv = inv @ mat.sum(axis=0)
         if u <= 1e-6 or v <= 1e-6:
             return None
         a, b = 1.0 / u, 1.0 / v
         cx, cy = pu * a, rv * b
-        # distance of every point to its edge's line
-        dist = np.abs(signs[:, 0] * (points[:, 0] - cx) / a + signs[:, 1] * (points[:, 1] - cy)
-                      / b - 1.0) * a * b / math.hypot(a, b)
-        worst = np.where(keep, dist, -1.0)
+        # distance of every kept point to its edge's line as fitted without it (leave one
+        # out: the residual over 1 - its leverage), so that one bad point cannot hide by
+        # pulling the fit towards itself
+        lev = np.minimum(np.einsum('ij,jk,ik->i', mat, inv, mat), 0.95)
+        dist = np.abs(sg[:, 0] * (p[:, 0] - cx) / a + sg[:, 1] * (p[:, 1] - cy) / b - 1.0) \
+            * a * b / math.hypot(a, b) / (1.0 - lev)
+        worst = np.full(len(points), -1.0)
+        worst[keep] = dist
         k = int(np.argmax(worst))
-        if worst[k] <= max(outlier_px, 0.05 * min(a, b)):
+        if worst[k] <= max(outlier_px, 0.07 * min(a, b)):
             return cx, cy, a, b
         keep[k] = False
         edges = {tuple(e) for e in signs[keep]}
@@ -895,8 +906,8 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 0.75,
 def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 0.0676,
                    margin_rel: float = 0.022, max_change: float = 0.15,
                    min_contrast: float = 0.25, iterations: int = 2,
-                   aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 0.75
-                   ) -> Optional[tuple[float, float, float, float]]:
+                   aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 1.0,
+                   max_lost: int = 2) -> Optional[tuple[float, float, float, float]]:
     """Sub-pixel edges of a warning diamond's orange face from the brightness image.
 
     ``fit = (cx, cy, a, b)``: a first estimate of the face's diamond (continuous
@@ -910,9 +921,10 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     :func:`_profile_bases` (face, border line ``border_rel`` x a wide, outer margin
     ``margin_rel`` x a, background, each with its own level: a headlight's hot spot or a
     bright sky behind one edge does not bias it).  The eight edge points give the diamond by
-    least squares (:func:`fit_rhombus`: a point more than ``outlier_px`` off, a legend
-    stroke or a big symbol next to the edge taken for it, is dropped); ``iterations``
-    rounds.
+    least squares (:func:`fit_rhombus`: a point more than ``outlier_px`` off the diamond
+    fitted to the others, a legend stroke or a big symbol next to the edge taken for it, is
+    dropped; so is a stretch without a face-to-border step, a symbol reaching the edge: at
+    most ``max_lost`` points in all); ``iterations`` rounds.
     The defaults are the catalogue's diamond art: the border line's inner edge at 0.888 of
     the half-diagonal, the line 0.06 of the half-diagonal wide (normal to the edge), the
     orange margin outside it.
@@ -952,11 +964,18 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
                 nvecs.append(nvec)
                 mids.append(p0 + 0.5 * (f0 + f1) * (p1 - p0))
         nv = np.array(nvecs)
-        off = _edge_offsets(img, np.array(segs), nv, prof, min_contrast)
+        off = _edge_offsets(img, np.array(segs), nv, prof, min_contrast, missing=True)
         if off is None:
             return None
-        q = np.array(mids) + off[:, None] * nv
-        fit_ = fit_rhombus(q, np.repeat(_RHOMBUS_SIGNS, 2, axis=0), outlier_px)
+        # a stretch without a face-to-border step (a symbol or legend reaching the edge)
+        # counts as one of the points the fit may drop
+        seen = np.isfinite(off)
+        lost = int(np.count_nonzero(~seen))
+        if lost > max_lost:
+            return None
+        q = np.array(mids)[seen] + off[seen, None] * nv[seen]
+        fit_ = fit_rhombus(q, np.repeat(_RHOMBUS_SIGNS, 2, axis=0)[seen], outlier_px,
+                           max_lost - lost)
         if fit_ is None:
             return None
         cx, cy, a, b = fit_

@@ -56,7 +56,9 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    when an edge shows no face-to-border step.  A diamond is fitted to its eight edge points
    (:func:`fit_rhombus`, outliers dropped), and refined boxes are given in whole pixels, the
    pixels whose centres lie inside the measured outline, as box labels are drawn
-   (``pixel_boxes``).  The confidence
+   (``pixel_boxes``).  A blob that passes no test is judged again at higher likelihood
+   levels (``peel``): a sign merged with a surface of nearly its colour, an orange dusk
+   sky or a brick wall, is where the likelihood is clearly higher.  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.
@@ -189,6 +191,14 @@ class DetectorConfig:
             the sign's shorter side, the width of a two-colour sign); its bottom (the
             extension's) is kept.  When an edge shows no face-to-border step the hull box
             grown by ``border_frac`` is used.
+        peel, peel_gap, peel_levels, peel_clamp: a blob that passes no test is judged again
+            at higher likelihood levels (:meth:`ColorDetector._peel`): a sign merged with a
+            surface of nearly its colour (an orange dusk sky, a brick wall) is where the
+            likelihood is clearly higher.  Levels at least ``peel_gap`` above the blob's
+            median: Otsu's over its pixels, then ``peel_levels``; the first that gives
+            candidates wins; no hysteresis back into the surface; a warning box may reach
+            ``peel_clamp`` x the half-diagonal beyond the core (``diamond_clamp``
+            otherwise).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels whose
             centres lie inside the measured outline (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -325,6 +335,10 @@ class DetectorConfig:
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
     pixel_boxes: bool = True
+    peel: bool = True
+    peel_gap: float = 0.08
+    peel_levels: tuple = (0.8, 0.9)
+    peel_clamp: float = 0.3
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -1361,6 +1375,7 @@ class ColorDetector:
         self._frame_no = 0
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
+        self._peel_t: Optional[float] = None              # set while a blob is peeled
         self._relative = relative_measure(model.metadata)
         self._intrinsics: Optional[tuple[float, float, float, float]] = None
 
@@ -1568,6 +1583,7 @@ class ColorDetector:
                 if self._vmin[color] > 0:
                     # brightness gate outside the table: too dark for a reliable hue
                     prob &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
+                raw = prob
                 if cfg.smooth_px > 1:
                     # denoise at the mask's resolution before thresholding: isolated
                     # orange-hued pixels (dusk sky, sensor noise) are averaged away
@@ -1575,7 +1591,8 @@ class ColorDetector:
                 mask = cv2.compare(prob, thr, cv2.CMP_GE)
                 if keep is not None:
                     mask &= keep
-                cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes)
+                cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes,
+                                     raw)
         elif cfg.method == 'hsv':
             for color in self.colors:
                 mask = np.zeros(hsv.shape[:2], np.uint8)
@@ -1593,7 +1610,8 @@ class ColorDetector:
 
     # -- seed 000 / 004 blob path --
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
-               s: int, thr_base: np.ndarray, lboxes: list) -> list[Candidate]:
+               s: int, thr_base: np.ndarray, lboxes: list,
+               prob: Optional[np.ndarray] = None, peel: bool = True) -> list[Candidate]:
         cfg = self.config
         if cfg.method == 'hsv':
             # seed 004: erosion removes speckle, dilation reconnects the remaining blobs
@@ -1621,7 +1639,39 @@ class ColorDetector:
                               area / float(w * h))
             if c is not None:
                 out.append(c)
+            elif (peel and prob is not None and color == 'orange' and cfg.peel
+                  and area >= 4 * min_area_small):
+                out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
+                                  bgr, s, thr_base, lboxes)
         return out
+
+    def _peel(self, comp: np.ndarray, prob: np.ndarray, org: tuple[int, int],
+              bgr: np.ndarray, s: int, thr_base: np.ndarray, lboxes: list
+              ) -> list[Candidate]:
+        """A blob that passed no test, judged again at higher likelihood levels: a sign
+        merged with a surface of nearly its colour (an orange dusk sky, a brick wall) is
+        where the likelihood is clearly higher.  Levels, lowest first, each at least
+        ``peel_gap`` above the blob's median: Otsu's level over the blob's pixels, then
+        ``peel_levels``; the first level whose cores give candidates wins."""
+        vals = prob[comp > 0]
+        floor = float(np.median(vals)) + self.config.peel_gap * 255
+        otsu, _ = cv2.threshold(vals.reshape(-1, 1), 0, 255,
+                                cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        levels = sorted({lv for lv in [float(otsu)] + [255 * v for v in self.config.peel_levels]
+                         if floor <= lv < 254})
+        for level in levels:
+            core = ((prob > level) & (comp > 0)).astype(np.uint8) * 255
+            # the sign's orange around a legend or symbol, at the mask's resolution
+            core = cv2.morphologyEx(core, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8)) & \
+                (comp * 255)
+            self._peel_t = (level + 1) / 255.0
+            try:
+                out = self._blobs(core, bgr, 'orange', org, s, thr_base, lboxes, None, False)
+            finally:
+                self._peel_t = None
+            if out:
+                return out
+        return []
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
                  thr_base: np.ndarray, lboxes: list,
@@ -1773,6 +1823,9 @@ class ColorDetector:
             t = min(t, cfg.roi_threshold / cfg.roi_prior)
         if t_override is not None:
             t = t_override
+        peeled = self._peel_t
+        if peeled is not None:
+            t = max(t, peeled)
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
         _paste(region, up, fy - y0, fx - x0)
@@ -1782,6 +1835,8 @@ class ColorDetector:
         if not strong.any():
             return None
         weak_t, blur_t = min(cfg.weak_threshold, t), cfg.blur_like
+        if peeled is not None:
+            weak_t = t             # no hysteresis back into the surface the core was peeled from
         rel = self._relative
         edge_t = None
         if rel is not None:
@@ -1957,7 +2012,11 @@ class ColorDetector:
                 diamond = (*fd[:4], k_, 0.0)
             if diamond is not None:
                 cx_, cy_, a_, b_, k_, pad = diamond
-                ca, cb = cfg.diamond_clamp * a_ + pad, cfg.diamond_clamp * b_ + pad
+                # a peeled core lost the face's parts nearest the surface's colour: its own
+                # box bounds the sign more loosely
+                cl_ = cfg.diamond_clamp if peeled is None else max(cfg.diamond_clamp,
+                                                                     cfg.peel_clamp)
+                ca, cb = cl_ * a_ + pad, cl_ * b_ + pad
                 if sub is not None and cfg.pixel_boxes:
                     # whole pixels, as box labels are drawn (the window's origin is a
                     # whole pixel)

@@ -42,7 +42,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
-         'diamond_refine', 'rect_refine', 'pixel_boxes')
+         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -76,6 +76,8 @@ class ColorDetectorNode(WorkzoneNode):
               'brightness at sub-pixel precision (off: from the orange mask)'),
         Param('rect_refine', True, "regulatory boxes from the orange part's edges measured "
               'on the brightness (off: the orange hull grown by the border)'),
+        Param('peel', True, 'a blob that passes no test is judged again at higher likelihood '
+              'levels (a sign merged with an orange dusk sky or a brick wall)'),
         Param('pixel_boxes', True, 'refined boxes in whole pixels: the pixels whose centres '
               'lie inside the measured outline, as box labels are drawn (off: sub-pixel)'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',

@@ -101,7 +101,12 @@ from workzone_ros.core.color_model import (
     saturation_gain,
     saturation_table,
 )
+from workzone_ros.core.signs import CATALOGUE
 from workzone_ros.interfaces import Box, Detection, Roi
+
+# height / width of the catalogue's orange-top, white-bottom signs (R22-1, R2-1 + G20-5aP)
+_TWO_COLOUR_RATIOS = tuple(sorted({c.height_m / c.width_m for c in CATALOGUE
+                                   if c.regulatory_two_color}))
 
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
@@ -252,7 +257,10 @@ class DetectorConfig:
             (a thin orange plaque over a tall white sign: R2-1 + G20-5aP is 1.75 w high).
         ext_frame: when the white runs to the end of the reach (snow, a pale sky or wall
             behind the sign continue it), end it at its black bottom border
-            (``_bottom_border``): a row at least ``ext_border_share`` dark.
+            (``_bottom_border``): a row at least ``ext_border_share`` dark; of several, the
+            one that gives the sign the height / width of a catalogue two-colour sign
+            (within ``ext_ratio_tol``; a bold legend row of a small sign looks like a
+            border too), else the first.
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
@@ -339,6 +347,7 @@ class DetectorConfig:
     peel_gap: float = 0.08
     peel_levels: tuple = (0.8, 0.9)
     peel_clamp: float = 0.3
+    ext_ratio_tol: float = 0.12
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -2338,7 +2347,7 @@ class ColorDetector:
             # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
             # pale sky or wall behind the sign.  The white part ends with its black bottom
             # border
-            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h)
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w)
             if end:
                 run = end
         if self.debug is not None:
@@ -2356,15 +2365,19 @@ class ColorDetector:
         cand.h = float(run + cand.h)
         cand.extended = True
 
-    def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float) -> int:
+    def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float,
+                       width: float = 0.0) -> int:
         """The row just after the white part's black bottom border (0: none seen).
 
         ``white``, ``value``: the white mask and brightness of the strip below the orange
         part.  A border row is dark (below ``dark_rel`` x the white sheeting's level, the
         strip's 90th percentile of brightness) across at least ``ext_border_share`` of
         the width (its outer tenth on each side left out: the strip may reach past the
-        sign); a legend's strokes, however bold, leave gaps.  The first border row at
-        least ``0.3`` orange heights down ends the white part.
+        sign); a legend's strokes, however bold, leave gaps, but on a small blurred sign a
+        bold legend row can look like a border too.  Of the border rows at least ``0.3``
+        orange heights down, the one that makes the sign's height / ``width`` nearest a
+        two-colour sign's in the catalogue (within ``ext_ratio_tol``) ends the white part,
+        else the first.
         """
         cfg = self.config
         w = white.shape[1]
@@ -2377,7 +2390,16 @@ class ColorDetector:
             self.debug.append(dict(border_share=np.round(share, 2).tolist()))
         rows = np.nonzero(share >= cfg.ext_border_share)[0]
         rows = rows[rows + 1 >= 0.3 * orange_h]
-        return int(rows[0] + 1) if rows.size else 0
+        if not rows.size:
+            return 0
+        if width > 0 and cfg.ext_ratio_tol > 0:
+            # the last row of each dark band (a border or a legend row is several rows)
+            ends = rows[np.append(np.diff(rows) > 1, True)]
+            err = np.min(np.abs((orange_h + ends[:, None] + 1) / width
+                                / np.array(_TWO_COLOUR_RATIOS)[None, :] - 1.0), axis=1)
+            if err.min() <= cfg.ext_ratio_tol:
+                return int(ends[int(np.argmin(err))] + 1)
+        return int(rows[0] + 1)
 
     # -- seed 002 MSER path --
     def _mser_blobs(self, count: np.ndarray, bgr: np.ndarray, off: tuple[int, int],

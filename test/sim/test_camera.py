@@ -287,3 +287,28 @@ def test_roadside_dressing_buildings_and_dry_grass():
     scene, _, _ = build_scene(spec, 0)
     fronts = [o for o in scene.objects if o.kind == 'building']
     assert fronts and {o.material for o in fronts} <= {'brick', 'siding_beige', 'siding_tan'}
+
+
+def test_frame_effects_do_not_move_the_image_against_its_labels():
+    """The per-frame effects (motion blur, grading, noise, JPEG) keep the image where its
+    labels are: a bright square's centroid moves by under 0.15 px on every one of 60 frames
+    (an even-sized motion-blur kernel moved it by half a pixel, off the labels)."""
+    road = Road([(600.0, 0.0)])
+    cam = CameraRenderer(_scene([], road=road), seed=3)
+    H, W = DEFAULT_CAMERA.height, DEFAULT_CAMERA.width
+    base = np.full((H, W, 3), 40, np.uint8)
+    base[200:260, 300:360] = 200
+    ys, xs = np.mgrid[0:H, 0:W]
+
+    def centroid(img):
+        v = img.astype(np.float64).mean(axis=2)
+        wgt = np.clip(v - np.median(v), 0, None) * (np.abs(xs - 329.5) < 45) * \
+            (np.abs(ys - 229.5) < 45)
+        return (wgt * xs).sum() / wgt.sum(), (wgt * ys).sum() / wgt.sum()
+
+    c0 = centroid(base)
+    for frame in range(60):
+        rng = np.random.default_rng([7, frame])
+        out = cam._effects(base.copy(), frame, rng, None)
+        c = centroid(out)
+        assert abs(c[0] - c0[0]) < 0.15 and abs(c[1] - c0[1]) < 0.15, (frame, c, c0)

@@ -766,13 +766,17 @@ class CameraRenderer:
         H, W = img.shape[:2]
         # Motion blur: small global kernel on some frames (vibration, speed).
         if rng.random() < 0.25:
-            k = int(rng.integers(3, 6))
+            # odd sizes only: an even kernel's centre is half a pixel off filter2D's anchor
+            # and moved the image (not its labels) by half a pixel
+            k = int(rng.integers(3, 6)) | 1
             ang = rng.uniform(-0.3, 0.3) + (math.pi / 2 if rng.random() < 0.5 else 0.0)
             ker = np.zeros((k, k), np.float32)
             c = (k - 1) / 2
             cv2.line(ker, (int(round(c - c * math.cos(ang))), int(round(c - c * math.sin(ang)))),
                      (int(round(c + c * math.cos(ang))), int(round(c + c * math.sin(ang)))),
                      1.0, 1)
+            # point-symmetric about the anchor (a rasterised line need not be): blur, no shift
+            ker = ker + ker[::-1, ::-1]
             img = cv2.filter2D(img, -1, ker / ker.sum())
         if self._rain is not None:
             ox, oy = int(rng.integers(0, 64)), int(rng.integers(0, 64))

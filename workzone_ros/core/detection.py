@@ -203,7 +203,7 @@ class DetectorConfig:
             median: Otsu's over its pixels, then ``peel_levels``; the first that gives
             candidates wins; no hysteresis back into the surface; a warning box may reach
             ``peel_clamp`` x the half-diagonal beyond the core (``diamond_clamp``
-            otherwise).
+            otherwise).  At most ``peel_max`` blobs per frame, the largest first.
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels whose
             centres lie inside the measured outline (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -347,6 +347,7 @@ class DetectorConfig:
     peel_gap: float = 0.08
     peel_levels: tuple = (0.8, 0.9)
     peel_clamp: float = 0.3
+    peel_max: int = 2
     ext_ratio_tol: float = 0.12
     border_dark: float = 0.0
     border_mode: str = 'profile'
@@ -1385,6 +1386,7 @@ class ColorDetector:
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
         self._peel_t: Optional[float] = None              # set while a blob is peeled
+        self._peels_left = 0                               # peels this frame may still do
         self._relative = relative_measure(model.metadata)
         self._intrinsics: Optional[tuple[float, float, float, float]] = None
 
@@ -1496,6 +1498,7 @@ class ColorDetector:
         s, sw, sh, thr_base, p_full, roi, own = self._frame_setup(width, height)
         cfg = self.config
         self._ref_row = None
+        self._peels_left = cfg.peel_max
         if self._geometry is not None and cfg.use_geometry:
             if cfg.geometry_reference == 'horizon':
                 self._update_horizon(bgr)
@@ -1634,7 +1637,7 @@ class ColorDetector:
                 mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE,
                                         np.ones((cfg.close_px, cfg.close_px), np.uint8))
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        out = []
+        out, failed = [], []
         min_area_small = cfg.min_area_px / (s * s)
         for i in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[i])
@@ -1650,8 +1653,16 @@ class ColorDetector:
                 out.append(c)
             elif (peel and prob is not None and color == 'orange' and cfg.peel
                   and area >= 4 * min_area_small):
-                out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
-                                  bgr, s, thr_base, lboxes)
+                failed.append((area, i, x, y, w, h))
+        # the largest failed blobs are peeled, at most ``peel_max`` per frame (a scene full
+        # of warm surfaces would otherwise cost a pass per blob)
+        for area, i, x, y, w, h in sorted(failed, reverse=True):
+            if self._peels_left <= 0:
+                break
+            self._peels_left -= 1
+            comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
+            out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
+                              bgr, s, thr_base, lboxes)
         return out
 
     def _peel(self, comp: np.ndarray, prob: np.ndarray, org: tuple[int, int],

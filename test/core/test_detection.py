@@ -305,6 +305,12 @@ def test_config_validation():
         dt.DetectorConfig(colors=('blue',))
     with pytest.raises(ValueError):
         dt.DetectorConfig(threshold=1.5)
+    for bad, name in (({'diamond_max_change': 0.0}, 'diamond_max_change'),
+                      ({'diamond_hold': 1.5}, 'diamond_hold'),
+                      ({'peel_levels': (0.8, 1.2)}, 'peel_levels'),
+                      ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol')):
+        with pytest.raises(ValueError, match=name):
+            dt.DetectorConfig(**bad)
 
 
 def test_regulatory_extension_under_overcast_light(detector):

@@ -415,6 +415,16 @@ class DetectorConfig:
             raise ValueError("geometry_reference must be 'fixed' or 'horizon'")
         if not 0.0 <= self.foreign_prior <= 1.0:
             raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
+        if not 0.0 < self.diamond_max_change <= 1.0:
+            raise ValueError('diamond_max_change must be in (0, 1] (a share of the half-diagonal)')
+        if not 0.0 < self.diamond_hold <= 1.0:
+            raise ValueError('diamond_hold must be in (0, 1] (a share of the orange pixels)')
+        if not all(0.0 < float(v) < 1.0 for v in self.peel_levels):
+            raise ValueError('peel_levels must be likelihoods in (0, 1)')
+        if int(self.peel_max) < 0 or self.peel_gap < 0 or self.peel_clamp < 0:
+            raise ValueError('peel_max, peel_gap and peel_clamp must be >= 0')
+        if self.ext_ratio_tol < 0:
+            raise ValueError('ext_ratio_tol must be >= 0 (0: the first dark row ends the sign)')
 
 
 @dataclass

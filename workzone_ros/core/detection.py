@@ -891,6 +891,7 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
 # the (x, y) signs of the diamond's edges in refine_diamond's order: upper left, upper
 # right, lower right, lower left
 _RHOMBUS_SIGNS = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+_STRETCH_SIGNS = np.repeat(_RHOMBUS_SIGNS, 2, axis=0)      # two stretches per edge
 
 
 def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
@@ -905,10 +906,10 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     while every edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
     inconsistent)."""
     keep = np.ones(len(points), bool)
-    if len({tuple(e) for e in signs}) < 4:
-        return None
     for _ in range(max_drop + 1):
         p, sg = points[keep], signs[keep]
+        if len({tuple(e) for e in sg}) < 4:
+            return None                 # an edge without a point
         mat = np.column_stack([sg[:, 0] * p[:, 0], sg[:, 1] * p[:, 1], -sg[:, 0], -sg[:, 1]])
         try:
             inv = np.linalg.inv(mat.T @ mat)
@@ -931,9 +932,6 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
         if worst[k] <= max(outlier_px, 0.07 * min(a, b)):
             return cx, cy, a, b
         keep[k] = False
-        edges = {tuple(e) for e in signs[keep]}
-        if len(edges) < 4:
-            return None
     return None
 
 
@@ -1008,8 +1006,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         if lost > max_lost:
             return None
         q = np.array(mids)[seen] + off[seen, None] * nv[seen]
-        fit_ = fit_rhombus(q, np.repeat(_RHOMBUS_SIGNS, 2, axis=0)[seen], outlier_px,
-                           max_lost - lost)
+        fit_ = fit_rhombus(q, _STRETCH_SIGNS[seen], outlier_px, max_lost - lost)
         if fit_ is None:
             return None
         cx, cy, a, b = fit_
@@ -1395,7 +1392,6 @@ class ColorDetector:
         self._frame_no = 0
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
-        self._peel_t: Optional[float] = None              # set while a blob is peeled
         self._peels_left = 0                               # peels this frame may still do
         self._relative = relative_measure(model.metadata)
         self._intrinsics: Optional[tuple[float, float, float, float]] = None
@@ -1633,7 +1629,11 @@ class ColorDetector:
     # -- seed 000 / 004 blob path --
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
                s: int, thr_base: np.ndarray, lboxes: list,
-               prob: Optional[np.ndarray] = None, peel: bool = True) -> list[Candidate]:
+               prob: Optional[np.ndarray] = None, peel_t: Optional[float] = None
+               ) -> list[Candidate]:
+        """Candidates from the blobs of a mask-resolution ``mask``.  ``prob``: the raw
+        likelihood behind it (blobs that pass no test are peeled, :meth:`_peel`);
+        ``peel_t``: the blobs are cores peeled at this likelihood level."""
         cfg = self.config
         if cfg.method == 'hsv':
             # seed 004: erosion removes speckle, dilation reconnects the remaining blobs
@@ -1658,19 +1658,18 @@ class ColorDetector:
                 continue
             comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
             c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes,
-                              area / float(w * h))
+                              area / float(w * h), peel_t)
             if c is not None:
                 out.append(c)
-            elif (peel and prob is not None and color == 'orange' and cfg.peel
+            elif (prob is not None and color == 'orange' and cfg.peel
                   and area >= 4 * min_area_small):
-                failed.append((area, i, x, y, w, h))
+                failed.append((area, i, comp, x, y, w, h))
         # the largest failed blobs are peeled, at most ``peel_max`` per frame (a scene full
         # of warm surfaces would otherwise cost a pass per blob)
-        for area, i, x, y, w, h in sorted(failed, reverse=True):
+        for _, _, comp, x, y, w, h in sorted(failed, key=lambda f: f[:2], reverse=True):
             if self._peels_left <= 0:
                 break
             self._peels_left -= 1
-            comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
             out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
                               bgr, s, thr_base, lboxes)
         return out
@@ -1694,28 +1693,26 @@ class ColorDetector:
             # the sign's orange around a legend or symbol, at the mask's resolution
             core = cv2.morphologyEx(core, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8)) & \
                 (comp * 255)
-            self._peel_t = (level + 1) / 255.0
-            try:
-                out = self._blobs(core, bgr, 'orange', org, s, thr_base, lboxes, None, False)
-            finally:
-                self._peel_t = None
+            out = self._blobs(core, bgr, 'orange', org, s, thr_base, lboxes,
+                              peel_t=(level + 1) / 255.0)
             if out:
                 return out
         return []
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
-                 thr_base: np.ndarray, lboxes: list,
-                 blob_fill: float = 1.0) -> Optional[Candidate]:
+                 thr_base: np.ndarray, lboxes: list, blob_fill: float = 1.0,
+                 peel_t: Optional[float] = None) -> Optional[Candidate]:
         """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
         if cfg.method == 'learned' and color == 'orange':
             # judged on colour alone first (LiDAR support never changes a box the colour
             # evidence already makes); only a blob that fails is re-judged with relaxed
             # filters inside its ROI, and must then lie mostly inside that ROI
-            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes)
+            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, peel_t=peel_t)
             roi = self._in_roi(box, s, lboxes) if c is None else None
             if roi is not None:
-                c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True)
+                c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True,
+                                         peel_t=peel_t)
                 if c is not None and _contained((c.x, c.y, c.w, c.h), roi) < cfg.roi_contain:
                     c = None
             return c
@@ -1819,7 +1816,8 @@ class ColorDetector:
 
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                         thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
-                        t_override: Optional[float] = None) -> Optional[Candidate]:
+                        t_override: Optional[float] = None,
+                        peel_t: Optional[float] = None) -> Optional[Candidate]:
         """The learned orange path: hysteresis region, sign structure, shape-derived box.
 
         1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
@@ -1853,9 +1851,8 @@ class ColorDetector:
             t = min(t, cfg.roi_threshold / cfg.roi_prior)
         if t_override is not None:
             t = t_override
-        peeled = self._peel_t
-        if peeled is not None:
-            t = max(t, peeled)
+        if peel_t is not None:
+            t = max(t, peel_t)
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
         _paste(region, up, fy - y0, fx - x0)
@@ -1865,7 +1862,7 @@ class ColorDetector:
         if not strong.any():
             return None
         weak_t, blur_t = min(cfg.weak_threshold, t), cfg.blur_like
-        if peeled is not None:
+        if peel_t is not None:
             weak_t = t             # no hysteresis back into the surface the core was peeled from
         rel = self._relative
         edge_t = None
@@ -2044,7 +2041,7 @@ class ColorDetector:
                 cx_, cy_, a_, b_, k_, pad = diamond
                 # a peeled core lost the face's parts nearest the surface's colour: its own
                 # box bounds the sign more loosely
-                cl_ = cfg.diamond_clamp if peeled is None else max(cfg.diamond_clamp,
+                cl_ = cfg.diamond_clamp if peel_t is None else max(cfg.diamond_clamp,
                                                                      cfg.peel_clamp)
                 ca, cb = cl_ * a_ + pad, cl_ * b_ + pad
                 if sub is not None and cfg.pixel_boxes:
@@ -2090,18 +2087,15 @@ class ColorDetector:
             low = cand.y + cand.h - oy if cand.extended else None
             sub = refine_rectangle(value, (bx0 + dx, by0 + dy, bw, bh), size,
                                    cfg.rect_border_rel, cfg.rect_margin_rel, bottom=low)
-            if sub is not None:
-                sub = (sub[0] - dx, sub[1] - dx, sub[2] - dy,
-                       None if sub[3] is None else sub[3] - dy)
             if entry is not None:
                 entry['rect_refined'] = sub is not None
             if sub is not None:
-                left, right, top, low = sub
+                left, right, top, low = sub            # in the brightness window
                 out = (cfg.rect_border_rel + cfg.rect_margin_rel) * (
                     (right - left) / face_frac if cand.extended else size)
-                bottom = cand.y + cand.h if low is None else y0 + low + out
-                cand.x, cand.w = x0 + left - out, right - left + 2 * out
-                cand.y = y0 + top - out
+                bottom = cand.y + cand.h if low is None else oy + low + out
+                cand.x, cand.w = ox + left - out, right - left + 2 * out
+                cand.y = oy + top - out
                 cand.h = bottom - cand.y
                 if cfg.pixel_boxes:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)

@@ -529,13 +529,55 @@ def dominant_color(hsv: np.ndarray) -> str:
     return max(votes, key=votes.get)
 
 
+@functools.lru_cache(maxsize=16)
+def _bin_edges(dtype: np.dtype, lo: float, hi: float, bins: int) -> np.ndarray:
+    """``np.histogram``'s bin edges for ``bins`` bins over ``(lo, hi)`` of ``dtype`` data."""
+    edges = np.histogram_bin_edges(np.empty(0, dtype), bins=bins, range=(lo, hi))
+    edges.flags.writeable = False
+    return edges
+
+
 def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) -> float:
-    """Mode of ``values`` as the centre of the fullest of ``bins`` histogram bins."""
+    """Mode of ``values`` as the centre of the fullest of ``bins`` histogram bins.
+
+    The histogram is ``np.histogram(values, bins, (lo, hi))``'s: bin ``i`` counts the values
+    in ``[edges[i], edges[i + 1])``, the last bin also those equal to ``hi``, values outside
+    the range none; counted here by a binary search in its edges (np.histogram's own
+    set-up costs ~0.1 ms per call).
+    """
     if values.size == 0:
         return 0.0
-    hist, edges = np.histogram(values, bins=bins, range=(lo, hi))
+    edges = _bin_edges(values.dtype, lo, hi, bins)
+    # slot k: values in [edges[k - 1], edges[k]); slot bins + 1: at or beyond the last edge
+    slots = np.bincount(np.searchsorted(edges, values, side='right'), minlength=bins + 2)
+    hist = slots[1:bins + 1]
+    hist[-1] += np.count_nonzero(values == edges[-1])
     i = int(np.argmax(hist))
     return float(0.5 * (edges[i] + edges[i + 1]))
+
+
+def _median(values: np.ndarray, axis: Optional[int] = None) -> Any:
+    """``np.median(values, axis)`` of NaN-free data, the same values, by a partial sort.
+
+    The middle order statistic, or the mean of the middle two: in the data's own float type
+    (float64 for integers), as np.median takes it; without np.median's generic machinery
+    (about 10 us per call, more than the partial sort of the small arrays here).
+    """
+    if axis is None:
+        values, axis = values.ravel(), 0
+    n = values.shape[axis]
+    if n == 0:
+        return np.median(values, axis=axis)
+    k = n // 2
+    # a short axis is sorted outright (quicker than the partial sort up to ~100 values)
+    part = np.sort(values, axis=axis) if n <= 64 else np.partition(values, (k - 1, k),
+                                                                    axis=axis)
+    hi = np.take(part, k, axis=axis)
+    lo = np.take(part, k - 1, axis=axis) if n % 2 == 0 else None
+    if values.dtype.kind != 'f':
+        hi = hi.astype(np.float64)
+        lo = None if lo is None else lo.astype(np.float64)
+    return hi if lo is None else (lo + hi) / 2
 
 
 def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -551,6 +593,14 @@ def _row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     left = np.argmax(sub, axis=1).astype(float)
     right = (m.shape[1] - np.argmax(sub[:, ::-1], axis=1)).astype(float)
     return rows + 0.5, left, right
+
+
+@functools.lru_cache(maxsize=8)
+def _slope_grid(lo: float, hi: float) -> np.ndarray:
+    """:func:`fit_diamond`'s six tent slopes from ``lo`` to ``hi`` (read-only)."""
+    ss = np.linspace(lo, hi, 6)
+    ss.flags.writeable = False
+    return ss
 
 
 def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float] = (0.7, 1.4)
@@ -581,27 +631,29 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     sub = np.arange(0, n, max(1, n // 24))
     step = max(0.5, (yc[-1] - yc[0]) / 20.0)
     cys = np.arange(yc[0], yc[-1] + 0.01, step)
-    ss = np.linspace(slopes[0], slopes[1], 6)
+    ss = _slope_grid(*slopes)
     d = np.abs(yc[sub][None, :] - cys[:, None])                        # (ncy, n)
     base = half[sub][None, None, :] + ss[None, :, None] * d[:, None, :]  # a estimates
-    a = np.median(base, axis=2)                                        # (ncy, ns)
+    a = _median(base, axis=2)                                          # (ncy, ns)
     res = np.abs(base - a[..., None])
     tol = np.maximum(1.0, 0.1 * a)[..., None]
-    score = (res <= tol).sum(axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
+    score = np.count_nonzero(res <= tol, axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
     k = int(np.argmax(score))
     ic, js = divmod(k, ss.size)
     a0, s0 = float(a[ic, js]), float(ss[js])
     keep = np.abs(half + s0 * np.abs(yc - cys[ic]) - a0) <= max(1.0, 0.1 * a0)
-    if keep.sum() < min_rows:
+    n_keep = int(np.count_nonzero(keep))
+    if n_keep < min_rows:
         return None
     # least squares on the consensus rows, apex row refined on a quarter-pixel grid
     # (closed form of the two-parameter line fit, every candidate apex row at once)
     cyr = np.arange(cys[ic] - step - 0.25, cys[ic] + step + 0.26, 0.25)
     hk = half[keep]
     dd = np.abs(yc[keep][None, :] - cyr[:, None])
-    dm, hm = dd.mean(axis=1), float(hk.mean())
-    var = (dd * dd).mean(axis=1) - dm * dm
-    cov = (dd * hk[None, :]).mean(axis=1) - dm * hm
+    # means as sums over the count (what ndarray.mean computes, without its overhead)
+    dm, hm = dd.sum(axis=1) / n_keep, float(hk.sum() / n_keep)
+    var = (dd * dd).sum(axis=1) / n_keep - dm * dm
+    cov = (dd * hk[None, :]).sum(axis=1) / n_keep - dm * hm
     slope_r = -cov / np.maximum(var, 1e-9)
     a_r = hm + slope_r * dm
     sse = ((hk[None, :] - (a_r[:, None] - slope_r[:, None] * dd)) ** 2).sum(axis=1)
@@ -614,7 +666,7 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     _, cy, aa, slope = best
     if aa <= 0:
         return None
-    return float(np.median(mid[keep])), cy, aa, aa / slope, float(keep.mean())
+    return float(_median(mid[keep])), cy, aa, aa / slope, n_keep / n
 
 
 def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = None
@@ -1908,6 +1960,7 @@ class ColorDetector:
                 or max(aspect, 1 / aspect) > cfg.max_aspect / relax):
             return None
         geo = self._geometry
+        pix_fit = None              # fit_diamond(pix), when the mounting test needed it
         if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
@@ -1918,8 +1971,12 @@ class ColorDetector:
                 self.debug[-1]['mount'] = rel
             if rel > geo[1]:
                 return None
-            if rel > geo[2] and not self._clear_diamond(pix):
-                return None
+            if rel > geo[2]:
+                if cfg.diamond_trim >= 0:
+                    # the diamond test fits ``pix`` either way; the trim below reuses it
+                    pix_fit = fit_diamond(pix)
+                if not self._clear_diamond(pix, pix_fit):
+                    return None
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(np.median(vch[pix > 0]))
@@ -1949,7 +2006,7 @@ class ColorDetector:
         if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
             # rows beyond a fitted diamond's corners are not the face (a portable stand's
             # orange flags above the top corner): shape, kind and box go without them
-            trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim)
+            trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim, pix_fit)
             if trimmed is not None:
                 row_fit = None
                 # the cut-off part must not come back as the border's blur rings
@@ -2180,7 +2237,7 @@ class ColorDetector:
         return (bh >= bw and row_taper(pix) <= cfg.cone_taper
                 and white_cap(white, by - r0, run, gap))
 
-    def _clear_diamond(self, pix: np.ndarray) -> bool:
+    def _clear_diamond(self, pix: np.ndarray, row_fit: Optional[tuple] = None) -> bool:
         """Whether a blob is a clear diamond face, what may stand below the usual mounting
         height (a portable stand's sign): about square, diamond-filled, its rows and
         columns each a two-sided tent (:func:`fit_diamond`; its corners about the blob's
@@ -2188,48 +2245,50 @@ class ColorDetector:
         (``low_min_solidity``) or following the tents on ``low_min_inliers`` of its rows and
         columns (a large black symbol, a lane-shift arrow, cuts the orange face but not its
         outline).  A blob whose rows beyond the fitted diamond's corners (a stand's flags)
-        spoil this is judged without them."""
+        spoil this is judged without them.  ``row_fit``: :func:`fit_diamond` of ``pix``
+        when already known."""
         cfg = self.config
         for k in range(2):
             if k == 1:
                 if cfg.diamond_trim < 0:
                     return False
-                pix, _ = self._trim_to_diamond(pix, cfg.diamond_trim)
+                pix, _ = self._trim_to_diamond(pix, cfg.diamond_trim, row_fit)
                 if pix is None:
                     return False
+                row_fit = None
             pts = cv2.findNonZero(pix)
             if pts is None or len(pts) < 5:
                 return False
             hull = cv2.convexHull(pts)
             hull_area = max(float(cv2.contourArea(hull)), 1.0)
-            _, _, w, h = cv2.boundingRect(hull)
+            # the hull's box is the pixels' box
+            x, y, w, h = cv2.boundingRect(hull)
             solidity, fill = len(pts) / hull_area, hull_area / (w * h)
             if fill >= cfg.diamond_hull_fill or max(w / h, h / w) > cfg.low_max_aspect:
                 continue
-            fr = fit_diamond(pix)
+            fr = row_fit if row_fit is not None else fit_diamond(pix)
             fc = fit_diamond(np.ascontiguousarray(pix.T))
             if fr is None or fc is None:
                 continue
-            ys, xs = np.nonzero(pix)
-            hh, ww = ys.max() + 1 - ys.min(), xs.max() + 1 - xs.min()
-            centred = (abs(fr[1] - (ys.min() + 0.5 * hh)) <= 0.15 * hh
-                       and abs(fc[1] - (xs.min() + 0.5 * ww)) <= 0.15 * ww)
+            centred = (abs(fr[1] - (y + 0.5 * h)) <= 0.15 * h
+                       and abs(fc[1] - (x + 0.5 * w)) <= 0.15 * w)
             if centred and (solidity >= cfg.low_min_solidity
                             or min(fr[4], fc[4]) >= cfg.low_min_inliers):
                 return True
         return False
 
     @staticmethod
-    def _trim_to_diamond(pix: np.ndarray, tol: float
+    def _trim_to_diamond(pix: np.ndarray, tol: float, row_fit: Optional[tuple] = None
                          ) -> tuple[Optional[np.ndarray], Optional[tuple]]:
         """(``pix`` without the rows beyond the fitted diamond's corners, or None when none
         are; :func:`fit_diamond`'s row fit of ``pix``).
 
         Rows further than ``0.5 + tol x b`` px above the top corner or below the bottom
         corner of :func:`fit_diamond`'s diamond are dropped (the margin keeps a corner that
-        the fit's noisy slope put a little short).
+        the fit's noisy slope put a little short).  ``row_fit``: :func:`fit_diamond` of
+        ``pix`` when already known.
         """
-        fd = fit_diamond(pix)
+        fd = row_fit if row_fit is not None else fit_diamond(pix)
         if fd is None:
             return None, fd
         _, cy, _, b, inl = fd

@@ -887,6 +887,14 @@ def _edge_profile(extent: float, border: float, margin: float) -> tuple:
     return _profile_bases(u_out, u_in, round(4 * border) / 4, round(4 * margin) / 4)
 
 
+@functools.lru_cache(maxsize=256)
+def _unit_steps(n: int) -> np.ndarray:
+    """``np.linspace(0, 1, n)``, read-only (the sample positions along an edge stretch)."""
+    ts = np.linspace(0.0, 1.0, n)
+    ts.flags.writeable = False
+    return ts
+
+
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
                   min_contrast: float, missing: bool = False) -> Optional[np.ndarray]:
     """Offsets (px, along each inward normal) of the face edge on several edge stretches.
@@ -901,7 +909,7 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     """
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
-    ts = np.linspace(0.0, 1.0, max(3, int(length) + 1))
+    ts = _unit_steps(max(3, int(length) + 1))
     pts = (segs[:, None, None, 0, :] + ts[None, :, None, None] * (segs[:, 1] - segs[:, 0])[
         :, None, None, :] + u[None, None, :, None] * nvecs[:, None, None, :])  # (n, t, u, 2)
     mx = (pts[..., 0] - 0.5).astype(np.float32)
@@ -911,7 +919,7 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
         return None
     n, nt, nu = mx.shape
     samples = cv2.remap(img, mx.reshape(n * nt, nu), my.reshape(n * nt, nu), cv2.INTER_LINEAR)
-    prof_v = np.median(samples.reshape(n, nt, nu), axis=1).astype(np.float64)   # (n, u)
+    prof_v = _median(samples.reshape(n, nt, nu), axis=1).astype(np.float64)     # (n, u)
     atb = (bases_t @ prof_v.T).reshape(-1, 3, n)                                # (k, 3, n)
     coef = ata_inv @ atb
     # residual of each least-squares fit: |p|^2 - (A^T p) . coef
@@ -944,6 +952,10 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
 # right, lower right, lower left
 _RHOMBUS_SIGNS = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
 _STRETCH_SIGNS = np.repeat(_RHOMBUS_SIGNS, 2, axis=0)      # two stretches per edge
+# the two stretches of each edge, as fractions of its length from its first corner
+_STRETCH_FROM = np.array([0.15, 0.55])
+_STRETCH_TO = np.array([0.45, 0.85])
+_STRETCH_MID = 0.5 * (_STRETCH_FROM + _STRETCH_TO)
 
 
 def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
@@ -960,9 +972,10 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     keep = np.ones(len(points), bool)
     for _ in range(max_drop + 1):
         p, sg = points[keep], signs[keep]
-        if len({tuple(e) for e in sg}) < 4:
+        if len({tuple(e) for e in sg.tolist()}) < 4:
             return None                 # an edge without a point
-        mat = np.column_stack([sg[:, 0] * p[:, 0], sg[:, 1] * p[:, 1], -sg[:, 0], -sg[:, 1]])
+        # rows (sx x, sy y, -sx, -sy)
+        mat = np.concatenate([sg * p, -sg], axis=1)
         try:
             inv = np.linalg.inv(mat.T @ mat)
         except np.linalg.LinAlgError:
@@ -1034,21 +1047,21 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         m = min(a, b)
         border, margin = border_rel * m, margin_rel * m
         prof = _edge_profile(m, border, margin)
-        c = {'l': np.array([cx - a, cy]), 't': np.array([cx, cy - b]),
-             'r': np.array([cx + a, cy]), 'b': np.array([cx, cy + b])}
-        segs, nvecs, mids = [], [], []
-        for e0, e1 in (('l', 't'), ('t', 'r'), ('r', 'b'), ('b', 'l')):
-            p0, p1 = c[e0], c[e1]
-            dvec = (p1 - p0) / float(np.hypot(*(p1 - p0)))
-            nvec = np.array([-dvec[1], dvec[0]])
-            if np.dot(nvec, np.array([cx, cy]) - 0.5 * (p0 + p1)) < 0:
-                nvec = -nvec
-            for f0, f1 in ((0.15, 0.45), (0.55, 0.85)):
-                segs.append((p0 + f0 * (p1 - p0), p0 + f1 * (p1 - p0)))
-                nvecs.append(nvec)
-                mids.append(p0 + 0.5 * (f0 + f1) * (p1 - p0))
-        nv = np.array(nvecs)
-        off = _edge_offsets(img, np.array(segs), nv, prof, min_contrast, missing=True)
+        # the four edges (left corner to top, top to right, right to bottom, bottom to
+        # left), all at once: direction, inward normal, and the two stretches of each
+        p0 = np.array([(cx - a, cy), (cx, cy - b), (cx + a, cy), (cx, cy + b)])
+        p1 = p0[[1, 2, 3, 0]]
+        e = p1 - p0
+        dvec = e / np.hypot(e[:, 0], e[:, 1])[:, None]
+        nvec = np.stack([-dvec[:, 1], dvec[:, 0]], axis=1)
+        inward = (nvec * (np.array([cx, cy]) - 0.5 * (p0 + p1))).sum(axis=1)
+        nvec[inward < 0] *= -1.0
+        segs = np.stack([p0[:, None] + _STRETCH_FROM[None, :, None] * e[:, None],
+                         p0[:, None] + _STRETCH_TO[None, :, None] * e[:, None]],
+                        axis=2).reshape(8, 2, 2)
+        mids = (p0[:, None] + _STRETCH_MID[None, :, None] * e[:, None]).reshape(8, 2)
+        nv = np.repeat(nvec, 2, axis=0)
+        off = _edge_offsets(img, segs, nv, prof, min_contrast, missing=True)
         if off is None:
             return None
         # a stretch without a face-to-border step (a symbol or legend reaching the edge)
@@ -1057,7 +1070,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         lost = int(np.count_nonzero(~seen))
         if lost > max_lost:
             return None
-        q = np.array(mids)[seen] + off[seen, None] * nv[seen]
+        q = mids[seen] + off[seen, None] * nv[seen]
         fit_ = fit_rhombus(q, _STRETCH_SIGNS[seen], outlier_px, max_lost - lost)
         if fit_ is None:
             return None
@@ -1735,7 +1748,7 @@ class ColorDetector:
         ``peel_gap`` above the blob's median: Otsu's level over the blob's pixels, then
         ``peel_levels``; the first level whose cores give candidates wins."""
         vals = prob[comp > 0]
-        floor = float(np.median(vals)) + self.config.peel_gap * 255
+        floor = float(_median(vals)) + self.config.peel_gap * 255
         otsu, _ = cv2.threshold(vals.reshape(-1, 1), 0, 255,
                                 cv2.THRESH_BINARY + cv2.THRESH_OTSU)
         levels = sorted({lv for lv in [float(otsu)] + [255 * v for v in self.config.peel_levels]
@@ -1979,7 +1992,7 @@ class ColorDetector:
                     return None
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
-        v_ref = float(np.median(vch[pix > 0]))
+        v_ref = float(_median(vch[pix > 0]))
         if cfg.max_surround_like < 1.0 and not relaxed:
             # a sign is an object on its own: beyond its border the background is not the
             # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
@@ -2211,7 +2224,7 @@ class ColorDetector:
         face = orange[by - r0:by + bh - r0]
         if not face.any():
             return False
-        y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
+        y_ref = float(_median(luma[by - r0:by + bh - r0][face]))
         white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
         # a band is the object's own: bounded by its silhouette; white that runs on past
         # the blob's sides on both flanks is the background (an overcast sky, snow, a
@@ -2320,7 +2333,7 @@ class ColorDetector:
         """
         face = _mode(like[strong > 0])
         outside = like[region == 0]
-        base = min(float(np.median(outside)) if outside.size else 0.0, face)
+        base = min(float(_median(outside)) if outside.size else 0.0, face)
         span = face - base
         return base + rel[0] * span, base + rel[1] * span
 
@@ -2390,7 +2403,7 @@ class ColorDetector:
             strip = apply_gains(strip, self._gains)
         strip = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
         sat = strip[..., 1] if raw_s is None else np.minimum(strip[..., 1], raw_s)
-        v_ref = float(np.median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
+        v_ref = float(_median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
         white = (sat <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
         # black legend rows inside the white part: judge rows on a short running window
         frac = white.mean(axis=1)
@@ -2432,7 +2445,7 @@ class ColorDetector:
         # a sign's white part carries a black legend and border; sky and walls do not
         # (dark relative to the white part itself: under overcast light the legend is grey)
         part = strip[:run]
-        v_white = float(np.median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
+        v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
         dark = part[..., 2] < cfg.dark_rel * v_white
         if dark.mean() < cfg.ext_min_dark:
             return

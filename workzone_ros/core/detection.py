@@ -713,7 +713,8 @@ def open_background_rows(left: np.ndarray, right: np.ndarray, min_cols: int
     object's own.  A flank cut by the image border (narrower than ``min_cols``) does not
     count, the other one decides (a sign leaving the frame with its stand's flags over the
     sky); None when neither flank is in the frame."""
-    sides = [m.mean(axis=1) >= 0.5 for m in (left, right) if m.shape[1] >= min_cols]
+    sides = [np.count_nonzero(m, axis=1) / m.shape[1] >= 0.5 for m in (left, right)
+             if m.shape[1] >= min_cols]
     return np.logical_and.reduce(sides) if sides else None
 
 
@@ -948,8 +949,10 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     prof_v = _median(samples.reshape(n, nt, nu), axis=1).astype(np.float64)     # (n, u)
     atb = (bases_t @ prof_v.T).reshape(-1, 3, n)                                # (k, 3, n)
     coef = ata_inv @ atb
-    # residual of each least-squares fit: |p|^2 - (A^T p) . coef
-    sse = (prof_v * prof_v).sum(axis=1)[None, :] - (atb * coef).sum(axis=1)     # (k, n)
+    # residual of each least-squares fit: |p|^2 - (A^T p) . coef (the dot product over the
+    # three bases written out: the same sum, in the same order, as a reduction over them)
+    sse = (prof_v * prof_v).sum(axis=1)[None, :] - (
+        atb[:, 0] * coef[:, 0] + atb[:, 1] * coef[:, 1] + atb[:, 2] * coef[:, 2])  # (k, n)
     # the border line is dark: a plain step is the face's edge against a background as
     # dark as the line, never the margin's outer edge with a line as bright as the face
     hi, lo = coef[:, 0, :], coef[:, 1, :]

@@ -373,3 +373,15 @@ def test_model_camera_and_same_camera():
     bad = cm.default_model(prior=prior, metadata={'camera': {'width': 'x'}})
     with pytest.raises(cm.ModelError, match='camera'):
         bad.camera
+
+
+def test_fast_quantile_equals_numpy():
+    rng = np.random.default_rng(3)
+    for n in list(range(1, 10)) + [100, 2401]:
+        for dtype in (np.float32, np.float64):
+            v = (rng.integers(0, 9, n) / 7.0).astype(dtype)          # ties
+            w = rng.random(n).astype(dtype)
+            for q in (0.0, 0.1, 0.2, 0.5, 0.9, 1.0):
+                for x in (v, w):
+                    got, ref = cm._quantile(x, q), np.quantile(x, q)
+                    assert got == ref and got.dtype == ref.dtype

@@ -1294,3 +1294,46 @@ def test_refine_diamond_tolerates_a_stretch_hidden_by_a_symbol():
     assert abs(got[0] - cx) < 0.4 and abs(got[1] - cy) < 0.4
     assert abs(got[2] / a_face - 1) < 0.03 and abs(got[3] / a_face - 1) < 0.03
     assert dt.refine_diamond(img, fit, max_lost=0) is None
+
+
+@pytest.mark.parametrize('dtype', [np.float32, np.float64, np.uint8])
+def test_fast_median_and_mode_equal_numpy(dtype):
+    """The detector's _median / _mode give numpy's median and histogram mode exactly (ties,
+    even and odd counts, values on bin edges and at the range's ends)."""
+    rng = np.random.default_rng(5)
+    edges = np.histogram_bin_edges(np.empty(0, np.float32), bins=20, range=(0.0, 1.0))
+    for n in list(range(1, 12)) + [63, 64, 65, 200, 1001]:
+        if dtype == np.uint8:
+            v = rng.integers(0, 256, n).astype(np.uint8)
+        else:
+            v = (rng.integers(0, 21, n) / 20.0).astype(dtype)       # on the bin edges
+        assert dt._median(v) == np.median(v)
+        assert np.asarray(dt._median(v)).dtype == np.asarray(np.median(v)).dtype
+        if dtype != np.uint8:
+            for w in (v, rng.random(n).astype(dtype), edges[rng.integers(0, 21, n)]):
+                hist, e = np.histogram(w, bins=20, range=(0.0, 1.0))
+                i = int(np.argmax(hist))
+                assert dt._mode(w) == float(0.5 * (e[i] + e[i + 1]))
+    cube = rng.random((7, 9, 24)).astype(np.float32)
+    for axis in range(3):
+        assert np.array_equal(dt._median(cube, axis=axis), np.median(cube, axis=axis))
+
+
+def test_components_equal_the_default_labelling():
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        mask = cv2.dilate((rng.random((61, 97)) > 0.97).astype(np.uint8) * 255,
+                          np.ones((3, 3), np.uint8))
+        got, ref = dt._components(mask), cv2.connectedComponentsWithStats(mask, connectivity=8)
+        assert got[0] == ref[0]
+        assert all(np.array_equal(a, b) for a, b in zip(got[1:], ref[1:]))
+
+
+def test_table_lookup_equals_two_index_lookup():
+    rng = np.random.default_rng(7)
+    table = rng.random((180, 256)).astype(np.float32)
+    hue = rng.integers(0, 180, (13, 17)).astype(np.uint8)
+    sat = rng.integers(0, 256, (13, 17)).astype(np.uint8)
+    assert np.array_equal(dt._lookup(table, hue, sat), table[hue, sat])
+    h, s = hue[:, 3:9], sat[:, 3:9]                  # strided views, as HSV channels are
+    assert np.array_equal(dt._lookup(table, h, s), table[h, s])

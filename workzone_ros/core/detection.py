@@ -569,7 +569,7 @@ def _median(values: np.ndarray, axis: Optional[int] = None) -> Any:
     if n == 0:
         return np.median(values, axis=axis)
     k = n // 2
-    # a short axis is sorted outright (quicker than the partial sort up to ~100 values)
+    # a short axis is sorted outright (quicker than the partial sort at these lengths)
     part = np.sort(values, axis=axis) if n <= 64 else np.partition(values, (k - 1, k),
                                                                     axis=axis)
     hi = np.take(part, k, axis=axis)
@@ -842,7 +842,8 @@ def _lookup(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndarray:
     ``np.take`` at the flat index ``hue * 256 + sat``, the two channels merged into one
     uint16 (little-endian: saturation the low byte), as :meth:`ColorDetector._pass` looks
     up its tables; a third of the cost of the two-index lookup."""
-    if table.shape[1] != 256 or not table.flags.c_contiguous:
+    if (table.shape[1] != 256 or not table.flags.c_contiguous
+            or hue.dtype != np.uint8 or sat.dtype != np.uint8):
         return table[hue, sat]
     return np.take(table.reshape(-1), cv2.merge([sat, hue]).view(np.uint16)[..., 0])
 

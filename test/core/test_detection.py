@@ -729,7 +729,7 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
 
 def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7):
     """The simulator's sign art warped to a sub-pixel box (its outer edge at x, y and
-    x + size, y + size), blended by its alpha and blurred a little like a camera; the
+    x + size, y + size), composited by its alpha and blurred a little like a camera; the
     ground-truth box as ``synth`` labels it (pixels more than half covered)."""
     from workzone_ros.sim import signart
     art = signart.sign_face(key, next(a for a in (32, 48, 64, 96, 128, 192, 256, 384)
@@ -738,9 +738,10 @@ def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7):
     hm = np.array([[s, 0, x - 0.5 + 0.5 * s], [0, s, y - 0.5 + 0.5 * s], [0, 0, 1.0]])
     warped = cv2.warpPerspective(art, hm, (img.shape[1], img.shape[0]),
                                  flags=cv2.INTER_LINEAR)
+    # premultiplied art, composited as the renderer does
     alpha = warped[..., 3:].astype(np.float32) / 255.0
-    out = (img * (1 - alpha) + warped[..., :3] * alpha).astype(np.uint8)
-    ys, xs = np.nonzero(alpha[..., 0] > 0.5)
+    out = np.clip(img * (1 - alpha) + warped[..., :3], 0, 255).astype(np.uint8)
+    ys, xs = np.nonzero(warped[..., 3] > 127.5)
     box = (int(xs.min()), int(ys.min()), int(xs.max() + 1 - xs.min()),
            int(ys.max() + 1 - ys.min()))
     return cv2.GaussianBlur(out, (0, 0), blur), box
@@ -801,14 +802,14 @@ def test_bold_legend_row_over_snow_is_not_the_bottom_border(detector, key, size)
     """On a small blurred two-colour sign over snow a bold legend row is as dark as the
     bottom border: of the dark rows, the one that gives the sign a catalogue two-colour
     sign's height / width ends it (``ext_ratio_tol``); taking the first dark row (0) cut
-    "WORK ZONE BEGINS" 8-14 px short at every size and the speed limit at 24-28 px."""
+    "WORK ZONE BEGINS" 8-14 px short at every size and the speed limit at 24 px."""
     img, gt = _render_art_sign(_snow(), 400.3, 190.4, size, key=key)
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert abs(d.box.y2 - g.y2) <= 1.0 and dt.box_metrics(d.box, g)[0] > 0.9
     first = [c for c in detector.with_config(ext_ratio_tol=0.0).detect(img)
              if c.box.iou(g) > 0.2]
-    if key == 'work_zone_begin' or size < 34:
+    if key == 'work_zone_begin' or size < 26:
         assert first and first[0].box.y2 < g.y2 - 4.0
 
 

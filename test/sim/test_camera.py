@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from workzone_ros.sim import signart
-from workzone_ros.sim.camera import WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult
+from workzone_ros.sim.camera import (
+    WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult, straight_colour,
+)
 from workzone_ros.sim.scenario import sign_bottom, stand_parts
 from workzone_ros.sim.sheet import ego_pose, make_sign
 from workzone_ros.sim.world import (
@@ -241,7 +243,7 @@ def test_orange_sheeting_varies_per_sign_but_keeps_the_art():
     b = signart.sign_face('road_work_ahead', 128)
     black = cv2.erode(((b[..., :3].max(-1) < 40) & (b[..., 3] == 255)).astype(np.uint8),
                       np.ones((3, 3), np.uint8)) > 0          # legend strokes, not their edges
-    assert black.sum() > 300 and (a[black] == b[black]).all()           # legend unchanged
+    assert black.sum() > 100 and (a[black] == b[black]).all()           # legend unchanged
     assert (a[..., 3] == b[..., 3]).all()
     assert not (a == b).all()
     left = signart.sign_face('lane_shift_left', 96, orange=cols[1])
@@ -312,3 +314,31 @@ def test_frame_effects_do_not_move_the_image_against_its_labels():
         out = cam._effects(base.copy(), frame, rng, None)
         c = centroid(out)
         assert abs(c[0] - c0[0]) < 0.15 and abs(c[1] - c0[1]) < 0.15, (frame, c, c0)
+
+
+def test_sign_art_composites_without_a_dark_fringe():
+    """A face warped to a sub-pixel position over a background of its own colour leaves no
+    seam: art is drawn anti-aliased over black as sign_face draws it (premultiplied), and
+    its colour where the face covers a pixel in part is the face's (composited as straight
+    colour, the edge pixels came out up to half as bright: a dark ring round every sign)."""
+    colour = np.array(signart.ORANGE, np.float32)
+    big = np.zeros((96, 96, 3), np.uint8)
+    mask = np.zeros((96, 96), np.uint8)
+    poly = signart.outline('diamond', 96, 96)
+    signart._poly(big, poly, signart.ORANGE)
+    signart._poly(mask, poly, 255)
+    art = cv2.resize(np.dstack([big, mask]), (48, 48), interpolation=cv2.INTER_AREA)
+    H = np.array([[0.7, 0.05, 3.3], [-0.04, 0.7, 2.6], [0.0, 0.0, 1.0]])
+    warped = cv2.warpPerspective(art, H, (48, 48), flags=cv2.INTER_LINEAR,
+                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    rgb, alpha = straight_colour(warped)
+    ring = (alpha > 0.05) & (alpha < 0.95)
+    assert ring.sum() > 40
+    out = colour * (1 - alpha[..., None]) + rgb * alpha[..., None]
+    assert np.abs(out[ring] - colour).max() <= 3.0
+    # the art's own colour at its outline is premultiplied (what the division undoes)
+    edge = (art[..., 3] > 30) & (art[..., 3] < 225)
+    np.testing.assert_allclose(art[..., 2][edge], 245.0 * art[..., 3][edge] / 255.0, atol=3)
+    face = signart.sign_face('road_work_ahead', 48)
+    outer = (face[..., 3] > 30) & (face[..., 3] < 225)
+    assert np.all(face[..., :3][outer].max(axis=1).astype(int) <= face[..., 3][outer] + 2)

@@ -161,6 +161,20 @@ def _hash01(i: np.ndarray, salt: int) -> np.ndarray:
     return (x & 0xFFFF) / 65536.0
 
 
+def straight_colour(bgra: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(colour (H, W, 3) float32, alpha (H, W) in [0, 1]) of premultiplied BGRA art.
+
+    Sign art is drawn anti-aliased over black (:func:`~workzone_ros.sim.signart.sign_face`):
+    a pixel the face covers in part holds the face's colour times its coverage, and it is
+    warped so (interpolating premultiplied colour is what keeps black out of the edge).  Its
+    own colour is that over its alpha; compositing the premultiplied colour by alpha again
+    ringed every sign with a dark fringe half a pixel wide.
+    """
+    alpha = bgra[..., 3].astype(np.float32) * (1.0 / 255.0)
+    rgb = bgra[..., :3].astype(np.float32) / np.maximum(alpha, 1.0 / 255.0)[..., None]
+    return np.minimum(rgb, 255.0), alpha
+
+
 def _clip_near(pc: np.ndarray) -> np.ndarray:
     """Clip a convex polygon (N, 3) in camera coordinates against z >= NEAR_M."""
     inside = pc[:, 2] >= NEAR_M
@@ -690,13 +704,12 @@ class CameraRenderer:
         T = np.array([[1.0, 0, -x0], [0, 1.0, -y0], [0, 0, 1.0]])
         warped = cv2.warpPerspective(art, T @ Hm, (x1 - x0, y1 - y0), flags=cv2.INTER_LINEAR,
                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        alpha = warped[..., 3].astype(np.float32) * (1.0 / 255.0)
+        rgb, alpha = straight_colour(warped)
         if len(q) != 4 or not (pc[:, 2] >= NEAR_M).all():
             m = np.zeros(alpha.shape, np.uint8)
             cv2.fillConvexPoly(m, np.round((uv - [x0, y0]) * 16).astype(np.int32), 1,
                                cv2.LINE_8, 4)
             alpha *= m
-        rgb = warped[..., :3].astype(np.float32)
         if sp.fade > 0:
             grey = rgb.mean(-1, keepdims=True)
             pale = grey * 0.45 + 130.0

@@ -191,7 +191,8 @@ def make_contact_sheet(out_png: str, seed: int = 0, crop_distance: float = 25.0)
         raw = np.full((64, 64, 3), 128, np.uint8)
         hh, ww = art.shape[:2]
         oy, ox = (64 - hh) // 2, (64 - ww) // 2
-        raw[oy:oy + hh, ox:ox + ww] = (art[..., :3] * a + 128 * (1 - a)).astype(np.uint8)
+        # premultiplied art: its colour already carries the alpha
+        raw[oy:oy + hh, ox:ox + ww] = (art[..., :3] + 128 * (1 - a)).astype(np.uint8)
         pair = np.hstack([cam, np.full((64, 2, 3), 255, np.uint8), raw])
         pair = cv2.resize(pair, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
         tile = _label(pair, key[:22], 0.4)

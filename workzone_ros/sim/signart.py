@@ -13,6 +13,7 @@ gets its own orange drawn from (sign id, salt), with the legend, border and layo
 """
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import cv2
@@ -45,6 +46,10 @@ OTHER_VARIANTS = ('flagger', 'one_lane', 'shoulder_work')
 MIRROR_PAIRS = (('lane_shift_left', 'lane_shift_right'), ('left_lane_ends', 'right_lane_ends'))
 
 _SS = 2   # supersampling factor
+#: A diamond's black border line: its middle this share of the side in from the outline,
+#: half its width (normal to the edge) this share of the side.
+_BORDER_INSET = 0.035
+_BORDER_HALF_WIDTH = 0.015
 _FONT = cv2.FONT_HERSHEY_DUPLEX
 _FONT_BOLD = cv2.FONT_HERSHEY_TRIPLEX
 
@@ -272,7 +277,13 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     if shape == 'diamond':
         bg = YELLOW if key == 'warning_diamond' else ORANGE
         _poly(img, poly, bg)
-        _poly(img, _inset(poly, 0.035, W, H), BLACK, max(2, int(0.03 * S)))
+        # the border line (its middle at 0.035 of the side in from the outline, 0.03 of the
+        # side wide) as the face's margin and face filled over black: exact to the
+        # catalogue (a thick anti-aliased polyline, its width a whole number of pixels,
+        # came out 9-25 % wider and its face that much smaller)
+        half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
+        _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
+        _poly(img, _inset(poly, _BORDER_INSET + half, W, H), bg)
         if key == 'road_work_ahead':
             _lines(img, ['ROAD', 'WORK', 'AHEAD'], cx, 0.28 * H, 0.72 * H,
                    [0.40 * W, 0.54 * W, 0.42 * W], BLACK, 0.2, _FONT_BOLD)
@@ -413,7 +424,8 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
 
     Returns:
         Read-only BGRA uint8 image (H, W, 4) of the bounding rectangle; alpha is 0 outside
-        the sign shape.  Cached: the same arguments return the same array.
+        the sign shape.  The colour is premultiplied by alpha (drawn anti-aliased over
+        black): composite as ``background * (1 - alpha) + colour``.  Cached: the same arguments return the same array.
 
     Raises:
         UnknownSignError: ``class_key`` is not a drawable catalogue class.

@@ -2091,6 +2091,8 @@ class ColorDetector:
             # straight edges), scaled out by the border; never further out than
             # ``diamond_clamp`` x the half-diagonal beyond the face seen (an occluded or
             # cut-off corner is not invented)
+            if row_fit is None:
+                row_fit = fit_diamond(face_px)
             fd = fit_diamond_2d(face_px, rows=row_fit)
             sub = None
             if cfg.diamond_refine and cfg.border_frac > 0:
@@ -2100,9 +2102,13 @@ class ColorDetector:
                 value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad)
                 dx, dy = x0 - ox, y0 - oy
                 # start from the mask's diamond, else from the diamond in the hull's box (a
-                # big symbol that cuts the face leaves the mask's corners far off)
+                # big symbol that cuts the face leaves the mask's corners far off), else
+                # from the rows' own diamond (a rail or a car across the face's lower part
+                # cuts its columns, which the mask's diamond takes its height from)
                 starts = [fd[:4]] if fd is not None and fd[4] >= 0.5 else []
                 starts.append((bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * bw, 0.5 * bh))
+                if row_fit is not None and row_fit[4] >= 0.5:
+                    starts.append(row_fit[:4])
                 for st in starts:
                     sub = refine_diamond(value, (st[0] + dx, st[1] + dy, st[2], st[3]),
                                          cfg.diamond_border_rel, cfg.diamond_margin_rel,

@@ -7,7 +7,11 @@ import pytest
 
 from workzone_ros.sim import signart
 from workzone_ros.sim.camera import (
-    WEATHER_PRESETS, CameraRenderer, RenderError, RenderResult, straight_colour,
+    WEATHER_PRESETS,
+    CameraRenderer,
+    RenderError,
+    RenderResult,
+    straight_colour,
 )
 from workzone_ros.sim.scenario import sign_bottom, stand_parts
 from workzone_ros.sim.sheet import ego_pose, make_sign

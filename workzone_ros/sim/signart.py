@@ -425,7 +425,8 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
     Returns:
         Read-only BGRA uint8 image (H, W, 4) of the bounding rectangle; alpha is 0 outside
         the sign shape.  The colour is premultiplied by alpha (drawn anti-aliased over
-        black): composite as ``background * (1 - alpha) + colour``.  Cached: the same arguments return the same array.
+        black): composite as ``background * (1 - alpha) + colour``.  Cached: the same
+        arguments return the same array.
 
     Raises:
         UnknownSignError: ``class_key`` is not a drawable catalogue class.

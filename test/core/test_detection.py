@@ -1202,29 +1202,39 @@ def test_sign_cut_by_the_bottom_of_an_odd_sized_frame(model, height, method):
     assert all(np.isfinite([d.box.x, d.box.y, d.box.w, d.box.h]).all() for d in dets)
 
 
-def test_pixel_boxes_are_the_pixels_whose_centres_are_inside():
-    """``pixel_box`` / ``diamond_pixel_box`` equal the box of the pixel centres inside the
-    outline (brute force), for rectangles and diamonds at random sub-pixel places."""
+def test_pixel_boxes_are_the_pixels_a_label_holds():
+    """``pixel_box`` equals the box of the pixel centres inside a rectangle, and
+    ``diamond_pixel_box`` the box of the pixels more than half covered by a diamond (brute
+    force over every pixel, 8 x 8 samples each), at random sub-pixel places; at a diamond's
+    corners that is inside the box of the pixel centres it holds."""
     rng = np.random.default_rng(3)
     cols = np.arange(0, 120) + 0.5
+    sub = (np.arange(8) + 0.5) / 8
+    grid = (np.arange(0, 120)[:, None] + sub[None, :]).ravel()          # 960 samples
+    inner = 0
     for _ in range(200):
         cx, cy = rng.uniform(40, 80, 2)
         a, b = rng.uniform(2.0, 30.0, 2)
-        inside = (np.abs(cols[None, :] - cx) / a + np.abs(cols[:, None] - cy) / b) <= 1.0
-        ys, xs = np.nonzero(inside)
+        inside = (np.abs(grid[None, :] - cx) / a + np.abs(grid[:, None] - cy) / b) <= 1.0
+        cover = inside.reshape(120, 8, 120, 8).mean(axis=(1, 3))
+        ys, xs = np.nonzero(cover > 0.5)
+        centres = (np.abs(cols[None, :] - cx) / a + np.abs(cols[:, None] - cy) / b) <= 1.0
+        yc, xc = np.nonzero(centres)
+        got = dt.diamond_pixel_box(cx, cy, a, b)
         if xs.size:
-            assert dt.diamond_pixel_box(cx, cy, a, b) == (xs.min(), ys.min(), xs.max() + 1,
-                                                          ys.max() + 1)
+            assert got == (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1), (cx, cy, a, b)
+            inner += got != (xc.min(), yc.min(), xc.max() + 1, yc.max() + 1)
         x, y = cx - a, cy - b
         xs = np.nonzero((cols >= x) & (cols <= x + 2 * a))[0]
         ys = np.nonzero((cols >= y) & (cols <= y + 2 * b))[0]
         assert dt.pixel_box(x, y, 2 * a, 2 * b) == (xs.min(), ys.min(), xs.max() + 1 - xs.min(),
                                                     ys.max() + 1 - ys.min())
+    assert inner > 40           # the corner rule takes a pixel less on a third of them
 
 
 def test_refined_warning_boxes_match_whole_pixel_labels(detector):
-    """``pixel_boxes`` (default): a refined warning box is the box of the pixels whose centres
-    lie inside the measured outline, as box labels are drawn.  On catalogue-proportioned
+    """``pixel_boxes`` (default): a refined warning box is the box of the pixels the measured
+    outline covers more than half, as box labels are drawn.  On catalogue-proportioned
     signs of 9-30 px half-diagonal at random sub-pixel places, no box edge is more than a
     pixel from the label's and at least half the boxes equal it."""
     rng = np.random.default_rng(5)

@@ -823,17 +823,48 @@ def pixel_box(x: float, y: float, w: float, h: float) -> tuple[float, float, flo
     return float(x0), float(y0), float(max(x1 - x0, 1)), float(max(y1 - y0, 1))
 
 
+#: sub-pixel sample offsets for the coverage of a pixel (8 x 8 samples)
+_SUBPIXEL = (np.arange(8) + 0.5) / 8
+
+
+def _tip_pixel(c: float, r: float, c2: float, r2: float) -> Optional[int]:
+    """The first pixel index, from the low side along one axis, of a pixel more than half
+    covered by the diamond ``|x - c| / r + |y - c2| / r2 <= 1`` (``x`` along the axis,
+    ``y`` across it), from the pixels about its tip (three across; along, a few and more for
+    a narrow tip), or None when none of them is."""
+    i0 = math.floor(c - r)
+    cols = np.arange(i0, min(i0 + 4 + math.ceil(2.0 * r / r2), math.floor(c) + 1))
+    j0 = math.floor(c2)
+    x = cols[:, None, None, None] + _SUBPIXEL[None, None, :, None]
+    y = np.arange(j0 - 1, j0 + 2)[None, :, None, None] + _SUBPIXEL[None, None, None, :]
+    cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).mean(axis=(2, 3)).max(axis=1)
+    hit = np.flatnonzero(cover > 0.5)
+    return int(cols[hit[0]]) if hit.size else None
+
+
 def diamond_pixel_box(cx: float, cy: float, a: float, b: float) -> tuple[int, int, int, int]:
-    """``(left, top, right, bottom)`` whole-pixel edges of the pixels whose centres lie inside
-    the diamond ``|x - cx| / a + |y - cy| / b <= 1`` (as :func:`pixel_box`): a corner
-    reaches a pixel only when it passes that pixel's centre row or column (on average a
-    quarter pixel of the half-diagonal less than the sub-pixel diamond's box)."""
+    """``(left, top, right, bottom)`` whole-pixel edges of the pixels more than half covered
+    by the diamond ``|x - cx| / a + |y - cy| / b <= 1``, as a sign's pixel labels are drawn
+    (its anti-aliased art's alpha above one half).  Along the edges that is the pixels whose
+    centres lie inside (as :func:`pixel_box`); at a corner it takes more: a square diamond's
+    tip covers half of a pixel on its middle row only when it reaches a quarter pixel past
+    the pixel's centre (the wedge covers less than the pixel's half beyond its centre line),
+    further on the rows above or below, so the box is on average about half a pixel per
+    side inside the sub-pixel diamond's.  A diamond too small for any pixel to be half
+    covered at a corner is boxed by the pixel centres it holds."""
     dy = abs(math.floor(cy) + 0.5 - cy)      # the pixel-centre row nearest the middle
     dx = abs(math.floor(cx) + 0.5 - cx)
     ha = a * max(0.0, 1.0 - dy / b)           # the diamond's half-width on that row
     hb = b * max(0.0, 1.0 - dx / a)
     left, right = math.ceil(cx - ha - 0.5), math.floor(cx + ha - 0.5) + 1
     top, bottom = math.ceil(cy - hb - 0.5), math.floor(cy + hb - 0.5) + 1
+    if a > 0.5 and b > 0.5:
+        tips = (_tip_pixel(cx, a, cy, b), _tip_pixel(cy, b, cx, a),
+                _tip_pixel(-cx, a, cy, b), _tip_pixel(-cy, b, cx, a))
+        left = left if tips[0] is None else tips[0]
+        top = top if tips[1] is None else tips[1]
+        right = right if tips[2] is None else -tips[2]
+        bottom = bottom if tips[3] is None else -tips[3]
     return left, top, max(right, left + 1), max(bottom, top + 1)
 
 

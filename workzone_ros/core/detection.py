@@ -176,8 +176,10 @@ class DetectorConfig:
             at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
             the face-to-border blend), times ``diamond_face_ratio`` (the catalogue's sign /
-            face half-diagonal, 1 / 0.8876; 1.110-1.129 as the art is drawn, the line's
-            width rounded to whole art pixels; MUTCD signs ~1.09), no side more than
+            face half-diagonal is 1 / 0.8876 = 1.1266 and the art is drawn so; 1.115 on
+            tuning renders since the simulator's fixes, where the anti-aliased outline
+            and the face measured on 16-40 px signs come out at 1.11-1.13; MUTCD signs
+            ~1.09), no side more than
             ``diamond_clamp`` x the half-diagonal + ``diamond_clamp_px`` beyond the face's
             own pixels (blur eats about a pixel of a small face's mask);
             ``diamond_border_rel`` / ``diamond_margin_rel``: the border line's width and the
@@ -333,7 +335,7 @@ class DetectorConfig:
     diamond_clamp: float = 0.12
     diamond_ring_test: bool = True
     diamond_refine: bool = True
-    diamond_face_ratio: float = 1.1266
+    diamond_face_ratio: float = 1.115
     diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
     diamond_margin_rel: float = 0.022

@@ -1350,3 +1350,26 @@ def test_table_lookup_equals_two_index_lookup():
     assert np.array_equal(dt._lookup(table, hue, sat), table[hue, sat])
     h, s = hue[:, 3:9], sat[:, 3:9]                  # strided views, as HSV channels are
     assert np.array_equal(dt._lookup(table, h, s), table[h, s])
+
+
+@pytest.mark.parametrize('width', [20, 24, 30])
+def test_extension_bridges_a_bold_legend_row(detector, width):
+    """A small two-colour sign whose bold legend row ("BEGINS") is ink across its white
+    part, too few bright pixels to tell its colour by: as black it is bridged like a legend
+    gap, and the white part runs on to the sign's bottom border (it ended at the ink row,
+    a third of the sign short)."""
+    img = _foliage()
+    x0, y0 = 400, 150
+    h = int(round(1.25 * width))                       # a catalogue two-colour h / w
+    top = h // 3
+    cv2.rectangle(img, (x0, y0), (x0 + width - 1, y0 + h - 1), (22, 22, 22), -1)
+    cv2.rectangle(img, (x0 + 1, y0 + 1), (x0 + width - 2, y0 + top - 1), ORANGE, -1)
+    cv2.rectangle(img, (x0 + 1, y0 + top + 1), (x0 + width - 2, y0 + h - 2), (235, 238, 238),
+                  -1)
+    band = y0 + top + int(0.45 * (h - top))
+    cv2.rectangle(img, (x0 + 2, band), (x0 + width - 3, band + max(3, h // 7)), (22, 22, 22),
+                  -1)
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    gt = (x0, y0, width, h)
+    d = _one(detector.detect(img), gt, 0.3)
+    assert abs(d.box.y2 - (y0 + h)) <= 1.5, (d.box, gt)

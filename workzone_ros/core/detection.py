@@ -2491,6 +2491,10 @@ class ColorDetector:
             med_b = np.nanmedian(np.where(bright.sum(axis=1, keepdims=True) >= 3, sat_b,
                                           np.float32(255)), axis=1)
         achrom = med_b <= cfg.ext_gap_s
+        # a bold legend row of a small sign ("BEGINS") is ink nearly across: too few bright
+        # pixels to judge by, but black (below ``dark_rel`` of the face's brightness)
+        achrom |= (np.count_nonzero(bright, axis=1) < 3) & (
+            _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref)
         gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
         run = 0
         for j, f in enumerate(smooth):

@@ -308,7 +308,8 @@ def test_config_validation():
     for bad, name in (({'diamond_max_change': 0.0}, 'diamond_max_change'),
                       ({'diamond_hold': 1.5}, 'diamond_hold'),
                       ({'peel_levels': (0.8, 1.2)}, 'peel_levels'),
-                      ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol')):
+                      ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol'),
+                      ({'merge_max': -1}, 'merge_max')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1373,3 +1374,21 @@ def test_extension_bridges_a_bold_legend_row(detector, width):
     gt = (x0, y0, width, h)
     d = _one(detector.detect(img), gt, 0.3)
     assert abs(d.box.y2 - (y0 + h)) <= 1.5, (d.box, gt)
+
+
+@pytest.mark.parametrize('outer', [26, 30, 36])
+def test_diamond_cut_by_its_symbol_is_one_sign(detector, outer):
+    """A symbol stroke from the bottom edge to the top edge (a lane-ends arrow) cuts the
+    orange face in two: the pieces are measured together and give the sign's box (IoU >=
+    0.85) instead of two half-diamonds (IoU < 0.5 each, ``merge_fragments=False``)."""
+    img = _foliage()
+    cx, cy = 420.3, 170.6
+    gt = _catalogue_diamond(img, cx, cy, outer)
+    cv2.line(img, (int(cx - 0.1 * outer), int(cy + 0.8 * outer)),
+             (int(cx + 0.1 * outer), int(cy - 0.8 * outer)), BLACK, max(4, int(0.28 * outer)))
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    g = Box(*map(float, gt))
+    d = _one(detector.detect(img), gt, 0.85)
+    assert d.kind == 'warning'
+    pieces = detector.with_config(merge_fragments=False).detect(img)
+    assert pieces and max(p.box.iou(g) for p in pieces) < 0.5

@@ -206,8 +206,13 @@ class DetectorConfig:
             candidates wins; no hysteresis back into the surface; a warning box may reach
             ``peel_clamp`` x the half-diagonal beyond the core (``diamond_clamp``
             otherwise).  At most ``peel_max`` blobs per frame, the largest first.
-        pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels whose
-            centres lie inside the measured outline (:func:`pixel_box`,
+        merge_fragments, merge_max: two blobs (of the ``merge_max`` largest) that lie
+            next to each other inside an about square joint box are measured as one when a
+            symbol cuts a diamond's face from edge to edge
+            (:meth:`ColorDetector._merge_fragments`); the pieces give way when that makes a
+            refined warning diamond.
+        pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
+            measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
             than the sub-pixel box, and equal to the label when the measurement is right to
             a fraction of a pixel.
@@ -350,6 +355,8 @@ class DetectorConfig:
     peel_levels: tuple = (0.8, 0.9)
     peel_clamp: float = 0.3
     peel_max: int = 2
+    merge_fragments: bool = True
+    merge_max: int = 6
     ext_ratio_tol: float = 0.12
     border_dark: float = 0.0
     border_mode: str = 'profile'
@@ -425,6 +432,8 @@ class DetectorConfig:
             raise ValueError('peel_levels must be likelihoods in (0, 1)')
         if int(self.peel_max) < 0 or self.peel_gap < 0 or self.peel_clamp < 0:
             raise ValueError('peel_max, peel_gap and peel_clamp must be >= 0')
+        if int(self.merge_max) < 0:
+            raise ValueError(f'merge_max must be >= 0 (got {self.merge_max})')
         if self.ext_ratio_tol < 0:
             raise ValueError('ext_ratio_tol must be >= 0 (0: the first dark row ends the sign)')
 
@@ -443,6 +452,7 @@ class Candidate:
     area: float = 0.0
     hull_fill: float = 1.0
     extended: bool = False
+    refined: bool = False
     sources: list[str] = field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
 
@@ -1779,6 +1789,7 @@ class ColorDetector:
         n, labels, stats, _ = _components(mask)
         out, failed = [], []
         min_area_small = cfg.min_area_px / (s * s)
+        parts = {}                   # component -> its candidate (None: it passed no test)
         for i in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[i])
             if area < min_area_small:
@@ -1789,11 +1800,17 @@ class ColorDetector:
             comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
             c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes,
                               area / float(w * h), peel_t)
+            parts[i] = c
             if c is not None:
                 out.append(c)
             elif (prob is not None and color == 'orange' and cfg.peel
                   and area >= 4 * min_area_small):
                 failed.append((area, i, comp, x, y, w, h))
+        if (color == 'orange' and cfg.merge_fragments and cfg.method == 'learned'
+                and peel_t is None and len(parts) > 1):
+            out, merged = self._merge_fragments(parts, out, labels, stats, bgr, off, s,
+                                                thr_base, lboxes)
+            failed = [f for f in failed if f[1] not in merged]     # no peel of a piece
         # the largest failed blobs are peeled, at most ``peel_max`` per frame (a scene full
         # of warm surfaces would otherwise cost a pass per blob)
         for _, _, comp, x, y, w, h in sorted(failed, key=lambda f: f[:2], reverse=True):
@@ -1803,6 +1820,50 @@ class ColorDetector:
             out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
                               bgr, s, thr_base, lboxes)
         return out
+
+    def _merge_fragments(self, parts: dict, out: list[Candidate], labels: np.ndarray,
+                         stats: np.ndarray, bgr: np.ndarray, off: tuple[int, int], s: int,
+                         thr_base: np.ndarray, lboxes: list
+                         ) -> tuple[list[Candidate], set]:
+        """Two blobs that are the pieces of one warning diamond, measured together.
+
+        A symbol that runs from edge to edge (the lane-ends arrow, a reverse curve) cuts a
+        diamond's orange face into pieces; each is half a diamond, measured as a narrow sign
+        or none.  Blobs (of the ``merge_max`` largest, no refined diamond among them) whose
+        boxes lie within a quarter of their joint box of each other and whose joint box is
+        about square are measured as one blob: when that gives a warning diamond whose
+        edges the brightness confirms (a refined one), it replaces the pieces.  Returns the
+        candidates and the components merged.
+        """
+        cfg = self.config
+        keys = sorted((i for i, c in parts.items() if c is None or not c.refined),
+                      key=lambda i: -int(stats[i, cv2.CC_STAT_AREA]))[:max(cfg.merge_max, 0)]
+        used: set = set()
+        for a, b in itertools.combinations(keys, 2):
+            if a in used or b in used:
+                continue
+            xa, ya, wa, ha = (int(v) for v in stats[a, :4])
+            xb, yb, wb, hb = (int(v) for v in stats[b, :4])
+            x0, y0 = min(xa, xb), min(ya, yb)
+            x1, y1 = max(xa + wa, xb + wb), max(ya + ha, yb + hb)
+            w, h = x1 - x0, y1 - y0
+            gap_x = max(xa, xb) - min(xa + wa, xb + wb)
+            gap_y = max(ya, yb) - min(ya + ha, yb + hb)
+            if (max(gap_x, 0) > max(1, 0.25 * w) or max(gap_y, 0) > max(1, 0.25 * h)
+                    or not 0.7 <= w / h <= 1.4 or max(wa * ha, wb * hb) > 0.8 * w * h):
+                continue
+            fx, fy, fw, fh = (x0 + off[0]) * s, (y0 + off[1]) * s, w * s, h * s
+            if max(fw, fh) / 2.0 > cfg.max_radius_px:
+                continue
+            sub = labels[y0:y1, x0:x1]
+            comp = ((sub == a) | (sub == b)).astype(np.uint8)
+            c = self._measure(bgr, comp, (fx, fy, fw, fh), 'orange', s, thr_base, lboxes,
+                              float(np.count_nonzero(comp)) / (w * h), None, whole=True)
+            if c is None or not c.refined:
+                continue
+            used |= {a, b}
+            out = [o for o in out if o is not parts[a] and o is not parts[b]] + [c]
+        return out, used
 
     def _peel(self, comp: np.ndarray, prob: np.ndarray, org: tuple[int, int],
               bgr: np.ndarray, s: int, thr_base: np.ndarray, lboxes: list
@@ -1831,18 +1892,22 @@ class ColorDetector:
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
                  thr_base: np.ndarray, lboxes: list, blob_fill: float = 1.0,
-                 peel_t: Optional[float] = None) -> Optional[Candidate]:
-        """Refine a blob at full resolution, measure its shape, score and filter it."""
+                 peel_t: Optional[float] = None, whole: bool = False
+                 ) -> Optional[Candidate]:
+        """Refine a blob at full resolution, measure its shape, score and filter it.
+        ``whole``: the blob's face is all its pieces (fragments of one sign), not the
+        largest."""
         cfg = self.config
         if cfg.method == 'learned' and color == 'orange':
             # judged on colour alone first (LiDAR support never changes a box the colour
             # evidence already makes); only a blob that fails is re-judged with relaxed
             # filters inside its ROI, and must then lie mostly inside that ROI
-            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, peel_t=peel_t)
+            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, peel_t=peel_t,
+                                     whole=whole)
             roi = self._in_roi(box, s, lboxes) if c is None else None
             if roi is not None:
                 c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True,
-                                         peel_t=peel_t)
+                                         peel_t=peel_t, whole=whole)
                 if c is not None and _contained((c.x, c.y, c.w, c.h), roi) < cfg.roi_contain:
                     c = None
             return c
@@ -1947,7 +2012,8 @@ class ColorDetector:
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                         thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
                         t_override: Optional[float] = None,
-                        peel_t: Optional[float] = None) -> Optional[Candidate]:
+                        peel_t: Optional[float] = None, whole: bool = False
+                        ) -> Optional[Candidate]:
         """The learned orange path: hysteresis region, sign structure, shape-derived box.
 
         1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
@@ -2013,13 +2079,18 @@ class ColorDetector:
         n, lab, st, _ = _components(face)
         if n <= 1:
             return None
-        j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
-        region_j = lab == j
+        if whole:
+            # the pieces of one face (a symbol cuts it from edge to edge)
+            region_j = face > 0
+            bx0, by0, bw, bh = cv2.boundingRect(face)
+        else:
+            j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+            region_j = lab == j
+            bx0, by0, bw, bh = (int(v) for v in st[j, :4])
         pix = (region_j & (weak > 0)).astype(np.uint8)
         area = float(np.count_nonzero(pix))
         if area < cfg.min_area_px:
             return None
-        bx0, by0, bw, bh = (int(v) for v in st[j, :4])
         if bw < 2 or bh < 2:
             return None
         pts = cv2.findNonZero(pix)
@@ -2201,6 +2272,7 @@ class ColorDetector:
                     outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
+            cand.refined = kind == 'warning' and sub is not None
         elif grow > 0:
             gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy

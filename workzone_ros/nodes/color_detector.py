@@ -42,7 +42,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
-         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel')
+         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -78,8 +78,10 @@ class ColorDetectorNode(WorkzoneNode):
               'on the brightness (off: the orange hull grown by the border)'),
         Param('peel', True, 'a blob that passes no test is judged again at higher likelihood '
               'levels (a sign merged with an orange dusk sky or a brick wall)'),
-        Param('pixel_boxes', True, 'refined boxes in whole pixels: the pixels whose centres '
-              'lie inside the measured outline, as box labels are drawn (off: sub-pixel)'),
+        Param('pixel_boxes', True, 'refined boxes in whole pixels: the pixels the measured '
+              'outline covers more than half, as box labels are drawn (off: sub-pixel)'),
+        Param('merge_fragments', True, 'two blobs that are the pieces of one diamond (a '
+              'symbol cuts the face from edge to edge) are measured as one'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

@@ -182,6 +182,10 @@ class DetectorConfig:
             ~1.09), no side more than
             ``diamond_clamp`` x the half-diagonal + ``diamond_clamp_px`` beyond the face's
             own pixels (blur eats about a pixel of a small face's mask);
+            ``diamond_luma``: the edges measured on the luma, not the HSV value (the max of
+            B, G, R is not linear in a blend of the orange margin and a background brighter
+            in another channel, a blue sky: with blur the face came out up to 0.8 px larger
+            against a bright background than against a dark one);
             ``diamond_border_rel`` / ``diamond_margin_rel``: the border line's width and the
             outer margin normal to the edge, in face half-diagonals.  The measured face may
             differ from the mask's diamond by up to ``diamond_max_change`` (the mask's
@@ -341,6 +345,7 @@ class DetectorConfig:
     diamond_ring_test: bool = True
     diamond_refine: bool = True
     diamond_face_ratio: float = 1.115
+    diamond_luma: bool = True
     diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
     diamond_margin_rel: float = 0.022
@@ -1984,15 +1989,18 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
         return cand
 
-    def _value(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int
-               ) -> tuple[np.ndarray, int, int]:
-        """The HSV value (max of the colour-balanced B, G, R) of ``bgr[y0:y1, x0:x1]``
-        clipped to the frame, and the clipped window's origin."""
+    def _value(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int,
+               luma: bool = False) -> tuple[np.ndarray, int, int]:
+        """The HSV value (max of the colour-balanced B, G, R), or with ``luma`` the luma
+        (a weighted sum: linear in a blend of two colours, as the edge model is), of
+        ``bgr[y0:y1, x0:x1]`` clipped to the frame, and the clipped window's origin."""
         H, W = bgr.shape[:2]
         x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)
         win = bgr[y0:y1, x0:x1]
         if self._gains is not None:
             win = apply_gains(win, self._gains)
+        if luma:
+            return cv2.cvtColor(np.ascontiguousarray(win), cv2.COLOR_BGR2GRAY), x0, y0
         return cv2.max(cv2.max(win[..., 0], win[..., 1]), win[..., 2]), x0, y0
 
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
@@ -2203,7 +2211,8 @@ class ColorDetector:
                 # the brightness a few pixels beyond the blob's window (a mask fit that is
                 # too large puts the edge's outer samples outside it)
                 pad = 3 + int(0.25 * max(bw, bh))
-                value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad)
+                value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
+                                            cfg.diamond_luma)
                 dx, dy = x0 - ox, y0 - oy
                 # start from the mask's diamond, else from the diamond in the hull's box (a
                 # big symbol that cuts the face leaves the mask's corners far off), else

@@ -54,11 +54,14 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    the colour table cannot place them, because a blend of the orange face and its black
    border line keeps the face's hue and saturation; the mask-based box stays the fallback
    when an edge shows no face-to-border step.  A diamond is fitted to its eight edge points
-   (:func:`fit_rhombus`, outliers dropped), and refined boxes are given in whole pixels, the
-   pixels whose centres lie inside the measured outline, as box labels are drawn
+   (:func:`fit_rhombus`, outliers dropped) measured on the luma (``diamond_luma``: linear in
+   a blend of two colours, as the edge model), and refined boxes are given in whole pixels,
+   the pixels the measured outline covers more than half, as box labels are drawn
    (``pixel_boxes``).  A blob that passes no test is judged again at higher likelihood
    levels (``peel``): a sign merged with a surface of nearly its colour, an orange dusk
-   sky or a brick wall, is where the likelihood is clearly higher.  The confidence
+   sky or a brick wall, is where the likelihood is clearly higher; two blobs that are the
+   pieces of one diamond cut by its symbol are measured as one (``merge_fragments``).  The
+   confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.

@@ -739,9 +739,7 @@ def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7):
     hm = np.array([[s, 0, x - 0.5 + 0.5 * s], [0, s, y - 0.5 + 0.5 * s], [0, 0, 1.0]])
     warped = cv2.warpPerspective(art, hm, (img.shape[1], img.shape[0]),
                                  flags=cv2.INTER_LINEAR)
-    # premultiplied art, composited as the renderer does
-    alpha = warped[..., 3:].astype(np.float32) / 255.0
-    out = np.clip(img * (1 - alpha) + warped[..., :3], 0, 255).astype(np.uint8)
+    out = np.clip(signart.over(warped, img), 0, 255).astype(np.uint8)
     ys, xs = np.nonzero(warped[..., 3] > 127.5)
     box = (int(xs.min()), int(ys.min()), int(xs.max() + 1 - xs.min()),
            int(ys.max() + 1 - ys.min()))

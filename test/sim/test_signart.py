@@ -14,8 +14,7 @@ KEYS = [c.key for c in signs.CATALOGUE if c.key != 'background']
 
 def _on_grey(face: np.ndarray, size: int = 64) -> np.ndarray:
     """Composite a face on grey in a size x size square (what a classifier crop sees)."""
-    a = face[..., 3:].astype(np.float32) / 255.0
-    rgb = face[..., :3] + 128.0 * (1 - a)           # premultiplied art
+    rgb = signart.over(face, 128.0)
     out = np.full((size, size, 3), 128.0, np.float32)
     h, w = rgb.shape[:2]
     oy, ox = (size - h) // 2, (size - w) // 2

@@ -1845,7 +1845,7 @@ class ColorDetector:
         """
         cfg = self.config
         keys = sorted((i for i, c in parts.items() if c is None or not c.refined),
-                      key=lambda i: -int(stats[i, cv2.CC_STAT_AREA]))[:max(cfg.merge_max, 0)]
+                      key=lambda i: -int(stats[i, cv2.CC_STAT_AREA]))[:cfg.merge_max]
         used: set = set()
         for a, b in itertools.combinations(keys, 2):
             if a in used or b in used:

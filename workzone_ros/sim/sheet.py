@@ -187,12 +187,10 @@ def make_contact_sheet(out_png: str, seed: int = 0, crop_distance: float = 25.0)
         hit = next((h for h in res.signs if h.class_key == key), None)
         cam = _crop(res.image, hit.box) if hit else np.zeros((64, 64, 3), np.uint8)
         art = signart.sign_face(key, 64)
-        a = art[..., 3:].astype(np.float32) / 255.0
         raw = np.full((64, 64, 3), 128, np.uint8)
         hh, ww = art.shape[:2]
         oy, ox = (64 - hh) // 2, (64 - ww) // 2
-        # premultiplied art: its colour already carries the alpha
-        raw[oy:oy + hh, ox:ox + ww] = (art[..., :3] + 128 * (1 - a)).astype(np.uint8)
+        raw[oy:oy + hh, ox:ox + ww] = signart.over(art, 128).astype(np.uint8)
         pair = np.hstack([cam, np.full((64, 2, 3), 255, np.uint8), raw])
         pair = cv2.resize(pair, None, fx=2, fy=2, interpolation=cv2.INTER_NEAREST)
         tile = _label(pair, key[:22], 0.4)

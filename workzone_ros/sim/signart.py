@@ -24,7 +24,7 @@ from workzone_ros.core import signs
 __all__ = [
     'ORANGE', 'YELLOW', 'RED', 'GREEN', 'WHITE', 'BLACK', 'OTHER_VARIANTS', 'MIRROR_PAIRS',
     'face_aspect', 'face_size', 'sign_face', 'outline', 'drum_texture', 'ORANGE_HSV',
-    'ORANGE_VARIATION', 'sheeting_orange', 'uses_orange',
+    'ORANGE_VARIATION', 'sheeting_orange', 'uses_orange', 'over',
 ]
 
 # Sheeting colours (BGR).  MUTCD fluorescent orange, yellow, red, green, white, black.
@@ -406,6 +406,14 @@ def _cached(key: str, size_px: int, speed: int, variant: str,
     face = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)
     face.flags.writeable = False
     return face
+
+
+def over(face: np.ndarray, background) -> np.ndarray:
+    """``face`` (premultiplied BGRA art, as :func:`sign_face` returns it, or a warp of it)
+    composited over ``background`` (an image of its size or a grey level): float32 BGR,
+    ``background * (1 - alpha) + colour``."""
+    alpha = face[..., 3:].astype(np.float32) / 255.0
+    return background * (1 - alpha) + face[..., :3]
 
 
 def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None,

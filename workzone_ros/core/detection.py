@@ -354,6 +354,9 @@ class DetectorConfig:
     diamond_margin_rel: float = 0.022
     diamond_max_change: float = 0.4
     diamond_hold: float = 0.97
+    diamond_search: bool = True
+    search_min_px: float = 12.0
+    search_min_share: float = 0.6
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -434,6 +437,8 @@ class DetectorConfig:
             raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
         if not 0.0 < self.diamond_max_change <= 1.0:
             raise ValueError('diamond_max_change must be in (0, 1] (a share of the half-diagonal)')
+        if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
+            raise ValueError('search_min_px must be >= 0 and search_min_share in [0, 1.5]')
         if not 0.0 < self.diamond_hold <= 1.0:
             raise ValueError('diamond_hold must be in (0, 1] (a share of the orange pixels)')
         if not all(0.0 < float(v) < 1.0 for v in self.peel_levels):
@@ -1160,6 +1165,101 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
                 and aspect[0] <= a / b <= aspect[1]):
             return None
     return cx, cy, a, b
+
+
+_SQRT_HALF = math.sqrt(0.5)
+
+
+def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a: float,
+                   count: int = 3, inner_frac: float = 0.2, line_rel: float = 0.07,
+                   step: float = 1.08, min_contrast: float = 0.15
+                   ) -> list[tuple[float, float, float, float, float]]:
+    """Where in ``value`` a face diamond with a dark line around it could be: a coarse search.
+
+    A start for :func:`refine_diamond` when the mask gives none (a sign merged with a surface
+    of about its colour, an orange dusk sky behind it: the mask's diamond is the union's).
+    In coordinates turned by 45 deg an upright diamond with equal half-diagonals is a square,
+    so box sums over a turned copy of ``value`` (one integral image) score every centre in
+    ``box = (x, y, w, h)`` and every half-diagonal from ``min_a`` to ``max_a`` (steps of
+    ``step``) at once: per side, the face's band ``inner_frac`` of the half-side wide just
+    inside against the line's band (``line_rel`` of the half-diagonal, a pixel at least)
+    just outside, on the middle 70 % of the side; the score is the smallest of the four
+    relative contrasts ``(inside - outside) / inside`` (every edge must show the face-to-line
+    step; a merged surface shows none on its side).  Returns up to ``count`` diamonds
+    ``(cx, cy, a, a, score)`` (continuous coordinates), best first, at least
+    ``min_contrast``, none within about a third of its size of a better one."""
+    img = np.ascontiguousarray(value, dtype=np.float32)
+    H, W = img.shape[:2]
+    c = _SQRT_HALF
+    side = int(math.ceil((W + H) * c)) + 3
+    voff = H * c + 1.0
+    # turned[v, u] = value at x = (u + v - voff) c, y = (u - v + voff) c (pixel centres);
+    # outside the window -1 (counted out of every band)
+    mat = np.array([[c, c, -c * voff], [c, -c, c * voff]], np.float32)
+    turned = cv2.warpAffine(img, mat, (side, side), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
+    inside = turned >= 0
+    sums = cv2.integral(np.where(inside, turned, 0.0).astype(np.float64))
+    counts = cv2.integral(inside.astype(np.uint8))
+    # candidate centres: corners of the turned grid (a square's sides on pixel boundaries)
+    # whose continuous (x, y) lies in the box
+    x, y, w, h = (float(v) for v in box[:4])
+    corners = np.array([(x, y), (x + w, y), (x, y + h), (x + w, y + h)]) - 0.5
+    us_, vs_ = (corners[:, 0] + corners[:, 1]) * c, (corners[:, 0] - corners[:, 1]) * c + voff
+    uu, vv = np.meshgrid(np.arange(max(0, int(us_.min())), min(side, int(us_.max()) + 2) + 1),
+                         np.arange(max(0, int(vs_.min())), min(side, int(vs_.max()) + 2) + 1))
+    px = (uu + vv - 1.0 - voff) * c + 0.5
+    py = (uu - vv + voff) * c + 0.5
+    sel = (px >= x) & (px <= x + w) & (py >= y) & (py <= y + h)
+    uc, vc = uu[sel], vv[sel]
+
+    def mean(u0, u1, v0, v1):
+        s_ = sums[v1, u1] - sums[v0, u1] - sums[v1, u0] + sums[v0, u0]
+        n_ = counts[v1, u1] - counts[v0, u1] - counts[v1, u0] + counts[v0, u0]
+        return s_ / np.maximum(n_, 1), n_ > 0
+
+    lo, hi = max(2.0, min_a * c), max_a * c
+    found = []
+    sizes = sorted({int(round(lo * step ** k)) for k in range(
+        int(math.log(max(hi / lo, 1.0)) / math.log(step)) + 1)})
+    for s in sizes:
+        d = max(1, int(round(inner_frac * s)))
+        lw = max(1, int(round(line_rel * s / c)))
+        t = max(1, int(round(0.7 * s)))
+        ok = (uc >= s + lw) & (vc >= s + lw) & (uc + s + lw <= side) & (vc + s + lw <= side)
+        u, v = uc[ok], vc[ok]
+        if u.size == 0:
+            continue
+        score = None
+        # left, right (u = uc -/+ s), top, bottom (v = vc -/+ s): face band, line band
+        for fb, lb in (((u - s, u - s + d, v - t, v + t), (u - s - lw, u - s, v - t, v + t)),
+                       ((u + s - d, u + s, v - t, v + t), (u + s, u + s + lw, v - t, v + t)),
+                       ((u - t, u + t, v - s, v - s + d), (u - t, u + t, v - s - lw, v - s)),
+                       ((u - t, u + t, v + s - d, v + s), (u - t, u + t, v + s, v + s + lw))):
+            mf, nf = mean(*fb)
+            ml, nl = mean(*lb)
+            sc = np.where(nf & nl, (mf - ml) / np.maximum(mf, 1.0), -1.0)
+            score = sc if score is None else np.minimum(score, sc)
+        good = score >= min_contrast
+        if good.any():
+            found.append((score[good], u[good], v[good], np.full(int(good.sum()), s)))
+    if not found:
+        return []
+    score, u, v, s = (np.concatenate(a) for a in zip(*found))
+    picked: list[int] = []
+    for i in np.argsort(-score, kind='stable')[:400]:
+        if any(abs(u[i] - u[j]) + abs(v[i] - v[j]) <= 0.35 * max(s[i], s[j])
+               and abs(s[i] / s[j] - 1.0) < 0.25 for j in picked):
+            continue
+        picked.append(int(i))
+        if len(picked) >= count:
+            break
+    out = []
+    for i in picked:
+        cx = (u[i] + v[i] - 1.0 - voff) * c + 0.5
+        cy = (u[i] - v[i] + voff) * c + 0.5
+        out.append((float(cx), float(cy), s[i] / c, s[i] / c, float(score[i])))
+    return out
 
 
 def diamond_holds(pixels: np.ndarray, face: Sequence[float], ratio: float, share: float,
@@ -2201,19 +2301,33 @@ class ColorDetector:
                                   relaxed=relaxed, **feats)
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
         outer = None
+        refine = cfg.diamond_refine and cfg.border_frac > 0 and cfg.diamond_scale > 0
+        search = refine and cfg.diamond_search and min(bw, bh) >= cfg.search_min_px
+        searched = False
+        pad = 3 + int(0.25 * max(bw, bh))
+        if kind == 'regulatory' and search and aspect < cfg.ext_min_aspect:
+            # about square and filled: a diamond merged with a surface of about its colour
+            # (an orange dusk sky above it) is a rectangle to the hull
+            value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
+                                        cfg.diamond_luma)
+            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px)
+            if sub is not None:
+                kind = cand.kind = 'warning'
+                searched = True
+                fd = None
         if kind == 'warning' and cfg.diamond_scale > 0:
             # the box of the diamond fitted to the face (its corners extrapolated from the
             # straight edges), scaled out by the border; never further out than
             # ``diamond_clamp`` x the half-diagonal beyond the face seen (an occluded or
             # cut-off corner is not invented)
-            if row_fit is None:
-                row_fit = fit_diamond(face_px)
-            fd = fit_diamond_2d(face_px, rows=row_fit)
-            sub = None
-            if cfg.diamond_refine and cfg.border_frac > 0:
+            if not searched:
+                if row_fit is None:
+                    row_fit = fit_diamond(face_px)
+                fd = fit_diamond_2d(face_px, rows=row_fit)
+                sub = None
+            if refine and not searched:
                 # the brightness a few pixels beyond the blob's window (a mask fit that is
                 # too large puts the edge's outer samples outside it)
-                pad = 3 + int(0.25 * max(bw, bh))
                 value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
                                             cfg.diamond_luma)
                 dx, dy = x0 - ox, y0 - oy
@@ -2238,8 +2352,13 @@ class ColorDetector:
                                          cfg.diamond_hold):
                             break
                         sub = None
+                if sub is None and search:
+                    # no start from the mask works: look for the face's outline in the
+                    # brightness itself
+                    sub = self._search_diamond(value, dx, dy, (bx0, by0, bw, bh), face_px)
+                    searched = sub is not None
             if self.debug is not None:
-                self.debug[-1]['refined'] = sub is not None
+                self.debug[-1].update(refined=sub is not None, searched=searched)
             diamond = None
             if sub is not None:
                 # the face's edges from the brightness profile; the sign is the face
@@ -2279,8 +2398,10 @@ class ColorDetector:
                     r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
                     t_ = max(cy_ - k_ * b_, by0 - cb)
                     u_ = min(cy_ + k_ * b_, by0 + bh + cb)
-                # a fit far from the face's own box is not trusted
-                if 0.8 * bw <= r_ - l_ <= 1.5 * bw + 2 and 0.8 * bh <= u_ - t_ <= 1.5 * bh + 2:
+                # a fit far from the face's own box is not trusted (a searched one may be
+                # smaller: the blob took in a surface beyond the sign)
+                lo_ = 0.0 if searched else 0.8
+                if lo_ * bw <= r_ - l_ <= 1.5 * bw + 2 and lo_ * bh <= u_ - t_ <= 1.5 * bh + 2:
                     outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
@@ -2325,6 +2446,40 @@ class ColorDetector:
                 if cfg.pixel_boxes:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
         return cand
+
+    def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
+                        face_px: np.ndarray) -> Optional[tuple[float, float, float, float]]:
+        """The face diamond refined from :func:`diamond_starts` in the blob's box (``box`` and
+        ``face_px`` in the blob's window, ``value`` offset from it by ``(dx, dy)``), or None.
+
+        Kept only when :func:`refine_diamond` converges from a start, the catalogue's outline
+        holds the blob's orange pixels but on one or two sides (:func:`diamond_holds`: the
+        merged surface lies beyond those) and the sign is at least ``search_min_share`` of
+        the blob's shorter side and lies inside the blob's box but for the corner clamp's
+        allowance (``diamond_clamp``, ``diamond_clamp_px``)."""
+        cfg = self.config
+        bx, by, bw, bh = box
+        shrink = 1.0 - 0.5 * (cfg.diamond_border_rel + cfg.diamond_margin_rel) * math.sqrt(2)
+        for cx, cy, a, _, _ in diamond_starts(value, (bx + dx, by + dy, bw, bh),
+                                              0.3 * min(bw, bh), 0.6 * max(bw, bh)):
+            # refine_diamond starts from a face with its line and margin: undo its shrink
+            sub = refine_diamond(value, (cx, cy, a / shrink, a / shrink),
+                                 cfg.diamond_border_rel, cfg.diamond_margin_rel,
+                                 cfg.diamond_max_change)
+            if sub is None:
+                continue
+            sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
+            k, (scx, scy, sa, sb) = cfg.diamond_face_ratio, sub
+            # the sign within the blob's box but for the corner clamp's allowance (a sign
+            # larger than its blob is a fragment's: merge_fragments measures those)
+            ca = cfg.diamond_clamp * sa + cfg.diamond_clamp_px + 0.5
+            cb = cfg.diamond_clamp * sb + cfg.diamond_clamp_px + 0.5
+            if (scx - k * sa >= bx - ca and scx + k * sa <= bx + bw + ca
+                    and scy - k * sb >= by - cb and scy + k * sb <= by + bh + cb
+                    and 2 * k * min(sa, sb) >= cfg.search_min_share * min(bw, bh)
+                    and diamond_holds(face_px, sub, k, cfg.diamond_hold)):
+                return sub
+        return None
 
     def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float
                        ) -> tuple[float, float]:

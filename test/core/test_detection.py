@@ -309,7 +309,9 @@ def test_config_validation():
                       ({'diamond_hold': 1.5}, 'diamond_hold'),
                       ({'peel_levels': (0.8, 1.2)}, 'peel_levels'),
                       ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol'),
-                      ({'merge_max': -1}, 'merge_max')):
+                      ({'merge_max': -1}, 'merge_max'), ({'hold_sat': -0.1}, 'hold_sat'),
+                      ({'search_min_px': -1.0}, 'search_min_px'),
+                      ({'search_min_share': 2.0}, 'search_min_share')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1419,3 +1421,45 @@ def test_refined_diamond_size_does_not_depend_on_the_background(detector):
     # width + height, sub-pixel boxes, mean of 12 placements (measured 0.70 vs 1.48)
     assert abs(gaps[True]) <= 0.9
     assert abs(gaps[False]) > abs(gaps[True]) + 0.5
+
+
+def _dull_surface(img, x0, y0, x1, y1, colour=(10, 70, 150), seed=4):
+    """A dull orange surface (an orange dusk sky, a rusty wall) with a little texture."""
+    rng = np.random.default_rng(seed)
+    patch = np.array(colour, np.float32) + rng.normal(0, 4, (y1 - y0, x1 - x0, 3))
+    img[y0:y1, x0:x1] = np.clip(patch, 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize('size', [30, 44])
+def test_diamond_merged_with_a_surface_of_its_colour_found_in_the_brightness(detector, size):
+    """A sign in front of a dull orange surface that reaches down over its upper edges (an
+    orange dusk sky behind it): the colour blob is the union, no start from its mask
+    refines, so the face diamond is searched in the brightness; the box is within about a
+    pixel of the label, where without ``diamond_search`` it takes in the surface."""
+    x, y = 400.3, 140.6
+    img = _background()
+    _dull_surface(img, int(x - 0.15 * size), int(y - 0.2 * size), int(x + 1.15 * size),
+                  int(y + 0.35 * size), (60, 120, 200))
+    img, gt = _render_art_sign(img, x, y, size)
+    g = Box(*map(float, gt))
+    errs = []
+    for det in (detector, detector.with_config(diamond_search=False)):
+        d = _one(det.detect(img), gt, 0.4)
+        assert d.kind == 'warning'
+        errs.append(max(abs(d.box.x - g.x), abs(d.box.y - g.y), abs(d.box.x2 - g.x2),
+                        abs(d.box.y2 - g.y2)))
+    assert errs[0] <= 1.0 and errs[1] >= 3.0, errs
+
+
+def test_diamond_starts_in_a_merged_region():
+    """The coarse search of a face diamond with a dark line around it: in a window where a
+    bright surface of the face's brightness joins the sign's upper edges, the best start is
+    within 1.5 px and 12 % of the face; a flat or line-free window gives none."""
+    cx, cy, a_face = 45.3, 50.2, 14.5
+    img = _sign_value(cx, cy, a_face, shape=(90, 90), bg=60.0)
+    img[20:45, 25:66] = np.maximum(img[20:45, 25:66], 150.0)      # the surface above
+    starts = dt.diamond_starts(img, (25, 20, 41, 48), 0.3 * 41, 0.6 * 48)
+    assert starts
+    sx, sy, sa, sb, score = starts[0]
+    assert abs(sx - cx) <= 1.5 and abs(sy - cy) <= 1.5 and abs(sa / a_face - 1) <= 0.12
+    assert dt.diamond_starts(np.full((60, 60), 120, np.float32), (10, 10, 40, 40), 8, 20) == []

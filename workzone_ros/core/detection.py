@@ -60,7 +60,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    (``pixel_boxes``).  A blob that passes no test is judged again at higher likelihood
    levels (``peel``): a sign merged with a surface of nearly its colour, an orange dusk
    sky or a brick wall, is where the likelihood is clearly higher; two blobs that are the
-   pieces of one diamond cut by its symbol are measured as one (``merge_fragments``).  The
+   pieces of one diamond cut by its symbol are measured as one (``merge_fragments``).  When
+   no start from the mask refines (a sign merged with an orange dusk sky: the mask's diamond
+   is the union's, and an about square union's hull is a rectangle's), the face diamond is
+   searched in the brightness itself (``diamond_search``, :func:`diamond_starts`).  The
    confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
@@ -196,8 +199,12 @@ class DetectorConfig:
             with a big symbol), but the catalogue's outline must then hold the orange
             pixels (:func:`diamond_holds`, ``diamond_hold`` of them in at least two of
             the four quadrants): a sign whose orange reaches beyond it all round has its
-            line further in than the catalogue's and is not measured so.  When an edge
-            shows no face-to-border step, or the check fails, the mask fit
+            line further in than the catalogue's and is not measured so, unless the orange
+            left out is not the face's own (``hold_sat``: fewer than half of those pixels,
+            and of the ring just beyond the outline on every side, as saturated as
+            ``hold_sat`` x the face's median and not dark; a dusk or rain background
+            blended with the sign's edge; 0 = off; :meth:`ColorDetector._holds`).  When an
+            edge shows no face-to-border step, or the check fails, the mask fit
             (``diamond_scale``) is used.
         rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
             right and top edges measured on the brightness (:func:`refine_rectangle`), moved
@@ -218,6 +225,15 @@ class DetectorConfig:
             symbol cuts a diamond's face from edge to edge
             (:meth:`ColorDetector._merge_fragments`); the pieces give way when that makes a
             refined warning diamond.
+        diamond_search, search_min_px, search_min_share: when no start from the mask
+            refines, a blob at least ``search_min_px`` on its shorter side (a warning, or
+            an about square blob the hull took for a rectangle) is searched for a face
+            diamond with a dark line round it in the brightness (:func:`diamond_starts`:
+            box sums over a copy turned by 45 deg, where the diamond is a square); the best
+            starts are refined, and a result is kept when the catalogue's outline holds the
+            blob's orange but on one or two sides, lies inside the blob's box but for the
+            corner clamp and is at least ``search_min_share`` of the blob's shorter side
+            (a sign merged with an orange dusk sky or a rusty wall: the blob is the union).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -354,6 +370,7 @@ class DetectorConfig:
     diamond_margin_rel: float = 0.022
     diamond_max_change: float = 0.4
     diamond_hold: float = 0.97
+    hold_sat: float = 0.85
     diamond_search: bool = True
     search_min_px: float = 12.0
     search_min_share: float = 0.6
@@ -437,6 +454,8 @@ class DetectorConfig:
             raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
         if not 0.0 < self.diamond_max_change <= 1.0:
             raise ValueError('diamond_max_change must be in (0, 1] (a share of the half-diagonal)')
+        if not 0.0 <= self.hold_sat <= 1.5:
+            raise ValueError('hold_sat must be in [0, 1.5] (a share of the face saturation)')
         if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
             raise ValueError('search_min_px must be >= 0 and search_min_share in [0, 1.5]')
         if not 0.0 < self.diamond_hold <= 1.0:
@@ -1172,7 +1191,7 @@ _SQRT_HALF = math.sqrt(0.5)
 
 def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a: float,
                    count: int = 3, inner_frac: float = 0.2, line_rel: float = 0.07,
-                   step: float = 1.08, min_contrast: float = 0.15
+                   step: float = 1.08, min_contrast: float = 0.05
                    ) -> list[tuple[float, float, float, float, float]]:
     """Where in ``value`` a face diamond with a dark line around it could be: a coarse search.
 
@@ -2310,7 +2329,8 @@ class ColorDetector:
             # (an orange dusk sky above it) is a rectangle to the hull
             value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
                                         cfg.diamond_luma)
-            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px)
+            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,
+                                      hsv)
             if sub is not None:
                 kind = cand.kind = 'warning'
                 searched = True
@@ -2348,14 +2368,14 @@ class ColorDetector:
                         # the catalogue's outline must hold the sign's orange pixels: a
                         # sign whose border line lies further in (a wider margin) is not
                         # measured so
-                        if diamond_holds(face_px, sub, cfg.diamond_face_ratio,
-                                         cfg.diamond_hold):
+                        if self._holds(hsv, face_px, sub):
                             break
                         sub = None
                 if sub is None and search:
                     # no start from the mask works: look for the face's outline in the
                     # brightness itself
-                    sub = self._search_diamond(value, dx, dy, (bx0, by0, bw, bh), face_px)
+                    sub = self._search_diamond(value, dx, dy, (bx0, by0, bw, bh), face_px,
+                                              hsv)
                     searched = sub is not None
             if self.debug is not None:
                 self.debug[-1].update(refined=sub is not None, searched=searched)
@@ -2447,16 +2467,63 @@ class ColorDetector:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
         return cand
 
+    def _holds(self, hsv: np.ndarray, face_px: np.ndarray, sub: Sequence[float],
+               searched: bool = False) -> bool:
+        """Whether the refined face ``sub`` (the blob's window) is the sign's.
+
+        Yes when the catalogue's outline holds the blob's orange (:func:`diamond_holds`).
+        Otherwise the orange it leaves out must be a background blended into, or merged
+        with, the blob's edge (a dusk sky, rain haze; 5-30 % of a blob's pixels beyond a
+        correct outline on tuning renders), not the face's own orange: fewer than half of
+        the blob's pixels beyond the outline, and fewer than half of the ring half a pixel
+        to a pixel and a half beyond it on each of the four sides, are as saturated as
+        ``hold_sat`` x the face's median and not dark.  A fit on a line further in than the
+        catalogue's (a wider margin, a symbol's edge) leaves the face's orange out.  A
+        ``searched`` face (:func:`diamond_starts`) is always judged so: the search also
+        finds diamonds inside a larger face."""
+        cfg = self.config
+        k = cfg.diamond_face_ratio
+        if not searched and diamond_holds(face_px, sub, k, cfg.diamond_hold):
+            return True
+        if cfg.hold_sat <= 0:
+            return False
+        cx, cy, a, b = (float(v) for v in sub[:4])
+        h, w = face_px.shape
+        ys, xs = np.mgrid[0:h, 0:w]
+        rel = np.abs(xs + 0.5 - cx) / a + np.abs(ys + 0.5 - cy) / b
+        dist = (rel - k) * (a * b / math.hypot(a, b))      # px beyond the outline
+        ring = (dist >= 0.5) & (dist <= 1.5)
+        inside = (face_px > 0) & (rel <= 0.9)               # the face's own orange
+        if not ring.any() or not inside.any():
+            return False
+        sat, val = hsv[..., 1], hsv[..., 2]
+        # the face's own orange: as saturated and not dark (a legend stroke is neither)
+        face_like = (sat >= cfg.hold_sat * float(_median(sat[inside]))) & (
+            val >= cfg.dark_rel * float(_median(val[inside])))
+        # the blob's pixels beyond the outline: a background blended in or merged with the
+        # sign is not the face's orange; a fit inside a larger face leaves that face out
+        beyond = (face_px > 0) & (dist >= 0.5)
+        if np.count_nonzero(face_like & beyond) >= 0.5 * max(np.count_nonzero(beyond), 1):
+            return False
+        # and on every side the ring just beyond the outline is not the face's orange
+        for right in (False, True):
+            for low in (False, True):
+                side = ring & ((xs + 0.5 > cx) == right) & ((ys + 0.5 > cy) == low)
+                if np.count_nonzero(face_like & side) >= 0.5 * max(np.count_nonzero(side), 1):
+                    return False
+        return True
+
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
-                        face_px: np.ndarray) -> Optional[tuple[float, float, float, float]]:
+                        face_px: np.ndarray, hsv: np.ndarray
+                        ) -> Optional[tuple[float, float, float, float]]:
         """The face diamond refined from :func:`diamond_starts` in the blob's box (``box`` and
         ``face_px`` in the blob's window, ``value`` offset from it by ``(dx, dy)``), or None.
 
         Kept only when :func:`refine_diamond` converges from a start, the catalogue's outline
         holds the blob's orange pixels but on one or two sides (:func:`diamond_holds`: the
         merged surface lies beyond those) and the sign is at least ``search_min_share`` of
-        the blob's shorter side and lies inside the blob's box but for the corner clamp's
-        allowance (``diamond_clamp``, ``diamond_clamp_px``)."""
+        the blob's shorter side, and the face lies inside the blob's box (a pixel for the
+        blend)."""
         cfg = self.config
         bx, by, bw, bh = box
         shrink = 1.0 - 0.5 * (cfg.diamond_border_rel + cfg.diamond_margin_rel) * math.sqrt(2)
@@ -2470,14 +2537,13 @@ class ColorDetector:
                 continue
             sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
             k, (scx, scy, sa, sb) = cfg.diamond_face_ratio, sub
-            # the sign within the blob's box but for the corner clamp's allowance (a sign
-            # larger than its blob is a fragment's: merge_fragments measures those)
-            ca = cfg.diamond_clamp * sa + cfg.diamond_clamp_px + 0.5
-            cb = cfg.diamond_clamp * sb + cfg.diamond_clamp_px + 0.5
-            if (scx - k * sa >= bx - ca and scx + k * sa <= bx + bw + ca
-                    and scy - k * sb >= by - cb and scy + k * sb <= by + bh + cb
+            # the face (orange) within the blob's box, a pixel for the blend: a face larger
+            # than its blob is a fragment's (merge_fragments measures those) or the sign's
+            # outer edge against a dark background taken for the face's
+            if (scx - sa >= bx - 1 and scx + sa <= bx + bw + 1
+                    and scy - sb >= by - 1 and scy + sb <= by + bh + 1
                     and 2 * k * min(sa, sb) >= cfg.search_min_share * min(bw, bh)
-                    and diamond_holds(face_px, sub, k, cfg.diamond_hold)):
+                    and self._holds(hsv, face_px, sub, searched=True)):
                 return sub
         return None
 

@@ -42,7 +42,8 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
-         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments')
+         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
+         'diamond_search')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -82,6 +83,8 @@ class ColorDetectorNode(WorkzoneNode):
               'outline covers more than half, as box labels are drawn (off: sub-pixel)'),
         Param('merge_fragments', True, 'two blobs that are the pieces of one diamond (a '
               'symbol cuts the face from edge to edge) are measured as one'),
+        Param('diamond_search', True, 'when no start from the mask refines, the face '
+              'diamond is searched in the brightness (a sign merged with an orange dusk sky)'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

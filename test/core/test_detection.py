@@ -1476,7 +1476,7 @@ def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detec
     x, y = 380.3, 130.6
     img = _background()
     rim = np.zeros(img.shape[:2], np.uint8)
-    c, r = (x + size / 2, y + size / 2), size / 2 + 5.0
+    c, r = (x + size / 2, y + size / 2), size / 2 + 4.0
     cv2.fillConvexPoly(rim, np.round(np.array([(c[0], c[1] - r), (c[0] + r, c[1]),
                                                (c[0], c[1] + r), (c[0] - r, c[1])])
                                      ).astype(np.int32), 1)

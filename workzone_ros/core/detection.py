@@ -227,7 +227,7 @@ class DetectorConfig:
             refined warning diamond.
         diamond_search, search_min_px, search_min_share: when no start from the mask
             refines, a blob at least ``search_min_px`` on its shorter side (a warning, or
-            an about square blob the hull took for a rectangle) is searched for a face
+            a blob the hull took for a rectangle) is searched for a face
             diamond with a dark line round it in the brightness (:func:`diamond_starts`:
             box sums over a copy turned by 45 deg, where the diamond is a square); the best
             starts are refined, and a result is kept when the catalogue's outline holds the
@@ -2324,9 +2324,10 @@ class ColorDetector:
         search = refine and cfg.diamond_search and min(bw, bh) >= cfg.search_min_px
         searched = False
         pad = 3 + int(0.25 * max(bw, bh))
-        if kind == 'regulatory' and search and aspect < cfg.ext_min_aspect:
-            # about square and filled: a diamond merged with a surface of about its colour
-            # (an orange dusk sky above it) is a rectangle to the hull
+        if kind == 'regulatory' and search:
+            # a diamond merged with a surface of about its colour (an orange dusk sky above
+            # or beside it) is a rectangle to the hull; a real rectangle's orange beyond any
+            # diamond found in it is the face's own, which _holds rejects
             value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
                                         cfg.diamond_luma)
             sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,

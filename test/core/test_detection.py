@@ -1490,3 +1490,21 @@ def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detec
         errs.append(max(abs(d.box.x - g.x), abs(d.box.y - g.y), abs(d.box.x2 - g.x2),
                         abs(d.box.y2 - g.y2)))
     assert errs[0] <= 1.0 and errs[1] >= 2.0, errs
+
+
+def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
+    """A guardrail across a sign's lower tip: the labels are the whole sign's, and the
+    refined outline (from the edges above the rail) gives its bottom within about a pixel
+    (``refined_clamp``); clamped to the face seen (0.12 of the half-diagonal) it stops
+    short."""
+    size = 44
+    img, gt = _render_art_sign(_background(), 380.4, 120.3, size)
+    rail_top = int(120.3 + 0.86 * size)
+    img[rail_top:rail_top + 8, 340:470] = (150, 152, 150)
+    g = Box(*map(float, gt))
+    bottoms = []
+    for det in (detector, detector.with_config(refined_clamp=0.12)):
+        d = _one(det.detect(img), gt, 0.7)
+        assert d.kind == 'warning'
+        bottoms.append(g.y2 - d.box.y2)
+    assert abs(bottoms[0]) <= 1.0 and bottoms[1] >= 2.0, bottoms

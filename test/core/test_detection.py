@@ -1508,3 +1508,26 @@ def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
         assert d.kind == 'warning'
         bottoms.append(g.y2 - d.box.y2)
     assert abs(bottoms[0]) <= 1.0 and bottoms[1] >= 2.0, bottoms
+
+
+def test_faded_sign_peeled_core_refined_from_a_grown_start():
+    """A rain-washed warning sign (a simulator frame, seed 6005 frame 2, as the camera's
+    JPEG: ``test/data/rain_faded_sign.jpg``) with the default model: its blob passes no test,
+    the core peeled from it covers less than the face, and only a start grown from the core
+    (``diamond_grown_starts``) refines; the box is then the label's (403, 211, 22, 22)
+    within a pixel, the core's box otherwise (IoU 0.54)."""
+    from pathlib import Path
+    from workzone_ros.resources import config_path
+    from workzone_ros.tools import eval_color as ec
+    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    model = cm.load_model(config_path('models/color_orange.npz'))
+    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    gt = Box(403.0, 211.0, 22.0, 22.0)
+    d = _one(det.detect(img), (403, 211, 22, 22), 0.9)
+    assert d.kind == 'warning'
+    assert max(abs(d.box.x - gt.x), abs(d.box.y - gt.y), abs(d.box.x2 - gt.x2),
+               abs(d.box.y2 - gt.y2)) <= 1.0
+    det = det.with_config(diamond_grown_starts=())
+    det.reset()
+    assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7

@@ -207,7 +207,10 @@ class DetectorConfig:
             ``hold_sat`` x the face's median and not dark; a dusk or rain background
             blended with the sign's edge; 0 = off; :meth:`ColorDetector._holds`).  When an
             edge shows no face-to-border step, or the check fails, the mask fit
-            (``diamond_scale``) is used.
+            (``diamond_scale``) is used.  Starts: the mask's diamond, the hull box's, the
+            rows' own, then for a peeled core (:meth:`ColorDetector._peel`: a faded or
+            rain-washed face merged with its surroundings) its box grown by each of
+            ``diamond_grown_starts``.
         rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
             right and top edges measured on the brightness (:func:`refine_rectangle`), moved
             out by the border line and margin (``rect_border_rel`` + ``rect_margin_rel`` of
@@ -364,6 +367,7 @@ class DetectorConfig:
     diamond_scale: float = 1.07
     diamond_clamp: float = 0.12
     refined_clamp: float = 0.25
+    diamond_grown_starts: tuple = (1.2, 1.4)
     diamond_ring_test: bool = True
     diamond_refine: bool = True
     diamond_face_ratio: float = 1.115
@@ -457,6 +461,8 @@ class DetectorConfig:
             raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
         if not 0.0 < self.diamond_max_change <= 1.0:
             raise ValueError('diamond_max_change must be in (0, 1] (a share of the half-diagonal)')
+        if any(not 1.0 <= g <= 3.0 for g in self.diamond_grown_starts):
+            raise ValueError('diamond_grown_starts must be factors in [1, 3]')
         if not 0.0 <= self.refined_clamp <= 2.0:
             raise ValueError('refined_clamp must be in [0, 2] (half-diagonals)')
         if not 0.0 <= self.hold_sat <= 1.5:
@@ -2365,6 +2371,13 @@ class ColorDetector:
                 starts.append((bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * bw, 0.5 * bh))
                 if row_fit is not None and row_fit[4] >= 0.5:
                     starts.append(row_fit[:4])
+                # else, for a peeled core (it lost the face's parts nearest the surface's
+                # colour: a faded or rain-washed face), from its box grown; not for a whole
+                # blob (the sign's outer edge against a dark background would be taken for
+                # a face's edge against its line)
+                if peel_t is not None:
+                    starts += [(bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * g * bw, 0.5 * g * bh)
+                               for g in cfg.diamond_grown_starts]
                 for st in starts:
                     sub = refine_diamond(value, (st[0] + dx, st[1] + dy, st[2], st[3]),
                                          cfg.diamond_border_rel, cfg.diamond_margin_rel,

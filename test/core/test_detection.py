@@ -1517,6 +1517,7 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     (``diamond_grown_starts``) refines; the box is then the label's (403, 211, 22, 22)
     within a pixel, the core's box otherwise (IoU 0.54)."""
     from pathlib import Path
+
     from workzone_ros.resources import config_path
     from workzone_ros.tools import eval_color as ec
     data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)

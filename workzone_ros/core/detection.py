@@ -232,7 +232,8 @@ class DetectorConfig:
             refined warning diamond.
         diamond_search, search_min_px, search_min_share: when no start from the mask
             refines, a blob at least ``search_min_px`` on its shorter side (a warning, or
-            a blob the hull took for a rectangle) is searched for a face
+            a blob the hull took for a rectangle when neither the two-colour extension nor
+            the rectangle refinement measured it) is searched for a face
             diamond with a dark line round it in the brightness (:func:`diamond_starts`:
             box sums over a copy turned by 45 deg, where the diamond is a square); the best
             starts are refined, and a result is kept when the catalogue's outline holds the
@@ -2334,32 +2335,19 @@ class ColorDetector:
         refine = cfg.diamond_refine and cfg.border_frac > 0 and cfg.diamond_scale > 0
         search = refine and cfg.diamond_search and min(bw, bh) >= cfg.search_min_px
         searched = False
-        pad = 3 + int(0.25 * max(bw, bh))
-        if kind == 'regulatory' and search:
-            # a diamond merged with a surface of about its colour (an orange dusk sky above
-            # or beside it) is a rectangle to the hull; a real rectangle's orange beyond any
-            # diamond found in it is the face's own, which _holds rejects
-            value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
-                                        cfg.diamond_luma)
-            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,
-                                      hsv)
-            if sub is not None:
-                kind = cand.kind = 'warning'
-                searched = True
-                fd = None
         if kind == 'warning' and cfg.diamond_scale > 0:
             # the box of the diamond fitted to the face (its corners extrapolated from the
             # straight edges), scaled out by the border; never further out than
             # ``diamond_clamp`` x the half-diagonal beyond the face seen (an occluded or
             # cut-off corner is not invented)
-            if not searched:
-                if row_fit is None:
-                    row_fit = fit_diamond(face_px)
-                fd = fit_diamond_2d(face_px, rows=row_fit)
-                sub = None
-            if refine and not searched:
+            if row_fit is None:
+                row_fit = fit_diamond(face_px)
+            fd = fit_diamond_2d(face_px, rows=row_fit)
+            sub = None
+            if refine:
                 # the brightness a few pixels beyond the blob's window (a mask fit that is
                 # too large puts the edge's outer samples outside it)
+                pad = 3 + int(0.25 * max(bw, bh))
                 value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
                                             cfg.diamond_luma)
                 dx, dy = x0 - ox, y0 - oy
@@ -2420,32 +2408,10 @@ class ColorDetector:
                     k_ = 1.0
                 diamond = (*fd[:4], k_, 0.0)
             if diamond is not None:
-                cx_, cy_, a_, b_, k_, pad = diamond
-                # a peeled core lost the face's parts nearest the surface's colour: its own
-                # box bounds the sign more loosely
-                cl_ = cfg.diamond_clamp if peel_t is None else max(cfg.diamond_clamp,
-                                                                     cfg.peel_clamp)
-                if sub is not None:
-                    # a refined outline is the sign's from its own edges: a hidden tip (a
-                    # guardrail across the lower corner) is extrapolated further
-                    cl_ = max(cl_, cfg.refined_clamp)
-                ca, cb = cl_ * a_ + pad, cl_ * b_ + pad
-                if sub is not None and cfg.pixel_boxes:
-                    # whole pixels, as box labels are drawn (the window's origin is a
-                    # whole pixel)
-                    l_, t_, r_, u_ = diamond_pixel_box(cx_, cy_, k_ * a_, k_ * b_)
-                    l_, t_ = max(l_, round(bx0 - ca)), max(t_, round(by0 - cb))
-                    r_, u_ = min(r_, round(bx0 + bw + ca)), min(u_, round(by0 + bh + cb))
-                else:
-                    l_ = max(cx_ - k_ * a_, bx0 - ca)
-                    r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
-                    t_ = max(cy_ - k_ * b_, by0 - cb)
-                    u_ = min(cy_ + k_ * b_, by0 + bh + cb)
-                # a fit far from the face's own box is not trusted (a searched one may be
-                # smaller: the blob took in a surface beyond the sign)
-                lo_ = 0.0 if searched else 0.8
-                if lo_ * bw <= r_ - l_ <= 1.5 * bw + 2 and lo_ * bh <= u_ - t_ <= 1.5 * bh + 2:
-                    outer = (x0 + l_, y0 + t_, r_ - l_, u_ - t_)
+                box_ = self._diamond_box(diamond, sub is not None, (bx0, by0, bw, bh),
+                                         peel_t, searched)
+                if box_ is not None:
+                    outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
             cand.refined = kind == 'warning' and sub is not None
@@ -2488,7 +2454,60 @@ class ColorDetector:
                 cand.h = bottom - cand.y
                 if cfg.pixel_boxes:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
+                return cand
+        if kind == 'regulatory' and search and not cand.extended:
+            # neither a two-colour sign nor a measured rectangle: a diamond merged with a
+            # surface of about its colour (an orange dusk sky above or beside it) is a
+            # rectangle to the hull
+            pad = 3 + int(0.25 * max(bw, bh))
+            value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
+                                        cfg.diamond_luma)
+            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,
+                                       hsv)
+            box_ = None if sub is None else self._diamond_box(
+                (*sub, cfg.diamond_face_ratio, cfg.diamond_clamp_px), True,
+                (bx0, by0, bw, bh), peel_t, True)
+            if entry is not None:
+                entry['searched'] = box_ is not None
+            if box_ is not None:
+                cand.x, cand.y, cand.w, cand.h = x0 + box_[0], y0 + box_[1], box_[2], box_[3]
+                cand.kind, cand.refined = 'warning', True
         return cand
+
+    def _diamond_box(self, diamond: tuple, refined: bool, blob: tuple,
+                     peel_t: Optional[float], searched: bool) -> Optional[tuple]:
+        """The sign's box ``(x, y, w, h)`` in the blob's window from ``diamond = (cx, cy, a,
+        b, scale, pad)`` (the face and the sign / face ratio): no side further out than the
+        clamp (``diamond_clamp``, ``peel_clamp`` for a peeled core, ``refined_clamp`` for a
+        refined face, x the half-diagonal, + ``pad``) beyond the blob's box ``blob``; a
+        refined outline in whole pixels (``pixel_boxes``).  None when far from the blob's
+        own box (a ``searched`` face may be smaller: the blob took in a surface beyond the
+        sign)."""
+        cfg = self.config
+        bx0, by0, bw, bh = blob
+        cx_, cy_, a_, b_, k_, pad = diamond
+        # a peeled core lost the face's parts nearest the surface's colour: its own box
+        # bounds the sign more loosely
+        cl_ = cfg.diamond_clamp if peel_t is None else max(cfg.diamond_clamp, cfg.peel_clamp)
+        if refined:
+            # a refined outline is the sign's from its own edges: a hidden tip (a guardrail
+            # across the lower corner) is extrapolated further
+            cl_ = max(cl_, cfg.refined_clamp)
+        ca, cb = cl_ * a_ + pad, cl_ * b_ + pad
+        if refined and cfg.pixel_boxes:
+            # whole pixels, as box labels are drawn (the window's origin is a whole pixel)
+            l_, t_, r_, u_ = diamond_pixel_box(cx_, cy_, k_ * a_, k_ * b_)
+            l_, t_ = max(l_, round(bx0 - ca)), max(t_, round(by0 - cb))
+            r_, u_ = min(r_, round(bx0 + bw + ca)), min(u_, round(by0 + bh + cb))
+        else:
+            l_ = max(cx_ - k_ * a_, bx0 - ca)
+            r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
+            t_ = max(cy_ - k_ * b_, by0 - cb)
+            u_ = min(cy_ + k_ * b_, by0 + bh + cb)
+        lo_ = 0.0 if searched else 0.8
+        if lo_ * bw <= r_ - l_ <= 1.5 * bw + 2 and lo_ * bh <= u_ - t_ <= 1.5 * bh + 2:
+            return l_, t_, r_ - l_, u_ - t_
+        return None
 
     def _holds(self, hsv: np.ndarray, face_px: np.ndarray, sub: Sequence[float],
                searched: bool = False) -> bool:

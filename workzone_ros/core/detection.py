@@ -181,11 +181,14 @@ class DetectorConfig:
         diamond_refine: the warning box from the face's edges measured on the brightness
             at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
-            the face-to-border blend), times ``diamond_face_ratio`` (the catalogue's sign /
-            face half-diagonal is 1 / 0.8876 = 1.1266 and the art is drawn so; 1.115 on
-            tuning renders since the simulator's fixes, where the anti-aliased outline
-            and the face measured on 16-40 px signs come out at 1.11-1.13; MUTCD signs
-            ~1.09), no side more than
+            the face-to-border blend) less ``diamond_edge_bias`` px, times
+            ``diamond_face_ratio`` (the catalogue's sign / face half-diagonal is 1 / 0.8876
+            = 1.1266 and the art is drawn so; MUTCD signs ~1.09).  The bias: a blurred
+            border line puts the measured face edge about a quarter pixel out whatever the
+            sign's size (on 427 fully visible refined tuning signs the whole-pixel labels
+            are fitted better by 1.1266 (a - 0.27) than by any ratio alone; the ratio 1.115
+            used before made small signs' boxes too large and large signs' too small;
+            exact unblurred geometry wants 0).  No side more than
             ``refined_clamp`` x the half-diagonal + ``diamond_clamp_px`` beyond the face's
             own pixels (blur eats about a pixel of a small face's mask; the labels are the
             whole sign's, and a refined outline extrapolates a tip a guardrail hides: 0.25
@@ -230,7 +233,8 @@ class DetectorConfig:
             symbol cuts a diamond's face from edge to edge
             (:meth:`ColorDetector._merge_fragments`); the pieces give way when that makes a
             refined warning diamond.
-        diamond_search, search_min_px, search_min_share: when no start from the mask
+        diamond_search, search_min_px, search_min_share, search_min_contrast: when no
+            start from the mask
             refines, a blob at least ``search_min_px`` on its shorter side (a warning, or
             a blob the hull took for a rectangle when neither the two-colour extension nor
             the rectangle refinement measured it) is searched for a face
@@ -239,7 +243,9 @@ class DetectorConfig:
             starts are refined, and a result is kept when the catalogue's outline holds the
             blob's orange but on one or two sides, lies inside the blob's box but for the
             corner clamp and is at least ``search_min_share`` of the blob's shorter side
-            (a sign merged with an orange dusk sky or a rusty wall: the blob is the union).
+            (a sign merged with an orange dusk sky or a rusty wall: the blob is the union);
+            its edges must show a clear line (``search_min_contrast`` of the face: the
+            sign's outer edge against dark asphalt is no face's edge).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -371,7 +377,8 @@ class DetectorConfig:
     diamond_grown_starts: tuple = (1.2, 1.4)
     diamond_ring_test: bool = True
     diamond_refine: bool = True
-    diamond_face_ratio: float = 1.115
+    diamond_face_ratio: float = 1.1266
+    diamond_edge_bias: float = 0.25
     diamond_luma: bool = True
     diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
@@ -382,6 +389,7 @@ class DetectorConfig:
     diamond_search: bool = True
     search_min_px: float = 12.0
     search_min_share: float = 0.6
+    search_min_contrast: float = 0.4
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -468,6 +476,8 @@ class DetectorConfig:
             raise ValueError('refined_clamp must be in [0, 2] (half-diagonals)')
         if not 0.0 <= self.hold_sat <= 1.5:
             raise ValueError('hold_sat must be in [0, 1.5] (a share of the face saturation)')
+        if not 0.0 < self.search_min_contrast < 1.0:
+            raise ValueError('search_min_contrast must be in (0, 1) (a share of the face)')
         if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
             raise ValueError('search_min_px must be >= 0 and search_min_share in [0, 1.5]')
         if not 0.0 < self.diamond_hold <= 1.0:
@@ -2367,9 +2377,7 @@ class ColorDetector:
                     starts += [(bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * g * bw, 0.5 * g * bh)
                                for g in cfg.diamond_grown_starts]
                 for st in starts:
-                    sub = refine_diamond(value, (st[0] + dx, st[1] + dy, st[2], st[3]),
-                                         cfg.diamond_border_rel, cfg.diamond_margin_rel,
-                                         cfg.diamond_max_change)
+                    sub = self._refine(value, (st[0] + dx, st[1] + dy, st[2], st[3]))
                     if sub is not None:
                         sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
                         # the catalogue's outline must hold the sign's orange pixels: a
@@ -2555,6 +2563,19 @@ class ColorDetector:
                     return False
         return True
 
+    def _refine(self, value: np.ndarray, start: Sequence[float], min_contrast: float = 0.25
+                ) -> Optional[tuple[float, float, float, float]]:
+        """:func:`refine_diamond` with this detector's settings; the face's half-diagonals
+        less ``diamond_edge_bias`` (a blurred border line puts the measured edge that far
+        out, whatever the sign's size)."""
+        cfg = self.config
+        sub = refine_diamond(value, start, cfg.diamond_border_rel, cfg.diamond_margin_rel,
+                             cfg.diamond_max_change, min_contrast)
+        if sub is None:
+            return None
+        bias = cfg.diamond_edge_bias
+        return sub[0], sub[1], sub[2] - bias, sub[3] - bias
+
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
                         face_px: np.ndarray, hsv: np.ndarray
                         ) -> Optional[tuple[float, float, float, float]]:
@@ -2572,9 +2593,9 @@ class ColorDetector:
         for cx, cy, a, _, _ in diamond_starts(value, (bx + dx, by + dy, bw, bh),
                                               0.3 * min(bw, bh), 0.6 * max(bw, bh)):
             # refine_diamond starts from a face with its line and margin: undo its shrink
-            sub = refine_diamond(value, (cx, cy, a / shrink, a / shrink),
-                                 cfg.diamond_border_rel, cfg.diamond_margin_rel,
-                                 cfg.diamond_max_change)
+            # a clear line: the sign's outer edge against a dark grey background (asphalt
+            # below a low sign) is no face's edge
+            sub = self._refine(value, (cx, cy, a / shrink, a / shrink), cfg.search_min_contrast)
             if sub is None:
                 continue
             sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])

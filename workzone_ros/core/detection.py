@@ -211,9 +211,10 @@ class DetectorConfig:
             blended with the sign's edge; 0 = off; :meth:`ColorDetector._holds`).  When an
             edge shows no face-to-border step, or the check fails, the mask fit
             (``diamond_scale``) is used.  Starts: the mask's diamond, the hull box's, the
-            rows' own, then for a peeled core (:meth:`ColorDetector._peel`: a faded or
-            rain-washed face merged with its surroundings) its box grown by each of
-            ``diamond_grown_starts``.
+            rows' own, then the hull's box grown by each of ``diamond_grown_starts`` (a
+            faded or rain-washed face whose mask, or a peeled core,
+            :meth:`ColorDetector._peel`, covers less than the face; on a whole blob such a
+            fit needs ``search_min_contrast``).
         rect_refine: a regulatory (rectangular) blob's box from its orange part's left,
             right and top edges measured on the brightness (:func:`refine_rectangle`), moved
             out by the border line and margin (``rect_border_rel`` + ``rect_margin_rel`` of
@@ -244,8 +245,8 @@ class DetectorConfig:
             blob's orange but on one or two sides, lies inside the blob's box but for the
             corner clamp and is at least ``search_min_share`` of the blob's shorter side
             (a sign merged with an orange dusk sky or a rusty wall: the blob is the union);
-            its edges must show a clear line (``search_min_contrast`` of the face: the
-            sign's outer edge against dark asphalt is no face's edge).
+            its edges must show a clear line (``search_min_contrast`` of the face, 0.5: the
+            sign's outer edge against dark asphalt, 0.37 in a test, is no face's edge).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -389,7 +390,7 @@ class DetectorConfig:
     diamond_search: bool = True
     search_min_px: float = 12.0
     search_min_share: float = 0.6
-    search_min_contrast: float = 0.4
+    search_min_contrast: float = 0.5
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -2369,15 +2370,16 @@ class ColorDetector:
                 starts.append((bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * bw, 0.5 * bh))
                 if row_fit is not None and row_fit[4] >= 0.5:
                     starts.append(row_fit[:4])
-                # else, for a peeled core (it lost the face's parts nearest the surface's
-                # colour: a faded or rain-washed face), from its box grown; not for a whole
-                # blob (the sign's outer edge against a dark background would be taken for
-                # a face's edge against its line)
-                if peel_t is not None:
-                    starts += [(bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * g * bw, 0.5 * g * bh)
-                               for g in cfg.diamond_grown_starts]
-                for st in starts:
-                    sub = self._refine(value, (st[0] + dx, st[1] + dy, st[2], st[3]))
+                # else from the hull's box grown (a faded or rain-washed face whose mask,
+                # or a peeled core, covers less than the face); such a fit on a whole blob
+                # needs a clear line (``search_min_contrast``: the sign's outer edge
+                # against a dark background is no face's edge against its line)
+                n_mask = len(starts)
+                starts += [(bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * g * bw, 0.5 * g * bh)
+                           for g in cfg.diamond_grown_starts]
+                for i_, st in enumerate(starts):
+                    mc_ = 0.25 if i_ < n_mask or peel_t is not None else cfg.search_min_contrast
+                    sub = self._refine(value, (st[0] + dx, st[1] + dy, st[2], st[3]), mc_)
                     if sub is not None:
                         sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
                         # the catalogue's outline must hold the sign's orange pixels: a

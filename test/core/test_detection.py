@@ -311,7 +311,8 @@ def test_config_validation():
                       ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol'),
                       ({'merge_max': -1}, 'merge_max'), ({'hold_sat': -0.1}, 'hold_sat'),
                       ({'search_min_px': -1.0}, 'search_min_px'),
-                      ({'search_min_share': 2.0}, 'search_min_share')):
+                      ({'search_min_share': 2.0}, 'search_min_share'),
+                      ({'diamond_blur_sigma': 0.0}, 'diamond_blur_sigma')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1533,3 +1534,24 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     det = det.with_config(diamond_grown_starts=())
     det.reset()
     assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7
+
+
+def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):
+    """``refine_diamond(..., info=)`` reports the edges' fitted blur: small for a sharp face,
+    1 px or more for a defocused one; the detector then takes ``diamond_blur_bias`` off the
+    face (heavily blurred faces are measured further out), ``diamond_edge_bias`` otherwise."""
+    cx, cy, a_face = 45.3, 44.8, 16.0
+    sharp, soft = _sign_value(cx, cy, a_face, blur=0.5), _sign_value(cx, cy, a_face, blur=2.0)
+    infos = []
+    for img in (sharp, soft):
+        info = {}
+        assert dt.refine_diamond(img, (cx, cy, a_face, a_face), max_change=0.4,
+                                 info=info) is not None
+        infos.append(info['blur'])
+    assert infos[0] < 1.0 <= infos[1], infos
+    cfg = detector.config
+    for img, bias in ((sharp, cfg.diamond_edge_bias), (soft, cfg.diamond_blur_bias)):
+        raw = dt.refine_diamond(img, (cx, cy, a_face, a_face), cfg.diamond_border_rel,
+                                cfg.diamond_margin_rel, cfg.diamond_max_change)
+        got = detector._refine(img, (cx, cy, a_face, a_face))
+        assert got[2] == pytest.approx(raw[2] - bias) and got[3] == pytest.approx(raw[3] - bias)

@@ -181,14 +181,17 @@ class DetectorConfig:
         diamond_refine: the warning box from the face's edges measured on the brightness
             at sub-pixel precision
             (:func:`refine_diamond`; the orange mask's edge is wherever the value gate cuts
-            the face-to-border blend) less ``diamond_edge_bias`` px, times
+            the face-to-border blend) less ``diamond_edge_bias`` px (``diamond_blur_bias``
+            when the edges' fitted blur is ``diamond_blur_sigma`` px or more), times
             ``diamond_face_ratio`` (the catalogue's sign / face half-diagonal is 1 / 0.8876
             = 1.1266 and the art is drawn so; MUTCD signs ~1.09).  The bias: a blurred
             border line puts the measured face edge about a quarter pixel out whatever the
             sign's size (on 427 fully visible refined tuning signs the whole-pixel labels
             are fitted better by 1.1266 (a - 0.27) than by any ratio alone; the ratio 1.115
             used before made small signs' boxes too large and large signs' too small;
-            exact unblurred geometry wants 0).  No side more than
+            exact unblurred geometry wants 0; faces blurred by 1 px or more, defocus or
+            motion, are measured further out: 0.5 there, 0.2 otherwise, tuning recall
+            +0.003 at the same precision).  No side more than
             ``refined_clamp`` x the half-diagonal + ``diamond_clamp_px`` beyond the face's
             own pixels (blur eats about a pixel of a small face's mask; the labels are the
             whole sign's, and a refined outline extrapolates a tip a guardrail hides: 0.25
@@ -379,7 +382,9 @@ class DetectorConfig:
     diamond_ring_test: bool = True
     diamond_refine: bool = True
     diamond_face_ratio: float = 1.1266
-    diamond_edge_bias: float = 0.25
+    diamond_edge_bias: float = 0.2
+    diamond_blur_bias: float = 0.5
+    diamond_blur_sigma: float = 1.0
     diamond_luma: bool = True
     diamond_clamp_px: float = 1.0
     diamond_border_rel: float = 0.0676
@@ -473,6 +478,10 @@ class DetectorConfig:
             raise ValueError('diamond_max_change must be in (0, 1] (a share of the half-diagonal)')
         if any(not 1.0 <= g <= 3.0 for g in self.diamond_grown_starts):
             raise ValueError('diamond_grown_starts must be factors in [1, 3]')
+        if not (-1.0 <= self.diamond_edge_bias <= 2.0 and -1.0 <= self.diamond_blur_bias <= 2.0
+                and self.diamond_blur_sigma > 0):
+            raise ValueError('diamond_edge_bias / diamond_blur_bias must be in [-1, 2] px and '
+                             'diamond_blur_sigma > 0')
         if not 0.0 <= self.refined_clamp <= 2.0:
             raise ValueError('refined_clamp must be in [0, 2] (half-diagonals)')
         if not 0.0 <= self.hold_sat <= 1.5:
@@ -1022,7 +1031,8 @@ def _unit_steps(n: int) -> np.ndarray:
 
 
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
-                  min_contrast: float, missing: bool = False) -> Optional[np.ndarray]:
+                  min_contrast: float, missing: bool = False,
+                  blur: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
     """Offsets (px, along each inward normal) of the face edge on several edge stretches.
 
     ``segs`` (n, 2, 2): each stretch's end points; ``nvecs`` (n, 2): its inward unit
@@ -1031,7 +1041,8 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     :func:`_profile_bases`, a parabola through the neighbouring offsets.  None when a
     stretch lies outside ``img`` or shows no face-to-border step (contrast below
     ``min_contrast`` of the face at every offset); with ``missing`` such a stretch's offset
-    is NaN instead (None when no stretch shows one).
+    is NaN instead (None when no stretch shows one).  ``blur`` (n,), when given, receives
+    each stretch's fitted blur width (px, NaN without a step).
     """
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
@@ -1073,6 +1084,9 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     good = inner & np.isfinite(den) & (den > 0)
     off[good] += 0.05 * (s_m[good] - s_p[good]) / den[good]
     off[~seen] = np.nan
+    if blur is not None:
+        # each stretch's best blur width (NaN without a step)
+        blur[:] = np.where(seen, _PROFILE_SIG[isg], np.nan)
     return off
 
 
@@ -1132,7 +1146,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
                    margin_rel: float = 0.022, max_change: float = 0.15,
                    min_contrast: float = 0.25, iterations: int = 2,
                    aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 1.0,
-                   max_lost: int = 2) -> Optional[tuple[float, float, float, float]]:
+                   max_lost: int = 2, info: Optional[dict] = None
+                   ) -> Optional[tuple[float, float, float, float]]:
     """Sub-pixel edges of a warning diamond's orange face from the brightness image.
 
     ``fit = (cx, cy, a, b)``: a first estimate of the face's diamond (continuous
@@ -1153,6 +1168,9 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     The defaults are the catalogue's diamond art: the border line's inner edge at 0.888 of
     the half-diagonal, the line 0.06 of the half-diagonal wide (normal to the edge), the
     orange margin outside it.
+
+    ``info``, when given, receives ``blur``: the median of the edge stretches' fitted blur
+    widths (px) in the last round.
 
     Returns ``(cx, cy, a, b)`` or None when a stretch shows no face-to-border step
     (contrast below ``min_contrast`` of the face's brightness: washed out, heavily blurred)
@@ -1189,7 +1207,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
                         axis=2).reshape(8, 2, 2)
         mids = (p0[:, None] + _STRETCH_MID[None, :, None] * e[:, None]).reshape(8, 2)
         nv = np.repeat(nvec, 2, axis=0)
-        off = _edge_offsets(img, segs, nv, prof, min_contrast, missing=True)
+        blur = np.empty(8)
+        off = _edge_offsets(img, segs, nv, prof, min_contrast, missing=True, blur=blur)
         if off is None:
             return None
         # a stretch without a face-to-border step (a symbol or legend reaching the edge)
@@ -1206,6 +1225,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         if not (abs(a / a_in - 1) <= max_change and abs(b / b_in - 1) <= max_change
                 and aspect[0] <= a / b <= aspect[1]):
             return None
+    if info is not None:
+        info['blur'] = float(np.nanmedian(blur))       # the last round's stretches
     return cx, cy, a, b
 
 
@@ -2345,7 +2366,7 @@ class ColorDetector:
         outer = None
         refine = cfg.diamond_refine and cfg.border_frac > 0 and cfg.diamond_scale > 0
         search = refine and cfg.diamond_search and min(bw, bh) >= cfg.search_min_px
-        searched = False
+        searched = larger = False
         if kind == 'warning' and cfg.diamond_scale > 0:
             # the box of the diamond fitted to the face (its corners extrapolated from the
             # straight edges), scaled out by the border; never further out than
@@ -2385,7 +2406,10 @@ class ColorDetector:
                         # the catalogue's outline must hold the sign's orange pixels: a
                         # sign whose border line lies further in (a wider margin) is not
                         # measured so
-                        if self._holds(hsv, face_px, sub):
+                        held = self._holds(hsv, face_px, sub)
+                        if held:
+                            # a blob that took in a blended rim is larger than the sign
+                            larger = held == 'blended'
                             break
                         sub = None
                 if sub is None and search:
@@ -2419,7 +2443,7 @@ class ColorDetector:
                 diamond = (*fd[:4], k_, 0.0)
             if diamond is not None:
                 box_ = self._diamond_box(diamond, sub is not None, (bx0, by0, bw, bh),
-                                         peel_t, searched)
+                                         peel_t, searched or larger)
                 if box_ is not None:
                     outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
         if outer is not None:
@@ -2485,14 +2509,14 @@ class ColorDetector:
         return cand
 
     def _diamond_box(self, diamond: tuple, refined: bool, blob: tuple,
-                     peel_t: Optional[float], searched: bool) -> Optional[tuple]:
+                     peel_t: Optional[float], larger: bool) -> Optional[tuple]:
         """The sign's box ``(x, y, w, h)`` in the blob's window from ``diamond = (cx, cy, a,
         b, scale, pad)`` (the face and the sign / face ratio): no side further out than the
         clamp (``diamond_clamp``, ``peel_clamp`` for a peeled core, ``refined_clamp`` for a
         refined face, x the half-diagonal, + ``pad``) beyond the blob's box ``blob``; a
         refined outline in whole pixels (``pixel_boxes``).  None when far from the blob's
-        own box (a ``searched`` face may be smaller: the blob took in a surface beyond the
-        sign)."""
+        own box (it may be ``larger`` than the sign when it took in a surface or a blended
+        rim beyond it: a searched face, or one :meth:`_holds` calls blended)."""
         cfg = self.config
         bx0, by0, bw, bh = blob
         cx_, cy_, a_, b_, k_, pad = diamond
@@ -2514,13 +2538,13 @@ class ColorDetector:
             r_ = min(cx_ + k_ * a_, bx0 + bw + ca)
             t_ = max(cy_ - k_ * b_, by0 - cb)
             u_ = min(cy_ + k_ * b_, by0 + bh + cb)
-        lo_ = 0.0 if searched else 0.8
+        lo_ = 0.0 if larger else 0.8
         if lo_ * bw <= r_ - l_ <= 1.5 * bw + 2 and lo_ * bh <= u_ - t_ <= 1.5 * bh + 2:
             return l_, t_, r_ - l_, u_ - t_
         return None
 
     def _holds(self, hsv: np.ndarray, face_px: np.ndarray, sub: Sequence[float],
-               searched: bool = False) -> bool:
+               searched: bool = False) -> Optional[str]:
         """Whether the refined face ``sub`` (the blob's window) is the sign's.
 
         Yes when the catalogue's outline holds the blob's orange (:func:`diamond_holds`).
@@ -2532,13 +2556,14 @@ class ColorDetector:
         ``hold_sat`` x the face's median and not dark.  A fit on a line further in than the
         catalogue's (a wider margin, a symbol's edge) leaves the face's orange out.  A
         ``searched`` face (:func:`diamond_starts`) is always judged so: the search also
-        finds diamonds inside a larger face."""
+        finds diamonds inside a larger face.  Returns ``'holds'``, ``'blended'`` (the blob
+        is larger than the sign) or None."""
         cfg = self.config
         k = cfg.diamond_face_ratio
         if not searched and diamond_holds(face_px, sub, k, cfg.diamond_hold):
-            return True
+            return 'holds'
         if cfg.hold_sat <= 0:
-            return False
+            return None
         cx, cy, a, b = (float(v) for v in sub[:4])
         h, w = face_px.shape
         ys, xs = np.mgrid[0:h, 0:w]
@@ -2547,7 +2572,7 @@ class ColorDetector:
         ring = (dist >= 0.5) & (dist <= 1.5)
         inside = (face_px > 0) & (rel <= 0.9)               # the face's own orange
         if not ring.any() or not inside.any():
-            return False
+            return None
         sat, val = hsv[..., 1], hsv[..., 2]
         # the face's own orange: as saturated and not dark (a legend stroke is neither)
         face_like = (sat >= cfg.hold_sat * float(_median(sat[inside]))) & (
@@ -2556,26 +2581,30 @@ class ColorDetector:
         # sign is not the face's orange; a fit inside a larger face leaves that face out
         beyond = (face_px > 0) & (dist >= 0.5)
         if np.count_nonzero(face_like & beyond) >= 0.5 * max(np.count_nonzero(beyond), 1):
-            return False
+            return None
         # and on every side the ring just beyond the outline is not the face's orange
         for right in (False, True):
             for low in (False, True):
                 side = ring & ((xs + 0.5 > cx) == right) & ((ys + 0.5 > cy) == low)
                 if np.count_nonzero(face_like & side) >= 0.5 * max(np.count_nonzero(side), 1):
-                    return False
-        return True
+                    return None
+        return 'blended'
 
     def _refine(self, value: np.ndarray, start: Sequence[float], min_contrast: float = 0.25
                 ) -> Optional[tuple[float, float, float, float]]:
         """:func:`refine_diamond` with this detector's settings; the face's half-diagonals
         less ``diamond_edge_bias`` (a blurred border line puts the measured edge that far
-        out, whatever the sign's size)."""
+        out, whatever the sign's size), or less ``diamond_blur_bias`` when the edges' fitted
+        blur is ``diamond_blur_sigma`` px or more."""
         cfg = self.config
+        info: dict = {}
         sub = refine_diamond(value, start, cfg.diamond_border_rel, cfg.diamond_margin_rel,
-                             cfg.diamond_max_change, min_contrast)
+                             cfg.diamond_max_change, min_contrast, info=info)
         if sub is None:
             return None
         bias = cfg.diamond_edge_bias
+        if info.get('blur', 0.0) >= cfg.diamond_blur_sigma:
+            bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
         return sub[0], sub[1], sub[2] - bias, sub[3] - bias
 
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,

@@ -23,8 +23,13 @@ def _stop(proc):
         proc.wait(5)
 
 
+# The SIGKILL tests run without the launcher's 32 MB shared-memory profile: a SIGKILLed
+# participant leaves its segment in /dev/shm (Fast DDS's default one is 0.5 MB).
+NO_SHM = ('--dds-profile', 'none')
+
+
 def test_restart_after_sigkill_and_clean_sigint():
-    proc = start_cli('launch', '--nodes', f'{DUMMY},second={DUMMY}')
+    proc = start_cli('launch', '--nodes', f'{DUMMY},second={DUMMY}', *NO_SHM)
     reader = LineReader(proc)
     try:
         first = _started(reader, 'dummy_node')
@@ -46,7 +51,7 @@ def test_restart_after_sigkill_and_clean_sigint():
 
 
 def test_children_die_with_a_killed_launcher():
-    proc = start_cli('launch', '--nodes', DUMMY)
+    proc = start_cli('launch', '--nodes', DUMMY, *NO_SHM)
     reader = LineReader(proc)
     try:
         pid = _started(reader, 'dummy_node')

@@ -244,10 +244,11 @@ class DetectorConfig:
             the rectangle refinement measured it) is searched for a face
             diamond with a dark line round it in the brightness (:func:`diamond_starts`:
             box sums over a copy turned by 45 deg, where the diamond is a square); the best
-            starts are refined, and a result is kept when the catalogue's outline holds the
-            blob's orange but on one or two sides, lies inside the blob's box but for the
-            corner clamp and is at least ``search_min_share`` of the blob's shorter side
-            (a sign merged with an orange dusk sky or a rusty wall: the blob is the union);
+            starts are refined, and a result is kept when the orange its outline leaves out
+            is not the face's own (:meth:`ColorDetector._holds`, ``hold_sat``), its face
+            lies inside the blob's box and it is at least ``search_min_share`` of the blob's
+            shorter side (a sign merged with an orange dusk sky or a rusty wall: the blob is
+            the union);
             its edges must show a clear line (``search_min_contrast`` of the face, 0.5: the
             sign's outer edge against dark asphalt, 0.37 in a test, is no face's edge).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
@@ -1142,9 +1143,19 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     return None
 
 
+# the smallest face-to-line contrast (a share of the face's brightness) an edge must show
+EDGE_MIN_CONTRAST = 0.25
+
+
+def start_shrink(border_rel: float, margin_rel: float) -> float:
+    """The factor :func:`refine_diamond` applies to its start's half-diagonals: half-way
+    from an outline with the line and margin to the face without them."""
+    return 1.0 - 0.5 * (border_rel + margin_rel) * math.sqrt(2)
+
+
 def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 0.0676,
                    margin_rel: float = 0.022, max_change: float = 0.15,
-                   min_contrast: float = 0.25, iterations: int = 2,
+                   min_contrast: float = EDGE_MIN_CONTRAST, iterations: int = 2,
                    aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 1.0,
                    max_lost: int = 2, info: Optional[dict] = None
                    ) -> Optional[tuple[float, float, float, float]]:
@@ -1186,7 +1197,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     # start half-way between the estimate and the face's edge without margin and line
     # (a mask that took in the orange margin): the face's edge is within the search
     # either way
-    shrink = 1.0 - 0.5 * (border_rel + margin_rel) * math.sqrt(2)
+    shrink = start_shrink(border_rel, margin_rel)
     a, b = a * shrink, b * shrink
     img = np.ascontiguousarray(value, dtype=np.float32)
     for _ in range(iterations):
@@ -2169,6 +2180,15 @@ class ColorDetector:
             return cv2.cvtColor(np.ascontiguousarray(win), cv2.COLOR_BGR2GRAY), x0, y0
         return cv2.max(cv2.max(win[..., 0], win[..., 1]), win[..., 2]), x0, y0
 
+    def _diamond_value(self, bgr: np.ndarray, window: tuple, bw: int, bh: int
+                       ) -> tuple[np.ndarray, int, int]:
+        """The brightness (:meth:`_value`, luma with ``diamond_luma``) a few pixels beyond
+        the blob's window ``(x0, y0, x1, y1)`` (a quarter of the blob's size, + 3 px: a mask
+        fit that is too large puts an edge's outer samples outside the window)."""
+        x0, y0, x1, y1 = window
+        pad = 3 + int(0.25 * max(bw, bh))
+        return self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad, self.config.diamond_luma)
+
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""
         s = hsv[..., 1]
@@ -2379,9 +2399,7 @@ class ColorDetector:
             if refine:
                 # the brightness a few pixels beyond the blob's window (a mask fit that is
                 # too large puts the edge's outer samples outside it)
-                pad = 3 + int(0.25 * max(bw, bh))
-                value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
-                                            cfg.diamond_luma)
+                value, ox, oy = self._diamond_value(bgr, (x0, y0, x1, y1), bw, bh)
                 dx, dy = x0 - ox, y0 - oy
                 # start from the mask's diamond, else from the diamond in the hull's box (a
                 # big symbol that cuts the face leaves the mask's corners far off), else
@@ -2399,7 +2417,8 @@ class ColorDetector:
                 starts += [(bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * g * bw, 0.5 * g * bh)
                            for g in cfg.diamond_grown_starts]
                 for i_, st in enumerate(starts):
-                    mc_ = 0.25 if i_ < n_mask or peel_t is not None else cfg.search_min_contrast
+                    mc_ = EDGE_MIN_CONTRAST if i_ < n_mask or peel_t is not None \
+                        else cfg.search_min_contrast
                     sub = self._refine(value, (st[0] + dx, st[1] + dy, st[2], st[3]), mc_)
                     if sub is not None:
                         sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
@@ -2493,9 +2512,7 @@ class ColorDetector:
             # neither a two-colour sign nor a measured rectangle: a diamond merged with a
             # surface of about its colour (an orange dusk sky above or beside it) is a
             # rectangle to the hull
-            pad = 3 + int(0.25 * max(bw, bh))
-            value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad,
-                                        cfg.diamond_luma)
+            value, ox, oy = self._diamond_value(bgr, (x0, y0, x1, y1), bw, bh)
             sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,
                                        hsv)
             box_ = None if sub is None else self._diamond_box(
@@ -2590,7 +2607,8 @@ class ColorDetector:
                     return None
         return 'blended'
 
-    def _refine(self, value: np.ndarray, start: Sequence[float], min_contrast: float = 0.25
+    def _refine(self, value: np.ndarray, start: Sequence[float],
+                min_contrast: float = EDGE_MIN_CONTRAST
                 ) -> Optional[tuple[float, float, float, float]]:
         """:func:`refine_diamond` with this detector's settings; the face's half-diagonals
         less ``diamond_edge_bias`` (a blurred border line puts the measured edge that far
@@ -2613,19 +2631,17 @@ class ColorDetector:
         """The face diamond refined from :func:`diamond_starts` in the blob's box (``box`` and
         ``face_px`` in the blob's window, ``value`` offset from it by ``(dx, dy)``), or None.
 
-        Kept only when :func:`refine_diamond` converges from a start, the catalogue's outline
-        holds the blob's orange pixels but on one or two sides (:func:`diamond_holds`: the
-        merged surface lies beyond those) and the sign is at least ``search_min_share`` of
-        the blob's shorter side, and the face lies inside the blob's box (a pixel for the
-        blend)."""
+        Kept only when :meth:`_refine` converges from a start with a clear line
+        (``search_min_contrast``), the face lies inside the blob's box (a pixel for the
+        blend), the sign is at least ``search_min_share`` of the blob's shorter side, and the
+        orange the outline leaves out is not the face's own (:meth:`_holds`)."""
         cfg = self.config
         bx, by, bw, bh = box
-        shrink = 1.0 - 0.5 * (cfg.diamond_border_rel + cfg.diamond_margin_rel) * math.sqrt(2)
+        shrink = start_shrink(cfg.diamond_border_rel, cfg.diamond_margin_rel)
         for cx, cy, a, _, _ in diamond_starts(value, (bx + dx, by + dy, bw, bh),
                                               0.3 * min(bw, bh), 0.6 * max(bw, bh)):
-            # refine_diamond starts from a face with its line and margin: undo its shrink
-            # a clear line: the sign's outer edge against a dark grey background (asphalt
-            # below a low sign) is no face's edge
+            # refine_diamond shrinks its start from an outline to the face: undo that; a
+            # clear line: the sign's outer edge against dark asphalt is no face's edge
             sub = self._refine(value, (cx, cy, a / shrink, a / shrink), cfg.search_min_contrast)
             if sub is None:
                 continue

@@ -312,7 +312,10 @@ def test_config_validation():
                       ({'merge_max': -1}, 'merge_max'), ({'hold_sat': -0.1}, 'hold_sat'),
                       ({'search_min_px': -1.0}, 'search_min_px'),
                       ({'search_min_share': 2.0}, 'search_min_share'),
-                      ({'diamond_blur_sigma': 0.0}, 'diamond_blur_sigma')):
+                      ({'diamond_blur_sigma': 0.0}, 'diamond_blur_sigma'),
+                      ({'blur_fit_ratio': 0.1}, 'blur_fit_ratio'),
+                      ({'blur_fit_max_sigma': 0.2}, 'blur_fit_max_sigma'),
+                      ({'blur_fit_bias': 5.0}, 'blur_fit_bias')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1531,9 +1534,102 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     assert d.kind == 'warning'
     assert max(abs(d.box.x - gt.x), abs(d.box.y - gt.y), abs(d.box.x2 - gt.x2),
                abs(d.box.y2 - gt.y2)) <= 1.0
-    det = det.with_config(diamond_grown_starts=())
+    det = det.with_config(diamond_grown_starts=(), blur_fit=False)
     det.reset()
     assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7
+
+
+def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
+    """The rain-washed frame of the test above with no refinement from the brightness at all
+    (no grown starts, no search): the chroma fit (``blur_fit``) still boxes the sign within
+    a pixel and a half of its label; without it the box is the core's (IoU < 0.7)."""
+    from pathlib import Path
+
+    from workzone_ros.resources import config_path
+    from workzone_ros.tools import eval_color as ec
+    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    model = cm.load_model(config_path('models/color_orange.npz'))
+    base = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0].with_config(
+        diamond_grown_starts=(), diamond_search=False)
+    gt = Box(403.0, 211.0, 22.0, 22.0)
+    d = _one(base.detect(img), (403, 211, 22, 22), 0.8)
+    assert d.kind == 'warning'
+    assert max(abs(d.box.x - gt.x), abs(d.box.y - gt.y), abs(d.box.x2 - gt.x2),
+               abs(d.box.y2 - gt.y2)) <= 1.5
+    off = base.with_config(blur_fit=False)
+    assert max(d.box.iou(gt) for d in off.detect(img)) < 0.7
+
+
+def _blurred_chroma(cx, cy, a, b, sigma, shape=(70, 76), ss=8, face=150.0, bg=10.0,
+                    tilt=(0.6, -0.4), art=False, stroke=True, seed=1):
+    """Chroma (R - B) of a sign: a diamond of half-diagonals ``(a, b)`` (with ``art``: the
+    catalogue's face, black line and thin margin inside that outline) over a tilted
+    background plane, a legend stroke (chroma 0) across its middle, area-sampled, blurred
+    by ``sigma`` px, noisy."""
+    h, w = shape
+    ys, xs = np.mgrid[0:h * ss, 0:w * ss]
+    x, y = (xs + 0.5) / ss, (ys + 0.5) / ss
+    rel = np.abs(x - cx) / a + np.abs(y - cy) / b
+    big = bg + tilt[0] * (x - cx) + tilt[1] * (y - cy)
+    big = np.where(rel <= 1.0, face, big)
+    if art:
+        big = np.where((rel <= 0.9724) & (rel > 0.8876), 0.0, big)
+    if stroke:
+        big = np.where((np.abs(x - cx) < 0.12 * a) & (rel <= 0.6), 0.0, big)
+    img = big.reshape(h, ss, w, ss).mean(axis=(1, 3)).astype(np.float32)
+    img = cv2.GaussianBlur(img, (0, 0), sigma)
+    return img + np.random.default_rng(seed).normal(0, 3.0, img.shape).astype(np.float32)
+
+
+@pytest.mark.parametrize('a, b, sigma, stroke', [
+    (9.3, 10.1, 1.0, False), (9.3, 10.1, 2.5, False), (17.6, 16.2, 2.5, False),
+    (9.3, 10.1, 1.0, True), (17.6, 16.2, 1.0, True)])
+def test_fit_blurred_diamond_recovers_a_blurred_sign(a, b, sigma, stroke):
+    """From the mask's typical start (15 % small, 1 px off), the diamond of a sign blurred
+    by up to 2.5 px over a background gradient is found within 0.2 px (centre and
+    half-diagonals), with a legend stroke down its middle at 1 px blur within 0.25 px;
+    its blur within 0.35 px."""
+    cx, cy = 37.4, 34.7
+    img = _blurred_chroma(cx, cy, a, b, sigma, stroke=stroke)
+    fit = dt.fit_blurred_diamond(img, (cx + 1.0, cy - 0.8, 0.85 * a, 0.85 * b))
+    assert fit is not None
+    fcx, fcy, fa, fb, fs, face, bg = fit
+    tol = 0.25 if stroke else 0.2
+    assert max(abs(fcx - cx), abs(fcy - cy), abs(fa - a), abs(fb - b)) < tol, fit
+    assert abs(fs - sigma) < 0.35 and face > bg
+
+
+def test_fit_blurred_diamond_of_the_catalogue_art_lies_between_face_and_outline():
+    """With the catalogue's black line inside the outline, blurred, the fitted diamond lies
+    between the face's and the sign's outline (the detector scales it by
+    ``blur_fit_ratio``)."""
+    cx, cy, a = 37.4, 34.7, 12.0
+    fit = dt.fit_blurred_diamond(_blurred_chroma(cx, cy, a, a, 1.5, art=True, stroke=False),
+                                 (cx, cy, 0.85 * a, 0.85 * a))
+    assert fit is not None
+    assert 0.8876 * a < fit[2] < a and 0.8876 * a < fit[3] < a, fit
+
+
+def test_fit_blurred_diamond_gives_none_without_a_coloured_sign():
+    """A flat image, or a 'sign' less coloured than its surround, gives no diamond."""
+    flat = np.random.default_rng(0).normal(20.0, 3.0, (60, 60)).astype(np.float32)
+    assert dt.fit_blurred_diamond(flat, (30.0, 30.0, 10.0, 10.0)) is None
+    hole = -_blurred_chroma(30.0, 30.0, 10.0, 10.0, 1.5, shape=(60, 60), stroke=False)
+    assert dt.fit_blurred_diamond(hole, (30.0, 30.0, 10.0, 10.0)) is None
+    assert dt.fit_blurred_diamond(flat[:3, :3], (1.5, 1.5, 1.0, 1.0)) is None
+
+
+def test_blurred_diamond_jacobian_matches_finite_differences():
+    """The analytic Jacobian the fit uses agrees with central differences."""
+    ys, xs = np.mgrid[0:40, 0:44]
+    xs, ys = xs.ravel() + 0.5, ys.ravel() + 0.5
+    p = np.array([21.3, 19.8, 9.2, 10.4, 1.4, 150.0, 12.0, 0.3, -0.2])
+    _, jac = dt._blurred_diamond(p, xs, ys, jac=True)
+    eps = 1e-5
+    num = np.stack([(dt._blurred_diamond(p + e, xs, ys)[0] - dt._blurred_diamond(p - e, xs, ys)[0])
+                    / (2 * eps) for e in np.eye(9) * eps], axis=1)
+    assert np.abs(jac - num).max() < 1e-5 * np.abs(num).max()
 
 
 def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):

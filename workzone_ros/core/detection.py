@@ -251,6 +251,13 @@ class DetectorConfig:
             the union);
             its edges must show a clear line (``search_min_contrast`` of the face, 0.5: the
             sign's outer edge against dark asphalt, 0.37 in a test, is no face's edge).
+        blur_fit, blur_fit_ratio, blur_fit_bias, blur_fit_max_sigma: when neither a start
+            nor the search refines (a faded, rain-washed or blurred sign: no border line
+            shows in the brightness, the mask stops short of the tips), the sign's diamond
+            is fitted to the chroma R - B (:func:`fit_blurred_diamond`: a blurred diamond
+            over a background plane, its blur up to ``blur_fit_max_sigma`` px); the sign is
+            that diamond x ``blur_fit_ratio`` less ``blur_fit_bias`` px (the line and margin
+            blend into the fitted edge), kept when its centre lies inside the blob's box.
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -397,6 +404,10 @@ class DetectorConfig:
     search_min_px: float = 12.0
     search_min_share: float = 0.6
     search_min_contrast: float = 0.5
+    blur_fit: bool = True
+    blur_fit_ratio: float = 1.06
+    blur_fit_bias: float = 0.25
+    blur_fit_max_sigma: float = 4.0
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -487,6 +498,11 @@ class DetectorConfig:
             raise ValueError('refined_clamp must be in [0, 2] (half-diagonals)')
         if not 0.0 <= self.hold_sat <= 1.5:
             raise ValueError('hold_sat must be in [0, 1.5] (a share of the face saturation)')
+        if not 0.5 <= self.blur_fit_ratio <= 2.0 or not 0.3 < self.blur_fit_max_sigma <= 10:
+            raise ValueError('blur_fit_ratio must be in [0.5, 2] and blur_fit_max_sigma in '
+                             '(0.3, 10] px')
+        if not -3.0 <= self.blur_fit_bias <= 3.0:
+            raise ValueError('blur_fit_bias must be in [-3, 3] px')
         if not 0.0 < self.search_min_contrast < 1.0:
             raise ValueError('search_min_contrast must be in (0, 1) (a share of the face)')
         if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
@@ -1354,6 +1370,118 @@ def diamond_holds(pixels: np.ndarray, face: Sequence[float], ratio: float, share
     n = np.bincount(quad, minlength=4)
     n_out = np.bincount(quad, weights=out, minlength=4)
     return int(np.count_nonzero(n_out > (1.0 - share) * np.maximum(n, 1))) < 3
+
+
+def _blurred_diamond(p: np.ndarray, xs: np.ndarray, ys: np.ndarray, jac: bool = False
+                     ) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """The blurred diamond model of :func:`fit_blurred_diamond` at ``(xs, ys)`` and, with
+    ``jac``, its Jacobian (n, 9) in ``p = (cx, cy, a, b, sigma, face, bg, gx, gy)``."""
+    cx, cy, a, b, sg, face, bg, gx, gy = (float(v) for v in p)
+    r2 = a * a + b * b
+    n = a * b / math.sqrt(r2)
+    dx, dy = xs - cx, ys - cy
+    u, v = dx / a, dy / b
+    # signed distances inside the four edges; the blurred indicator of the diamond is the
+    # product of the edges' blurred half-planes (exact at a right-angled corner)
+    signs = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
+    z = np.stack([(1.0 - sx * u - sy * v) * (n / sg) for sx, sy in signs])     # (4, n)
+    cdf = ndtr(z)
+    prod = cdf.prod(axis=0)
+    contrast = face - bg
+    model = bg + gx * dx + gy * dy + contrast * prod
+    if not jac:
+        return model, None
+    pdf = np.exp(-0.5 * z * z) * (1.0 / math.sqrt(2.0 * math.pi))
+    # d prod / d z_i: the edge's density times the other three edges' blurred half-planes
+    others = np.stack([np.prod(np.delete(cdf, i, axis=0), axis=0) for i in range(4)])
+    dp_dz = pdf * others                                                      # (4, n)
+    dn_da, dn_db = b ** 3 / r2 ** 1.5, a ** 3 / r2 ** 1.5
+    out = np.empty((xs.size, 9))
+    g = np.zeros((5, xs.size))
+    for i, (sx, sy) in enumerate(signs):
+        lin = 1.0 - sx * u - sy * v
+        g[0] += dp_dz[i] * (sx * n / (a * sg))
+        g[1] += dp_dz[i] * (sy * n / (b * sg))
+        g[2] += dp_dz[i] * ((sx * u / a) * n + lin * dn_da) / sg
+        g[3] += dp_dz[i] * ((sy * v / b) * n + lin * dn_db) / sg
+        g[4] += dp_dz[i] * (-z[i] / sg)
+    out[:, :5] = contrast * g.T
+    out[:, 0] -= gx
+    out[:, 1] -= gy
+    out[:, 5] = prod
+    out[:, 6] = 1.0 - prod
+    out[:, 7] = dx
+    out[:, 8] = dy
+    return model, out
+
+
+def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: float = 4.0,
+                        robust: float = 0.15, inner_skip: float = 0.5, max_nfev: int = 60
+                        ) -> Optional[tuple[float, float, float, float, float, float, float]]:
+    """The sign's orange diamond fitted to a blurred chroma image, where its edges are not.
+
+    A faded, rain-washed or motion-blurred sign may show no border line in the brightness
+    (:func:`refine_diamond` finds no face-to-line step) and its colour mask stops well short
+    of the tips.  Its colour does still place the sign: ``chroma`` (R - B, a linear
+    function of a blend of the sign's and the background's colours) is modelled as a
+    background plane plus the sign's uniform level times the diamond ``|x - cx| / a +
+    |y - cy| / b <= 1`` blurred by a Gaussian of width ``sigma`` (the product of its four
+    edges' blurred half-planes); all nine parameters by robust least squares (soft L1 at
+    ``robust`` x the start's contrast: legend strokes and a post are outliers) from
+    ``start = (cx, cy, a, b)`` (continuous coordinates, pixel ``i`` spans ``[i, i + 1)``),
+    over the window less the start's middle (``inner_skip`` of its half-diagonals: the
+    legend's place).  The border line and the thin margin outside it blend with the edge:
+    the fitted diamond lies between the sign's outline and the face's.  Not claimed: a
+    legend blurred into a small face lowers the face's level and puts the edge further out
+    (about 0.5 px at 9 px half-diagonal and 1.5 px blur, 1 px at 2.5 px blur, on a test
+    sign with a stroke down its middle).
+
+    Returns ``(cx, cy, a, b, sigma, face, bg)`` or None: the fit did not converge, a
+    half-diagonal reached half or twice the start's, the blur reached ``max_sigma``, or
+    the sign is not more coloured than its background.
+    """
+    from scipy.optimize import least_squares
+
+    cx, cy, a, b = (float(v) for v in start[:4])
+    h, w = chroma.shape[:2]
+    if a < 2 or b < 2 or h < 4 or w < 4:
+        return None
+    ys, xs = np.mgrid[0:h, 0:w]
+    xs = xs.ravel() + 0.5
+    ys = ys.ravel() + 0.5
+    vals = chroma.astype(np.float64).ravel()
+    rel = np.abs(xs - cx) / a + np.abs(ys - cy) / b
+    inner, outer = vals[rel < 0.7], vals[rel > 1.3]
+    if inner.size < 4 or outer.size < 4:
+        return None
+    face0, bg0 = float(np.percentile(inner, 75)), float(np.median(outer))
+    if face0 <= bg0:
+        return None
+    # the middle holds the legend, and only the face's level: fitted without it
+    keep = rel >= inner_skip
+    xs, ys, vals = xs[keep], ys[keep], vals[keep]
+    p0 = np.array([cx, cy, a, b, 1.0, face0, bg0, 0.0, 0.0])
+    lo = [cx - 0.5 * a, cy - 0.5 * b, 0.5 * a, 0.5 * b, 0.3, -np.inf, -np.inf, -np.inf, -np.inf]
+    hi = [cx + 0.5 * a, cy + 0.5 * b, 2.0 * a, 2.0 * b, max_sigma, np.inf, np.inf, np.inf,
+          np.inf]
+
+    def resid(p):
+        return _blurred_diamond(p, xs, ys)[0] - vals
+
+    def jac(p):
+        return _blurred_diamond(p, xs, ys, jac=True)[1]
+
+    try:
+        res = least_squares(resid, p0, jac=jac, bounds=(lo, hi), loss='soft_l1',
+                            f_scale=robust * (face0 - bg0), x_scale='jac', max_nfev=max_nfev)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    fcx, fcy, fa, fb, fs, face, bg = (float(v) for v in res.x[:7])
+    if res.status <= 0 or face <= bg:
+        return None
+    if not (0.505 * a < fa < 1.99 * a and 0.505 * b < fb < 1.99 * b and fs < 0.99 * max_sigma):
+        return None
+    return fcx, fcy, fa, fb, fs, face, bg
 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
@@ -2437,14 +2565,22 @@ class ColorDetector:
                     sub = self._search_diamond(value, dx, dy, (bx0, by0, bw, bh), face_px,
                                               hsv)
                     searched = sub is not None
+            blurred = None
+            if sub is None and refine and cfg.blur_fit:
+                # no line to measure: the sign's blurred colour
+                blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
+                                         fd if fd is not None and fd[4] >= 0.5 else None)
             if self.debug is not None:
-                self.debug[-1].update(refined=sub is not None, searched=searched)
+                self.debug[-1].update(refined=sub is not None, searched=searched,
+                                      blur_fit=blurred is not None)
             diamond = None
             if sub is not None:
                 # the face's edges from the brightness profile; the sign is the face
                 # scaled by the art's ratio (border line and margin outside the face);
                 # the clamp allows a pixel more (blur eats about a pixel of a small face)
                 diamond = (*sub, cfg.diamond_face_ratio, cfg.diamond_clamp_px)
+            elif blurred is not None:
+                diamond = (*blurred, cfg.blur_fit_ratio, cfg.diamond_clamp_px)
             elif fd is not None and fd[4] >= 0.5:
                 k_ = cfg.diamond_scale
                 if cfg.border_frac <= 0:
@@ -2461,13 +2597,13 @@ class ColorDetector:
                     k_ = 1.0
                 diamond = (*fd[:4], k_, 0.0)
             if diamond is not None:
-                box_ = self._diamond_box(diamond, sub is not None, (bx0, by0, bw, bh),
-                                         peel_t, searched or larger)
+                box_ = self._diamond_box(diamond, sub is not None or blurred is not None,
+                                         (bx0, by0, bw, bh), peel_t, searched or larger)
                 if box_ is not None:
                     outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
-            cand.refined = kind == 'warning' and sub is not None
+            cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
         elif grow > 0:
             gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy
@@ -2624,6 +2760,37 @@ class ColorDetector:
         if info.get('blur', 0.0) >= cfg.diamond_blur_sigma:
             bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
         return sub[0], sub[1], sub[2] - bias, sub[3] - bias
+
+    def _blur_fit(self, bgr: np.ndarray, window: tuple, blob: tuple, fd: Optional[tuple]
+                  ) -> Optional[tuple[float, float, float, float]]:
+        """The sign's diamond ``(cx, cy, a, b)`` (the blob's window ``(x0, y0, x1, y1)``) by
+        :func:`fit_blurred_diamond` on the chroma R - B of the colour-balanced frame, from the
+        mask's diamond ``fd`` or the blob's box ``blob``, less ``blur_fit_bias``; None when the
+        fit fails or its centre lies outside the blob's box."""
+        cfg = self.config
+        x0, y0, x1, y1 = window
+        bx, by, bw, bh = blob
+        pad = 3 + int(0.3 * max(bw, bh))
+        H, W = bgr.shape[:2]
+        wx0, wy0 = max(0, x0 + bx - pad), max(0, y0 + by - pad)
+        wx1, wy1 = min(W, x0 + bx + bw + pad), min(H, y0 + by + bh + pad)
+        win = bgr[wy0:wy1, wx0:wx1]
+        if self._gains is not None:
+            win = apply_gains(win, self._gains)
+        chroma = win[..., 2].astype(np.float32) - win[..., 0].astype(np.float32)
+        dx, dy = x0 - wx0, y0 - wy0
+        if fd is not None:
+            start = (fd[0] + dx, fd[1] + dy, fd[2], fd[3])
+        else:
+            start = (bx + 0.5 * bw + dx, by + 0.5 * bh + dy, 0.5 * bw, 0.5 * bh)
+        fit = fit_blurred_diamond(chroma, start, cfg.blur_fit_max_sigma)
+        if fit is None:
+            return None
+        cx, cy, a, b = fit[0] - dx, fit[1] - dy, fit[2], fit[3]
+        if not (bx <= cx <= bx + bw and by <= cy <= by + bh):
+            return None
+        bias = cfg.blur_fit_bias / cfg.blur_fit_ratio
+        return cx, cy, a - bias, b - bias
 
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
                         face_px: np.ndarray, hsv: np.ndarray

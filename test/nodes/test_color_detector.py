@@ -121,6 +121,9 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node._detector.config.diamond_search
     assert node.set_parameters([Parameter('diamond_search', value=False)])[0].successful
     assert not node._detector.config.diamond_search
+    assert node._detector.config.blur_fit
+    assert node.set_parameters([Parameter('blur_fit', value=False)])[0].successful
+    assert not node._detector.config.blur_fit
 
 
 def test_image_waits_for_late_rois(ros, model_path):

@@ -257,7 +257,8 @@ class DetectorConfig:
             is fitted to the chroma R - B (:func:`fit_blurred_diamond`: a blurred diamond
             over a background plane, its blur up to ``blur_fit_max_sigma`` px); the sign is
             that diamond x ``blur_fit_ratio`` less ``blur_fit_bias`` px (the line and margin
-            blend into the fitted edge), kept when its centre lies inside the blob's box.
+            blend into the fitted edge), kept when its centre lies inside the blob's box and
+            it is no smaller than that box (a pixel a side).
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -2766,7 +2767,8 @@ class ColorDetector:
         """The sign's diamond ``(cx, cy, a, b)`` (the blob's window ``(x0, y0, x1, y1)``) by
         :func:`fit_blurred_diamond` on the chroma R - B of the colour-balanced frame, from the
         mask's diamond ``fd`` or the blob's box ``blob``, less ``blur_fit_bias``; None when the
-        fit fails or its centre lies outside the blob's box."""
+        fit fails, its centre lies outside the blob's box or the sign would be smaller than
+        the blob's box by more than a pixel a side."""
         cfg = self.config
         x0, y0, x1, y1 = window
         bx, by, bw, bh = blob
@@ -2786,11 +2788,16 @@ class ColorDetector:
         fit = fit_blurred_diamond(chroma, start, cfg.blur_fit_max_sigma)
         if fit is None:
             return None
-        cx, cy, a, b = fit[0] - dx, fit[1] - dy, fit[2], fit[3]
-        if not (bx <= cx <= bx + bw and by <= cy <= by + bh):
-            return None
+        cx, cy = fit[0] - dx, fit[1] - dy
         bias = cfg.blur_fit_bias / cfg.blur_fit_ratio
-        return cx, cy, a - bias, b - bias
+        a, b = fit[2] - bias, fit[3] - bias
+        # the sign holds its own orange: a fit on an edge inside the mask (a line further
+        # in than the catalogue's, the orange margin outside it left out) is no sign's
+        k = cfg.blur_fit_ratio
+        if not (bx <= cx <= bx + bw and by <= cy <= by + bh
+                and 2 * k * a >= bw - 2 and 2 * k * b >= bh - 2):
+            return None
+        return cx, cy, a, b
 
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
                         face_px: np.ndarray, hsv: np.ndarray

@@ -43,7 +43,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
          'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
-         'diamond_search')
+         'diamond_search', 'blur_fit')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -85,6 +85,8 @@ class ColorDetectorNode(WorkzoneNode):
               'symbol cuts the face from edge to edge) are measured as one'),
         Param('diamond_search', True, 'when no start from the mask refines, the face '
               'diamond is searched in the brightness (a sign merged with an orange dusk sky)'),
+        Param('blur_fit', True, 'when nothing refines (a faded or blurred sign, no border '
+              'line seen), the warning box from a blurred diamond fitted to the chroma R - B'),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

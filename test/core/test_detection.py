@@ -315,7 +315,8 @@ def test_config_validation():
                       ({'diamond_blur_sigma': 0.0}, 'diamond_blur_sigma'),
                       ({'blur_fit_ratio': 0.1}, 'blur_fit_ratio'),
                       ({'blur_fit_max_sigma': 0.2}, 'blur_fit_max_sigma'),
-                      ({'blur_fit_bias': 5.0}, 'blur_fit_bias')):
+                      ({'blur_fit_bias': 5.0}, 'blur_fit_bias'),
+                      ({'rim_chroma': 1.5}, 'rim_chroma')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1559,6 +1560,25 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
                abs(d.box.y2 - gt.y2)) <= 1.5
     off = base.with_config(blur_fit=False)
     assert max(d.box.iou(gt) for d in off.detect(img)) < 0.7
+
+
+@pytest.mark.parametrize('blur', [0.7, 1.5])
+def test_outline_inside_a_sign_is_told_by_the_chroma_beyond_it(detector, blur):
+    """``rim_chroma``: the sign outline of the correct face leaves background chroma just
+    beyond it; the outline of a face 12 % too small (a legend's edge taken for the line, in
+    a faded sign whose mask stops short too) leaves the sign's own orange there."""
+    size, x, y = 36, 380.3, 130.6
+    img, gt = _render_art_sign(_background(), x, y, size, blur=blur)
+    a_face = 0.5 * size / detector.config.diamond_face_ratio
+    cx, cy = x + 0.5 * size, y + 0.5 * size
+    window = (int(x) - 4, int(y) - 4, int(x + size) + 5, int(y + size) + 5)
+    wx, wy = window[:2]
+    right = (cx - wx, cy - wy, a_face, a_face)
+    small = (cx - wx, cy - wy, 0.88 * a_face, 0.88 * a_face)
+    assert not detector._inside_sign(img, window, right, size, size)
+    assert detector._inside_sign(img, window, small, size, size)
+    assert not detector.with_config(rim_chroma=0.0)._inside_sign(img, window, small, size,
+                                                                 size)
 
 
 def _blurred_chroma(cx, cy, a, b, sigma, shape=(70, 76), ss=8, face=150.0, bg=10.0,

@@ -259,6 +259,11 @@ class DetectorConfig:
             that diamond x ``blur_fit_ratio`` less ``blur_fit_bias`` px (the line and margin
             blend into the fitted edge), kept when its centre lies inside the blob's box and
             it is no smaller than that box (a pixel a side).
+        rim_chroma: a refined outline that holds all of its blob's orange is rejected when
+            the chroma R - B of the ring 0.5-1.5 px beyond the sign's outline is on average more than this share of
+            the way from the background's (3-6 px beyond) to the face's: the outline lies
+            inside a faded sign whose mask stops short (a legend's edge taken for the
+            line); a correct outline reaches ~0.3 only under 2 px of blur.  0 = off.
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -409,6 +414,7 @@ class DetectorConfig:
     blur_fit_ratio: float = 1.06
     blur_fit_bias: float = 0.25
     blur_fit_max_sigma: float = 4.0
+    rim_chroma: float = 0.35
     rect_refine: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -504,6 +510,8 @@ class DetectorConfig:
                              '(0.3, 10] px')
         if not -3.0 <= self.blur_fit_bias <= 3.0:
             raise ValueError('blur_fit_bias must be in [-3, 3] px')
+        if not 0.0 <= self.rim_chroma <= 1.0:
+            raise ValueError('rim_chroma must be in [0, 1] (0 = off)')
         if not 0.0 < self.search_min_contrast < 1.0:
             raise ValueError('search_min_contrast must be in (0, 1) (a share of the face)')
         if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
@@ -2555,6 +2563,10 @@ class ColorDetector:
                         # sign whose border line lies further in (a wider margin) is not
                         # measured so
                         held = self._holds(hsv, face_px, sub)
+                        if held == 'holds' and self._inside_sign(bgr, (x0, y0, x1, y1), sub,
+                                                                 bw, bh):
+                            # the mask stops short of a faded sign: so does this outline
+                            held = None
                         if held:
                             # a blob that took in a blended rim is larger than the sign
                             larger = held == 'blended'
@@ -2761,6 +2773,50 @@ class ColorDetector:
         if info.get('blur', 0.0) >= cfg.diamond_blur_sigma:
             bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
         return sub[0], sub[1], sub[2] - bias, sub[3] - bias
+
+    def _chroma(self, bgr: np.ndarray, window: tuple, bw: int, bh: int
+                ) -> tuple[np.ndarray, int, int]:
+        """The chroma R - B (float32, colour-balanced; linear in a blend of two colours) a
+        few pixels beyond the blob's window ``(x0, y0, x1, y1)`` (as
+        :meth:`_diamond_value`), and the clipped window's origin."""
+        x0, y0, x1, y1 = window
+        pad = 3 + int(0.25 * max(bw, bh))
+        H, W = bgr.shape[:2]
+        x0, y0 = max(0, x0 - pad), max(0, y0 - pad)
+        x1, y1 = min(W, x1 + pad), min(H, y1 + pad)
+        win = bgr[y0:y1, x0:x1]
+        if self._gains is not None:
+            win = apply_gains(win, self._gains)
+        return win[..., 2].astype(np.float32) - win[..., 0].astype(np.float32), x0, y0
+
+    def _inside_sign(self, bgr: np.ndarray, window: tuple, sub: Sequence[float], bw: int,
+                     bh: int) -> bool:
+        """Whether the sign outline of the face ``sub`` (the blob's window ``(x0, y0, x1,
+        y1)``) lies inside a sign that goes on: the chroma of the ring 0.5-1.5 px beyond it
+        is on average more than ``rim_chroma`` of the way from the background's (3-6 px
+        beyond) to the face's (its middle's upper quartile)."""
+        cfg = self.config
+        if cfg.rim_chroma <= 0:
+            return False
+        chroma, ox, oy = self._chroma(bgr, window, bw, bh)
+        cx, cy = sub[0] + window[0] - ox, sub[1] + window[1] - oy
+        a, b = float(sub[2]), float(sub[3])
+        k = cfg.diamond_face_ratio
+        h, w = chroma.shape
+        ys, xs = np.mgrid[0:h, 0:w]
+        dx, dy = np.abs(xs + 0.5 - cx), np.abs(ys + 0.5 - cy)
+        rel = dx / (k * a) + dy / (k * b)
+        dist = (rel - 1.0) * (k * a * k * b / math.hypot(k * a, k * b))
+        ring = (dist >= 0.5) & (dist <= 1.5)
+        back = (dist >= 3.0) & (dist <= 6.0)
+        middle = dx / a + dy / b < 0.6
+        if not (ring.any() and back.any() and middle.any()):
+            return False
+        bg = float(_median(chroma[back]))
+        face = float(np.percentile(chroma[middle], 75))
+        if face <= bg:
+            return False
+        return float(chroma[ring].mean()) - bg > cfg.rim_chroma * (face - bg)
 
     def _blur_fit(self, bgr: np.ndarray, window: tuple, blob: tuple, fd: Optional[tuple]
                   ) -> Optional[tuple[float, float, float, float]]:

@@ -260,8 +260,9 @@ class DetectorConfig:
             blend into the fitted edge), kept when its centre lies inside the blob's box and
             it is no smaller than that box (a pixel a side).
         rim_chroma: a refined outline that holds all of its blob's orange is rejected when
-            the chroma R - B of the ring 0.5-1.5 px beyond the sign's outline is on average more than this share of
-            the way from the background's (3-6 px beyond) to the face's: the outline lies
+            the chroma R - B of the ring 0.5-1.5 px beyond the sign's outline is on average
+            more than this share of the way from the background's (3-6 px beyond) to the
+            face's: the outline lies
             inside a faded sign whose mask stops short (a legend's edge taken for the
             line); a correct outline reaches ~0.3 only under 2 px of blur.  0 = off.
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the

@@ -96,6 +96,7 @@ from typing import Any, Optional, Sequence
 
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
 from scipy.special import ndtr
 
 from workzone_ros.core.color_model import (
@@ -1426,7 +1427,8 @@ def _blurred_diamond(p: np.ndarray, xs: np.ndarray, ys: np.ndarray, jac: bool = 
 
 
 def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: float = 4.0,
-                        robust: float = 0.15, inner_skip: float = 0.5, max_nfev: int = 60
+                        robust: float = 0.15, inner_skip: float = 0.5, max_nfev: int = 60,
+                        max_half: float = 10.0
                         ) -> Optional[tuple[float, float, float, float, float, float, float]]:
     """The sign's orange diamond fitted to a blurred chroma image, where its edges are not.
 
@@ -1440,8 +1442,11 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
     ``robust`` x the start's contrast: legend strokes and a post are outliers) from
     ``start = (cx, cy, a, b)`` (continuous coordinates, pixel ``i`` spans ``[i, i + 1)``),
     over the window less the start's middle (``inner_skip`` of its half-diagonals: the
-    legend's place).  The border line and the thin margin outside it blend with the edge:
-    the fitted diamond lies between the sign's outline and the face's.  Not claimed: a
+    legend's place).  A sign larger than ``max_half`` px half-diagonal is fitted on the
+    window binned by a whole factor (block means: still linear in the blend) to about that
+    size: the cost is about the same for every size (a few ms).  The border line and the
+    thin margin outside it blend with the edge: the fitted diamond lies between the sign's
+    outline and the face's.  Not claimed: a
     legend blurred into a small face lowers the face's level and puts the edge further out
     (about 0.5 px at 9 px half-diagonal and 1.5 px blur, 1 px at 2.5 px blur, on a test
     sign with a stroke down its middle).
@@ -1450,12 +1455,15 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
     half-diagonal reached half or twice the start's, the blur reached ``max_sigma``, or
     the sign is not more coloured than its background.
     """
-    from scipy.optimize import least_squares
-
     cx, cy, a, b = (float(v) for v in start[:4])
     h, w = chroma.shape[:2]
     if a < 2 or b < 2 or h < 4 or w < 4:
         return None
+    f = max(1, math.ceil(min(a, b) / max_half))
+    if f > 1:
+        h, w = h // f, w // f
+        chroma = chroma[:h * f, :w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+        cx, cy, a, b, max_sigma = cx / f, cy / f, a / f, b / f, max_sigma / f
     ys, xs = np.mgrid[0:h, 0:w]
     xs = xs.ravel() + 0.5
     ys = ys.ravel() + 0.5
@@ -1475,15 +1483,24 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
     hi = [cx + 0.5 * a, cy + 0.5 * b, 2.0 * a, 2.0 * b, max_sigma, np.inf, np.inf, np.inf,
           np.inf]
 
+    last: list = [None, None]
+
     def resid(p):
-        return _blurred_diamond(p, xs, ys)[0] - vals
+        # the model and its Jacobian in one pass; least_squares asks for the Jacobian at
+        # the point it has just evaluated
+        model, last[1] = _blurred_diamond(p, xs, ys, jac=True)
+        last[0] = p.copy()
+        return model - vals
 
     def jac(p):
-        return _blurred_diamond(p, xs, ys, jac=True)[1]
+        if last[0] is None or not np.array_equal(p, last[0]):
+            resid(p)
+        return last[1]
 
     try:
         res = least_squares(resid, p0, jac=jac, bounds=(lo, hi), loss='soft_l1',
-                            f_scale=robust * (face0 - bg0), x_scale='jac', max_nfev=max_nfev)
+                            f_scale=robust * (face0 - bg0), x_scale='jac', max_nfev=max_nfev,
+                            xtol=1e-4, ftol=1e-4)
     except (ValueError, np.linalg.LinAlgError):
         return None
     fcx, fcy, fa, fb, fs, face, bg = (float(v) for v in res.x[:7])
@@ -1491,7 +1508,7 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
         return None
     if not (0.505 * a < fa < 1.99 * a and 0.505 * b < fb < 1.99 * b and fs < 0.99 * max_sigma):
         return None
-    return fcx, fcy, fa, fb, fs, face, bg
+    return fcx * f, fcy * f, fa * f, fb * f, fs * f, face, bg
 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,

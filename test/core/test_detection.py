@@ -1560,6 +1560,13 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
                abs(d.box.y2 - gt.y2)) <= 1.5
     off = base.with_config(blur_fit=False)
     assert max(d.box.iou(gt) for d in off.detect(img)) < 0.7
+    # moved so that the frame's right edge cuts it, the blob is no whole diamond: not fitted
+    # so (the fit's box would reach past the frame)
+    cut = np.ascontiguousarray(np.roll(img, 219, axis=1))
+    base.debug, off.debug = [], []
+    got = [[(d.box.x, d.box.y, d.box.w, d.box.h) for d in det.detect(cut)] for det in (base, off)]
+    assert got[0] == got[1] and got[0]
+    assert not any(e.get('blur_fit') for e in base.debug)
 
 
 @pytest.mark.parametrize('blur', [0.7, 1.5])

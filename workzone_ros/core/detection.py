@@ -2841,13 +2841,16 @@ class ColorDetector:
         """The sign's diamond ``(cx, cy, a, b)`` (the blob's window ``(x0, y0, x1, y1)``) by
         :func:`fit_blurred_diamond` on the chroma R - B of the colour-balanced frame, from the
         mask's diamond ``fd`` or the blob's box ``blob``, less ``blur_fit_bias``; None when the
-        fit fails, its centre lies outside the blob's box or the sign would be smaller than
-        the blob's box by more than a pixel a side."""
+        blob touches the frame's edge, the fit fails, its centre lies outside the blob's box
+        or the sign would be smaller than the blob's box by more than a pixel a side."""
         cfg = self.config
         x0, y0, x1, y1 = window
         bx, by, bw, bh = blob
         pad = 3 + int(0.3 * max(bw, bh))
         H, W = bgr.shape[:2]
+        if (x0 + bx <= 1 or y0 + by <= 1 or x0 + bx + bw >= W - 1
+                or y0 + by + bh >= H - 1):
+            return None             # cut off by the frame's edge: no whole diamond to fit
         wx0, wy0 = max(0, x0 + bx - pad), max(0, y0 + by - pad)
         wx1, wy1 = min(W, x0 + bx + bw + pad), min(H, y0 + by + bh + pad)
         win = bgr[wy0:wy1, wx0:wx1]

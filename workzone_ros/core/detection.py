@@ -263,9 +263,9 @@ class DetectorConfig:
         rim_chroma: a refined outline that holds all of its blob's orange is rejected when
             the chroma R - B of the ring 0.5-1.5 px beyond the sign's outline is on average
             more than this share of the way from the background's (3-6 px beyond) to the
-            face's: the outline lies
-            inside a faded sign whose mask stops short (a legend's edge taken for the
-            line); a correct outline reaches ~0.3 only under 2 px of blur.  0 = off.
+            face's: the outline lies inside a faded sign whose mask stops short (a legend's
+            edge taken for the line); a correct outline reaches ~0.3 only under 2 px of
+            blur.  0 = off.
         pixel_boxes: refined boxes (diamond and rectangle) in whole pixels: the pixels the
             measured outline covers more than half (:func:`pixel_box`,
             :func:`diamond_pixel_box`), as box labels are drawn; on average no further off
@@ -1446,10 +1446,9 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
     window binned by a whole factor (block means: still linear in the blend) to about that
     size: the cost is about the same for every size (a few ms).  The border line and the
     thin margin outside it blend with the edge: the fitted diamond lies between the sign's
-    outline and the face's.  Not claimed: a
-    legend blurred into a small face lowers the face's level and puts the edge further out
-    (about 0.5 px at 9 px half-diagonal and 1.5 px blur, 1 px at 2.5 px blur, on a test
-    sign with a stroke down its middle).
+    outline and the face's.  Not claimed: a legend blurred into a small face lowers the
+    face's level and puts the edge further out (about 0.5 px at 9 px half-diagonal and
+    1.5 px blur, 1 px at 2.5 px blur, on a test sign with a stroke down its middle).
 
     Returns ``(cx, cy, a, b, sigma, face, bg)`` or None: the fit did not converge, a
     half-diagonal reached half or twice the start's, the blur reached ``max_sigma``, or
@@ -2321,16 +2320,23 @@ class ColorDetector:
             self._extend(bgr, cand, hsv[by0:by1, bx0:bx1][pix[by0:by1, bx0:bx1]])
         return cand
 
-    def _value(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int,
-               luma: bool = False) -> tuple[np.ndarray, int, int]:
-        """The HSV value (max of the colour-balanced B, G, R), or with ``luma`` the luma
-        (a weighted sum: linear in a blend of two colours, as the edge model is), of
-        ``bgr[y0:y1, x0:x1]`` clipped to the frame, and the clipped window's origin."""
+    def _window(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int
+                ) -> tuple[np.ndarray, int, int]:
+        """``bgr[y0:y1, x0:x1]`` clipped to the frame and colour-balanced, and the clipped
+        window's origin."""
         H, W = bgr.shape[:2]
         x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)
         win = bgr[y0:y1, x0:x1]
         if self._gains is not None:
             win = apply_gains(win, self._gains)
+        return win, x0, y0
+
+    def _value(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int,
+               luma: bool = False) -> tuple[np.ndarray, int, int]:
+        """The HSV value (max of the colour-balanced B, G, R), or with ``luma`` the luma
+        (a weighted sum: linear in a blend of two colours, as the edge model is), of
+        ``bgr[y0:y1, x0:x1]`` clipped to the frame, and the clipped window's origin."""
+        win, x0, y0 = self._window(bgr, x0, y0, x1, y1)
         if luma:
             return cv2.cvtColor(np.ascontiguousarray(win), cv2.COLOR_BGR2GRAY), x0, y0
         return cv2.max(cv2.max(win[..., 0], win[..., 1]), win[..., 2]), x0, y0
@@ -2792,19 +2798,11 @@ class ColorDetector:
             bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
         return sub[0], sub[1], sub[2] - bias, sub[3] - bias
 
-    def _chroma(self, bgr: np.ndarray, window: tuple, bw: int, bh: int
+    def _chroma(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int
                 ) -> tuple[np.ndarray, int, int]:
-        """The chroma R - B (float32, colour-balanced; linear in a blend of two colours) a
-        few pixels beyond the blob's window ``(x0, y0, x1, y1)`` (as
-        :meth:`_diamond_value`), and the clipped window's origin."""
-        x0, y0, x1, y1 = window
-        pad = 3 + int(0.25 * max(bw, bh))
-        H, W = bgr.shape[:2]
-        x0, y0 = max(0, x0 - pad), max(0, y0 - pad)
-        x1, y1 = min(W, x1 + pad), min(H, y1 + pad)
-        win = bgr[y0:y1, x0:x1]
-        if self._gains is not None:
-            win = apply_gains(win, self._gains)
+        """The chroma R - B (float32, colour-balanced; linear in a blend of two colours) of
+        ``bgr[y0:y1, x0:x1]`` clipped to the frame, and the clipped window's origin."""
+        win, x0, y0 = self._window(bgr, x0, y0, x1, y1)
         return win[..., 2].astype(np.float32) - win[..., 0].astype(np.float32), x0, y0
 
     def _inside_sign(self, bgr: np.ndarray, window: tuple, sub: Sequence[float], bw: int,
@@ -2816,7 +2814,10 @@ class ColorDetector:
         cfg = self.config
         if cfg.rim_chroma <= 0:
             return False
-        chroma, ox, oy = self._chroma(bgr, window, bw, bh)
+        # a few pixels beyond the blob's window, as :meth:`_diamond_value`
+        pad = 3 + int(0.25 * max(bw, bh))
+        chroma, ox, oy = self._chroma(bgr, window[0] - pad, window[1] - pad, window[2] + pad,
+                                      window[3] + pad)
         cx, cy = sub[0] + window[0] - ox, sub[1] + window[1] - oy
         a, b = float(sub[2]), float(sub[3])
         k = cfg.diamond_face_ratio
@@ -2851,12 +2852,8 @@ class ColorDetector:
         if (x0 + bx <= 1 or y0 + by <= 1 or x0 + bx + bw >= W - 1
                 or y0 + by + bh >= H - 1):
             return None             # cut off by the frame's edge: no whole diamond to fit
-        wx0, wy0 = max(0, x0 + bx - pad), max(0, y0 + by - pad)
-        wx1, wy1 = min(W, x0 + bx + bw + pad), min(H, y0 + by + bh + pad)
-        win = bgr[wy0:wy1, wx0:wx1]
-        if self._gains is not None:
-            win = apply_gains(win, self._gains)
-        chroma = win[..., 2].astype(np.float32) - win[..., 0].astype(np.float32)
+        chroma, wx0, wy0 = self._chroma(bgr, x0 + bx - pad, y0 + by - pad,
+                                        x0 + bx + bw + pad, y0 + by + bh + pad)
         dx, dy = x0 - wx0, y0 - wy0
         if fd is not None:
             start = (fd[0] + dx, fd[1] + dy, fd[2], fd[3])

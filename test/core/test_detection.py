@@ -1567,6 +1567,9 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     got = [[(d.box.x, d.box.y, d.box.w, d.box.h) for d in det.detect(cut)] for det in (base, off)]
     assert got[0] == got[1] and got[0]
     assert not any(e.get('blur_fit') for e in base.debug)
+    # and its box ends at the frame's edge (the border growth reached past it)
+    assert all(0 <= x and x + w <= cut.shape[1] and 0 <= y and y + h <= cut.shape[0]
+               for x, y, w, h in got[0])
 
 
 @pytest.mark.parametrize('blur', [0.7, 1.5])

@@ -2039,7 +2039,14 @@ class ColorDetector:
                         _iou((c.x, c.y, c.w, c.h), (k.x, k.y, k.w, k.h))[1] <= cfg.nms_contain
                         for k in cands):
                     cands.append(c)
-        return self._fuse(cands, rois, bgr, thr_base)
+        out = self._fuse(cands, rois, bgr, thr_base)
+        for c in out:
+            # a sign's box ends at the frame's edge (a two-colour extension or a border
+            # growth of a sign the edge cuts reached past it)
+            x1, y1 = min(c.x + c.w, float(width)), min(c.y + c.h, float(height))
+            c.x, c.y = max(c.x, 0.0), max(c.y, 0.0)
+            c.w, c.h = max(x1 - c.x, 1.0), max(y1 - c.y, 1.0)
+        return out
 
     def _pass(self, small: np.ndarray, bgr: np.ndarray, region: tuple, thr_full: np.ndarray,
               s: int, thr_base: np.ndarray, lboxes: list,

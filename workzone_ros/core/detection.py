@@ -915,6 +915,14 @@ def diamond_rings(shape: tuple, fit: tuple, width: float
     return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
+def _padded(window: tuple, bw: int, bh: int) -> tuple[int, int, int, int]:
+    """A blob's window ``(x0, y0, x1, y1)`` grown by a quarter of the blob's size ``(bw,
+    bh)`` + 3 px (a mask fit that is too large puts an edge's outer samples beyond it)."""
+    pad = 3 + int(0.25 * max(bw, bh))
+    x0, y0, x1, y1 = window
+    return x0 - pad, y0 - pad, x1 + pad, y1 + pad
+
+
 def pixel_box(x: float, y: float, w: float, h: float) -> tuple[float, float, float, float]:
     """The whole-pixel box of the pixels whose centres lie inside an upright rectangle
     ``(x, y, w, h)`` (pixel ``i`` spans ``[i, i + 1)``, its centre at ``i + 0.5``): each edge
@@ -2353,9 +2361,7 @@ class ColorDetector:
         """The brightness (:meth:`_value`, luma with ``diamond_luma``) a few pixels beyond
         the blob's window ``(x0, y0, x1, y1)`` (a quarter of the blob's size, + 3 px: a mask
         fit that is too large puts an edge's outer samples outside the window)."""
-        x0, y0, x1, y1 = window
-        pad = 3 + int(0.25 * max(bw, bh))
-        return self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y1 + pad, self.config.diamond_luma)
+        return self._value(bgr, *_padded(window, bw, bh), self.config.diamond_luma)
 
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""
@@ -2822,9 +2828,7 @@ class ColorDetector:
         if cfg.rim_chroma <= 0:
             return False
         # a few pixels beyond the blob's window, as :meth:`_diamond_value`
-        pad = 3 + int(0.25 * max(bw, bh))
-        chroma, ox, oy = self._chroma(bgr, window[0] - pad, window[1] - pad, window[2] + pad,
-                                      window[3] + pad)
+        chroma, ox, oy = self._chroma(bgr, *_padded(window, bw, bh))
         cx, cy = sub[0] + window[0] - ox, sub[1] + window[1] - oy
         a, b = float(sub[2]), float(sub[3])
         k = cfg.diamond_face_ratio

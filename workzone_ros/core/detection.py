@@ -545,6 +545,7 @@ class Candidate:
     hull_fill: float = 1.0
     extended: bool = False
     refined: bool = False
+    chroma_fit: bool = False
     sources: list[str] = field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
 
@@ -2187,7 +2188,9 @@ class ColorDetector:
         candidates and the components merged.
         """
         cfg = self.config
-        keys = sorted((i for i, c in parts.items() if c is None or not c.refined),
+        # a piece boxed by the chroma fit alone (no edge measured) may be a fragment too
+        keys = sorted((i for i, c in parts.items() if c is None or not c.refined
+                       or c.chroma_fit),
                       key=lambda i: -int(stats[i, cv2.CC_STAT_AREA]))[:cfg.merge_max]
         used: set = set()
         for a, b in itertools.combinations(keys, 2):
@@ -2210,7 +2213,8 @@ class ColorDetector:
             comp = ((sub == a) | (sub == b)).astype(np.uint8)
             c = self._measure(bgr, comp, (fx, fy, fw, fh), 'orange', s, thr_base, lboxes,
                               float(np.count_nonzero(comp)) / (w * h), None, whole=True)
-            if c is None or not c.refined:
+            if c is None or not c.refined or (c.chroma_fit and any(
+                    parts[i] is not None and parts[i].refined for i in (a, b))):
                 continue
             used |= {a, b}
             out = [o for o in out if o is not parts[a] and o is not parts[b]] + [c]
@@ -2654,6 +2658,7 @@ class ColorDetector:
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
             cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
+            cand.chroma_fit = cand.refined and sub is None
         elif grow > 0:
             gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy

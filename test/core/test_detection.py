@@ -1535,7 +1535,11 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     assert d.kind == 'warning'
     assert max(abs(d.box.x - gt.x), abs(d.box.y - gt.y), abs(d.box.x2 - gt.x2),
                abs(d.box.y2 - gt.y2)) <= 1.0
-    det = det.with_config(diamond_grown_starts=(), blur_fit=False)
+    # the whole blob has no legend the test sees: its outline measured from the mask keeps
+    # it (``outline_for_legend``); without that, only the grown start refines the core
+    assert _one(det.with_config(diamond_grown_starts=(), blur_fit=False).detect(img),
+                (403, 211, 22, 22), 0.9)
+    det = det.with_config(diamond_grown_starts=(), blur_fit=False, outline_for_legend=False)
     det.reset()
     assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7
 
@@ -1551,8 +1555,9 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_COLOR)
     model = cm.load_model(config_path('models/color_orange.npz'))
+    # the whole blob's outline (``outline_for_legend``) is a refinement from the brightness
     base = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0].with_config(
-        diamond_grown_starts=(), diamond_search=False)
+        diamond_grown_starts=(), diamond_search=False, outline_for_legend=False)
     gt = Box(403.0, 211.0, 22.0, 22.0)
     d = _one(base.detect(img), (403, 211, 22, 22), 0.8)
     assert d.kind == 'warning'
@@ -1680,3 +1685,29 @@ def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):
                                 cfg.diamond_margin_rel, cfg.diamond_max_change)
         got = detector._refine(img, (cx, cy, a_face, a_face))
         assert got[2] == pytest.approx(raw[2] - bias) and got[3] == pytest.approx(raw[3] - bias)
+
+
+def test_faded_legend_kept_by_its_measured_outline(detector):
+    """A warning sign whose legend has faded to 0.72 of the face's brightness has no dark
+    pixels for the legend test: with ``outline_for_legend`` (default) its diamond edges,
+    measured in the brightness, keep it, boxed as usual; without, it is lost.  A legendless
+    orange blob of the same size (three discs: a warning's hull fill, found when the legend
+    test is off) has no diamond edges and stays rejected either way."""
+    img, gt = _render_art_sign(_background(), 400.3, 130.6, 44)
+    x, y, w, h = gt
+    face = img[y:y + h, x:x + w]
+    # the legend and border lightened to dark orange (the outline's contrast with the
+    # background stays)
+    img[y:y + h, x:x + w] = np.maximum(face, (np.array(ORANGE) * 0.72).astype(np.uint8))
+    on, off = detector, detector.with_config(outline_for_legend=False)
+    d = _one(on.detect(img), gt, 0.7)
+    assert d.kind == 'warning'
+    assert not _near(off.detect(img), gt)
+
+    blob = _background()
+    for c, r in (((292, 125), 14), ((310, 140), 13), ((300, 120), 10)):
+        cv2.circle(blob, c, r, ORANGE, -1)
+    patch = (278, 110, 46, 44)
+    found = detector.with_config(min_dark_inside=0.0).detect(blob)
+    assert _near(found, patch) and _near(found, patch)[0].kind == 'warning'
+    assert not _near(on.detect(blob), patch) and not _near(off.detect(blob), patch)

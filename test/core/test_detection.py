@@ -1711,3 +1711,27 @@ def test_faded_legend_kept_by_its_measured_outline(detector):
     found = detector.with_config(min_dark_inside=0.0).detect(blob)
     assert _near(found, patch) and _near(found, patch)[0].kind == 'warning'
     assert not _near(on.detect(blob), patch) and not _near(off.detect(blob), patch)
+
+
+def test_lane_ends_piece_boxed_by_its_colour_is_merged_with_the_rest():
+    """A winter lane-ends sign (a simulator frame, seed 6001 frame 147, as the camera's JPEG:
+    ``test/data/winter_lane_ends.jpg``; label (516, 158, 57, 60)): its symbol cuts a narrow
+    left strip off the faded face.  The large piece has no line to refine and is boxed by the
+    chroma fit alone; such a piece is still a fragment to merge, and the two pieces measured
+    together give the sign (IoU >= 0.9) instead of the large piece (IoU ~0.8, 11 px short on
+    the left) and a stray 'regulatory' box on the strip."""
+    from pathlib import Path
+
+    from workzone_ros.resources import config_path
+    from workzone_ros.tools import eval_color as ec
+    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'winter_lane_ends.jpg', np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    model = cm.load_model(config_path('models/color_orange.npz'))
+    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    gt = (516, 158, 57, 60)
+    d = _one(det.detect(img), gt, 0.9)
+    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
+    det = det.with_config(merge_fragments=False)
+    det.reset()
+    pieces = _near(det.detect(img), gt, 0.05)
+    assert len(pieces) == 2 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.85

@@ -1536,10 +1536,10 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     assert max(abs(d.box.x - gt.x), abs(d.box.y - gt.y), abs(d.box.x2 - gt.x2),
                abs(d.box.y2 - gt.y2)) <= 1.0
     # the whole blob has no legend the test sees: its outline measured from the mask keeps
-    # it (``outline_for_legend``); without that, only the grown start refines the core
+    # it (``outline_evidence``); without that, only the grown start refines the core
     assert _one(det.with_config(diamond_grown_starts=(), blur_fit=False).detect(img),
                 (403, 211, 22, 22), 0.9)
-    det = det.with_config(diamond_grown_starts=(), blur_fit=False, outline_for_legend=False)
+    det = det.with_config(diamond_grown_starts=(), blur_fit=False, outline_evidence=False)
     det.reset()
     assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7
 
@@ -1555,9 +1555,9 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
     img = cv2.imdecode(data, cv2.IMREAD_COLOR)
     model = cm.load_model(config_path('models/color_orange.npz'))
-    # the whole blob's outline (``outline_for_legend``) is a refinement from the brightness
+    # the whole blob's outline (``outline_evidence``) is a refinement from the brightness
     base = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0].with_config(
-        diamond_grown_starts=(), diamond_search=False, outline_for_legend=False)
+        diamond_grown_starts=(), diamond_search=False, outline_evidence=False)
     gt = Box(403.0, 211.0, 22.0, 22.0)
     d = _one(base.detect(img), (403, 211, 22, 22), 0.8)
     assert d.kind == 'warning'
@@ -1689,7 +1689,7 @@ def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):
 
 def test_faded_legend_kept_by_its_measured_outline(detector):
     """A warning sign whose legend has faded to 0.72 of the face's brightness has no dark
-    pixels for the legend test: with ``outline_for_legend`` (default) its diamond edges,
+    pixels for the legend test: with ``outline_evidence`` (default) its diamond edges,
     measured in the brightness, keep it, boxed as usual; without, it is lost.  A legendless
     orange blob of the same size (three discs: a warning's hull fill, found when the legend
     test is off) has no diamond edges and stays rejected either way."""
@@ -1699,7 +1699,7 @@ def test_faded_legend_kept_by_its_measured_outline(detector):
     # the legend and border lightened to dark orange (the outline's contrast with the
     # background stays)
     img[y:y + h, x:x + w] = np.maximum(face, (np.array(ORANGE) * 0.72).astype(np.uint8))
-    on, off = detector, detector.with_config(outline_for_legend=False)
+    on, off = detector, detector.with_config(outline_evidence=False)
     d = _one(on.detect(img), gt, 0.7)
     assert d.kind == 'warning'
     assert not _near(off.detect(img), gt)
@@ -1735,3 +1735,25 @@ def test_lane_ends_piece_boxed_by_its_colour_is_merged_with_the_rest():
     det.reset()
     pieces = _near(det.detect(img), gt, 0.05)
     assert len(pieces) == 2 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.85
+
+
+@pytest.mark.parametrize('size, top', [(30, 222.4), (34, 223.4), (40, 220.4), (40, 226.4)])
+def test_low_sign_behind_a_guardrail_kept_by_its_measured_outline(size, top):
+    """A portable stand's sign mounted low (its bottom below the usual mounting row of the
+    default model's geometry) with a guardrail across its lower corner: the mask is no clear
+    diamond, which the mounting test demands down there (it rejects drums, cones and
+    vehicles), so the sign was lost; with ``outline_evidence`` its edges, measured in the
+    brightness above the rail, keep it (IoU >= 0.8 with the whole sign).  Not claimed: at
+    30 px the refinement misses at some sub-pixel positions (3 of 14 one-pixel steps)."""
+    from workzone_ros.resources import config_path
+    from workzone_ros.tools import eval_color as ec
+    model = cm.load_model(config_path('models/color_orange.npz'))
+    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    img, gt = _render_art_sign(_background(), 500.3, top, size)
+    rail = gt[1] + int(0.75 * gt[3])
+    img[rail:rail + 5, 380:640] = (150, 152, 150)
+    d = _one(det.detect(img), gt, 0.8)
+    assert d.kind == 'warning'
+    off = det.with_config(outline_evidence=False)
+    off.reset()
+    assert not _near(off.detect(img), gt, 0.1)

@@ -124,9 +124,9 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node._detector.config.blur_fit
     assert node.set_parameters([Parameter('blur_fit', value=False)])[0].successful
     assert not node._detector.config.blur_fit
-    assert node._detector.config.outline_for_legend
-    assert node.set_parameters([Parameter('outline_for_legend', value=False)])[0].successful
-    assert not node._detector.config.outline_for_legend
+    assert node._detector.config.outline_evidence
+    assert node.set_parameters([Parameter('outline_evidence', value=False)])[0].successful
+    assert not node._detector.config.outline_evidence
 
 
 def test_image_waits_for_late_rois(ros, model_path):

@@ -282,14 +282,16 @@ class DetectorConfig:
         min_dark_inside: smallest share of dark (legend, border) pixels inside the hull of an
             orange blob of at least ``structure_min_px`` (sign faces carry a legend; sky
             patches, drums, vehicle panels mostly do not).
-        outline_for_legend: a warning blob that fails the legend test is still kept when its
-            diamond outline is measured in the brightness (:func:`refine_diamond`, the
-            search): a faded, rain-washed or blurred legend loses its dark pixels first (on
-            the tuning renders 85 of 727 eligible warning signs, clear diamonds among them,
-            had a dark share below 0.02: 25 at dusk, 27 in rain, 33 in winter), while a patch
-            of dusk sky or a vehicle's panel has no diamond's edges.  Without a measured
-            outline (no refinement, or only the chroma fit) it is rejected as before, and a
-            sign merged with such a surface is still peeled out of it.
+        outline_evidence: a warning blob that fails the legend test, or (below the usual
+            mounting height) the clear-diamond test, is still kept when its diamond outline
+            is measured in the brightness (:func:`refine_diamond`, the search).  A faded,
+            rain-washed or blurred legend loses its dark pixels first (on the tuning renders
+            85 of 727 eligible warning signs, clear diamonds among them, had a dark share
+            below 0.02: 25 at dusk, 27 in rain, 33 in winter), and a portable stand's face
+            behind a guardrail is no clear diamond to the mask; a patch of dusk sky, a
+            vehicle's panel, a drum or a cone has no diamond's edges.  Without a measured
+            outline (no refinement, or only the chroma fit) such a blob is rejected as
+            before, and a sign merged with a surface is still peeled out of it.
         dark_rel: dark = value below this fraction of the blob's median orange value.
         band_test: reject an orange blob of at least ``band_min_px`` (height) that a white
             band separates from more orange above or below it, or that holds one
@@ -443,7 +445,7 @@ class DetectorConfig:
     blur_max_frac: float = 0.15
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
-    outline_for_legend: bool = True
+    outline_evidence: bool = True
     band_test: bool = True
     band_min_px: float = 6.0
     band_white_luma: float = 1.25
@@ -2491,6 +2493,9 @@ class ColorDetector:
             return None
         geo = self._geometry
         pix_fit = None              # fit_diamond(pix), when the mounting test needed it
+        # no legend seen, or an unclear face below the usual mounting: kept only if its
+        # diamond outline is measured in the brightness below (``outline_evidence``)
+        no_legend = False
         if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
@@ -2506,7 +2511,9 @@ class ColorDetector:
                     # the diamond test fits ``pix`` either way; the trim below reuses it
                     pix_fit = fit_diamond(pix)
                 if not self._clear_diamond(pix, pix_fit):
-                    return None
+                    if not (cfg.outline_evidence and cfg.diamond_refine):
+                        return None
+                    no_legend = True      # a face behind a guardrail: its edges may tell
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(_median(vch[pix > 0]))
@@ -2520,14 +2527,13 @@ class ColorDetector:
             if sl > cfg.max_surround_like and sh > cfg.min_surround_face:
                 return None
         dark = vch < cfg.dark_rel * v_ref
-        no_legend = False           # kept only if its diamond outline is measured below
         if min(bw, bh) >= cfg.structure_min_px and not relaxed:
             inside = hmask > 0
             dfrac = np.count_nonzero(dark & inside) / max(np.count_nonzero(inside), 1)
             if self.debug is not None:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
-                if not (cfg.outline_for_legend and cfg.diamond_refine):
+                if not (cfg.outline_evidence and cfg.diamond_refine):
                     return None
                 no_legend = True
         if cfg.band_test and bh >= cfg.band_min_px and not relaxed:

@@ -316,7 +316,9 @@ def test_config_validation():
                       ({'blur_fit_ratio': 0.1}, 'blur_fit_ratio'),
                       ({'blur_fit_max_sigma': 0.2}, 'blur_fit_max_sigma'),
                       ({'blur_fit_bias': 5.0}, 'blur_fit_bias'),
-                      ({'rim_chroma': 1.5}, 'rim_chroma')):
+                      ({'rim_chroma': 1.5}, 'rim_chroma'),
+                      ({'diamond_tall_max': 0.9}, 'diamond_tall_max'),
+                      ({'diamond_wide_max': 2.5}, 'diamond_wide_max')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -1757,3 +1759,24 @@ def test_low_sign_behind_a_guardrail_kept_by_its_measured_outline(size, top):
     off = det.with_config(outline_evidence=False)
     off.reset()
     assert not _near(off.detect(img), gt, 0.1)
+
+
+@pytest.mark.parametrize('sx, sy', [(1.0, 1.16), (1.12, 1.0)])
+def test_refined_face_cut_back_to_a_plausible_shape(detector, sx, sy):
+    """A face measured 16 % taller than wide (a small sign stretched by vertical motion
+    blur) or 12 % wider than tall is no square sign facing the road: the refined face keeps
+    its centre and is cut back to ``diamond_tall_max`` (1.08) x its width or
+    ``diamond_wide_max`` (1.06) x its height; with the limits off it keeps the measured
+    shape."""
+    cx, cy, a_face = 45.3, 44.8, 16.0
+    img = _sign_value(cx, cy, a_face)
+    img = cv2.resize(img, None, fx=sx, fy=sy, interpolation=cv2.INTER_LINEAR)
+    start = (cx * sx, cy * sy, a_face * sx, a_face * sy)
+    free = detector.with_config(diamond_tall_max=2.0, diamond_wide_max=2.0)._refine(img, start)
+    assert free is not None and abs(free[3] / free[2] - sy / sx) < 0.03
+    got = detector._refine(img, start)
+    assert abs(got[0] - free[0]) < 1e-9 and abs(got[1] - free[1]) < 1e-9
+    if sy > sx:
+        assert abs(got[3] / got[2] - 1.08) < 1e-9 and got[2] == free[2]
+    else:
+        assert abs(got[2] / got[3] - 1.06) < 1e-9 and got[3] == free[3]

@@ -2932,6 +2932,9 @@ class ColorDetector:
         if not (bx <= cx <= bx + bw and by <= cy <= by + bh
                 and 2 * k * a >= bw - 2 and 2 * k * b >= bh - 2):
             return None
+        # the plausible shape, as for a refined face (diamond_tall_max, diamond_wide_max)
+        b = min(b, cfg.diamond_tall_max * a)
+        a = min(a, cfg.diamond_wide_max * b)
         return cx, cy, a, b
 
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,

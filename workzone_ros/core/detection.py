@@ -39,7 +39,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    face must look like a sign: solidity, convex-hull fill (~0.5 diamond, ~1 rectangle),
    aspect, a dark legend / border inside the hull, and a bottom edge no lower than the
    training signs' mounting geometry allows (model extra ``geometry``; drums, cones and
-   vehicles stand on the road; lifted inside LiDAR ROIs).  The box is the orange hull's,
+   vehicles stand on the road; lifted inside LiDAR ROIs).  A warning blob that fails the
+   legend test (a faded or rain-washed legend) or, mounted low, is no clear diamond (a
+   guardrail across it) is kept only when its diamond outline is then measured in the
+   brightness (``outline_evidence``).  The box is the orange hull's,
    grown per blob from its own edge profile (``_border_growth``): by ``border_frac`` when the
    black border line lies outside the hull (margin and line lost), plus the width of the
    soft colour edge around it (blurred, small or rain-washed signs); a bright sign whose
@@ -55,7 +58,9 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    border line keeps the face's hue and saturation; the mask-based box stays the fallback
    when an edge shows no face-to-border step.  A diamond is fitted to its eight edge points
    (:func:`fit_rhombus`, outliers dropped) measured on the luma (``diamond_luma``: linear in
-   a blend of two colours, as the edge model), and refined boxes are given in whole pixels,
+   a blend of two colours, as the edge model), cut back to a plausible shape (a square sign
+   facing the road: ``diamond_tall_max``, ``diamond_wide_max``), and refined boxes are given
+   in whole pixels,
    the pixels the measured outline covers more than half, as box labels are drawn
    (``pixel_boxes``).  A blob that passes no test is judged again at higher likelihood
    levels (``peel``): a sign merged with a surface of nearly its colour, an orange dusk

@@ -273,9 +273,10 @@ class DetectorConfig:
             the car's vertical motion stretches a small sign's edges apart; on the tuning
             renders 54 of 518 refined signs came out 3 px or more taller than wide, 22 of
             the labels are) or wider than ``diamond_wide_max`` x its height is cut back to
-            it about its centre.  Tuning warning precision / recall 0.9727 / 0.9615 ->
-            0.9770 / 0.9593, a better trade than a larger edge bias (0.3 px: 0.9776 /
-            0.9532); 1.08 / 1.03 gave 0.9783 / 0.9583, 1.12 / 1.06 0.9758 / 0.9598.
+            it about its centre; so is the chroma fit's diamond.  Tuning warning precision /
+            recall 0.9727 / 0.9615 -> 0.9783 / 0.9587 (refined faces alone: 0.9770 /
+            0.9593), a better trade than a larger edge bias (0.3 px: 0.9776 / 0.9532);
+            1.08 / 1.03 on refined faces gave 0.9783 / 0.9583, 1.12 / 1.06 0.9758 / 0.9598.
         rim_chroma: a refined outline that holds all of its blob's orange is rejected when
             the chroma R - B of the ring 0.5-1.5 px beyond the sign's outline is on average
             more than this share of the way from the background's (3-6 px beyond) to the
@@ -2516,7 +2517,7 @@ class ColorDetector:
         pix_fit = None              # fit_diamond(pix), when the mounting test needed it
         # no legend seen, or an unclear face below the usual mounting: kept only if its
         # diamond outline is measured in the brightness below (``outline_evidence``)
-        no_legend = False
+        needs_outline = False
         if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
@@ -2534,7 +2535,7 @@ class ColorDetector:
                 if not self._clear_diamond(pix, pix_fit):
                     if not (cfg.outline_evidence and cfg.diamond_refine):
                         return None
-                    no_legend = True      # a face behind a guardrail: its edges may tell
+                    needs_outline = True      # a face behind a guardrail: its edges may tell
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
         v_ref = float(_median(vch[pix > 0]))
@@ -2556,7 +2557,7 @@ class ColorDetector:
             if dfrac < cfg.min_dark_inside:
                 if not (cfg.outline_evidence and cfg.diamond_refine):
                     return None
-                no_legend = True
+                needs_outline = True
         if cfg.band_test and bh >= cfg.band_min_px and not relaxed:
             if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
                 if self.debug is not None:
@@ -2582,7 +2583,7 @@ class ColorDetector:
         # diamonds are about square; a wide blob is a rectangle (or the orange top of one)
         kind = ('warning' if hull_fill < cfg.diamond_hull_fill
                 and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
-        if no_legend and kind != 'warning':
+        if needs_outline and kind != 'warning':
             return None
         conf = _mode(like[pix > 0])
         face_px = pix
@@ -2661,7 +2662,7 @@ class ColorDetector:
                                               hsv)
                     searched = sub is not None
             blurred = None
-            if sub is None and refine and cfg.blur_fit and not no_legend:
+            if sub is None and refine and cfg.blur_fit and not needs_outline:
                 # no line to measure: the sign's blurred colour
                 blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
                                          fd if fd is not None and fd[4] >= 0.5 else None)
@@ -2704,7 +2705,7 @@ class ColorDetector:
             gx, gy = grow * bw, grow * bh
             cand.x, cand.y = cand.x - gx, cand.y - gy
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
-        if no_legend and not (outer is not None and sub is not None):
+        if needs_outline and not (outer is not None and sub is not None):
             # no legend and no diamond edges: a patch of a sign-coloured surface (peeled next)
             return None
         sx, sy = cfg.border_scale

@@ -45,6 +45,21 @@ def _regulatory(img, x, y, w, h):
     return (x, y, w, h)
 
 
+def _default_detector():
+    """The learned detector with the shipped model, as ``evaluate color`` builds it."""
+    from workzone_ros.resources import config_path
+    from workzone_ros.tools import eval_color as ec
+    model = cm.load_model(config_path('models/color_orange.npz'))
+    return ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+
+
+def _data_frame(name):
+    """A camera frame (JPEG) from ``test/data``."""
+    from pathlib import Path
+    data = np.fromfile(Path(__file__).parent.parent / 'data' / name, np.uint8)
+    return cv2.imdecode(data, cv2.IMREAD_COLOR)
+
+
 @pytest.fixture(scope='module')
 def model():
     pos = np.zeros((cm.H_BINS, cm.S_BINS))
@@ -1524,14 +1539,8 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     the core peeled from it covers less than the face, and only a start grown from the core
     (``diamond_grown_starts``) refines; the box is then the label's (403, 211, 22, 22)
     within a pixel, the core's box otherwise (IoU 0.54)."""
-    from pathlib import Path
-
-    from workzone_ros.resources import config_path
-    from workzone_ros.tools import eval_color as ec
-    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
-    model = cm.load_model(config_path('models/color_orange.npz'))
-    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    img = _data_frame('rain_faded_sign.jpg')
+    det = _default_detector()
     gt = Box(403.0, 211.0, 22.0, 22.0)
     d = _one(det.detect(img), (403, 211, 22, 22), 0.9)
     assert d.kind == 'warning'
@@ -1550,15 +1559,9 @@ def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     """The rain-washed frame of the test above with no refinement from the brightness at all
     (no grown starts, no search): the chroma fit (``blur_fit``) still boxes the sign within
     a pixel and a half of its label; without it the box is the core's (IoU < 0.7)."""
-    from pathlib import Path
-
-    from workzone_ros.resources import config_path
-    from workzone_ros.tools import eval_color as ec
-    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'rain_faded_sign.jpg', np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
-    model = cm.load_model(config_path('models/color_orange.npz'))
+    img = _data_frame('rain_faded_sign.jpg')
     # the whole blob's outline (``outline_evidence``) is a refinement from the brightness
-    base = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0].with_config(
+    base = _default_detector().with_config(
         diamond_grown_starts=(), diamond_search=False, outline_evidence=False)
     gt = Box(403.0, 211.0, 22.0, 22.0)
     d = _one(base.detect(img), (403, 211, 22, 22), 0.8)
@@ -1722,14 +1725,8 @@ def test_lane_ends_piece_boxed_by_its_colour_is_merged_with_the_rest():
     chroma fit alone; such a piece is still a fragment to merge, and the two pieces measured
     together give the sign (IoU >= 0.9) instead of the large piece (IoU ~0.8, 11 px short on
     the left) and a stray 'regulatory' box on the strip."""
-    from pathlib import Path
-
-    from workzone_ros.resources import config_path
-    from workzone_ros.tools import eval_color as ec
-    data = np.fromfile(Path(__file__).parent.parent / 'data' / 'winter_lane_ends.jpg', np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
-    model = cm.load_model(config_path('models/color_orange.npz'))
-    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    img = _data_frame('winter_lane_ends.jpg')
+    det = _default_detector()
     gt = (516, 158, 57, 60)
     d = _one(det.detect(img), gt, 0.9)
     assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
@@ -1747,10 +1744,7 @@ def test_low_sign_behind_a_guardrail_kept_by_its_measured_outline(size, top):
     vehicles), so the sign was lost; with ``outline_evidence`` its edges, measured in the
     brightness above the rail, keep it (IoU >= 0.8 with the whole sign).  Not claimed: at
     30 px the refinement misses at some sub-pixel positions (3 of 14 one-pixel steps)."""
-    from workzone_ros.resources import config_path
-    from workzone_ros.tools import eval_color as ec
-    model = cm.load_model(config_path('models/color_orange.npz'))
-    det = ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
+    det = _default_detector()
     img, gt = _render_art_sign(_background(), 500.3, top, size)
     rail = gt[1] + int(0.75 * gt[3])
     img[rail:rail + 5, 380:640] = (150, 152, 150)

@@ -2860,12 +2860,14 @@ class ColorDetector:
         bias = cfg.diamond_edge_bias
         if info.get('blur', 0.0) >= cfg.diamond_blur_sigma:
             bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
-        a, b = sub[2] - bias, sub[3] - bias
-        # a square sign facing the road is as tall as wide, or taller when turned away: a
-        # face measured taller or wider than that is cut back about its centre
-        b = min(b, cfg.diamond_tall_max * a)
-        a = min(a, cfg.diamond_wide_max * b)
-        return sub[0], sub[1], a, b
+        return (sub[0], sub[1], *self._plausible(sub[2] - bias, sub[3] - bias))
+
+    def _plausible(self, a: float, b: float) -> tuple[float, float]:
+        """Half-diagonals ``a, b`` of a measured face cut back to a plausible shape: a square
+        sign facing the road is as tall as wide, taller when turned away
+        (``diamond_tall_max``), wider only a little (``diamond_wide_max``)."""
+        b = min(b, self.config.diamond_tall_max * a)
+        return min(a, self.config.diamond_wide_max * b), b
 
     def _chroma(self, bgr: np.ndarray, x0: int, y0: int, x1: int, y1: int
                 ) -> tuple[np.ndarray, int, int]:
@@ -2938,10 +2940,7 @@ class ColorDetector:
         if not (bx <= cx <= bx + bw and by <= cy <= by + bh
                 and 2 * k * a >= bw - 2 and 2 * k * b >= bh - 2):
             return None
-        # the plausible shape, as for a refined face (diamond_tall_max, diamond_wide_max)
-        b = min(b, cfg.diamond_tall_max * a)
-        a = min(a, cfg.diamond_wide_max * b)
-        return cx, cy, a, b
+        return (cx, cy, *self._plausible(a, b))      # the shape limits of a refined face
 
     def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
                         face_px: np.ndarray, hsv: np.ndarray

@@ -67,6 +67,37 @@ def test_left_right_are_mirror_images(left, right):
     assert np.abs(lf[:, ::-1] - rf).mean() < 2.0             # ... and mirror-related
 
 
+@pytest.mark.parametrize('key,size', [('road_work_ahead', 32), ('right_lane_ends', 48),
+                                      ('work_zone_speed_limit', 40)])
+def test_shape_fills_its_rectangle_centred(key, size):
+    # the outline spans the whole face rectangle, centred: the box labels drawn from the
+    # alpha are the sign's (the art was half a drawing pixel right of and below its
+    # rectangle, the right and bottom tips cut: labels up to a pixel short on those sides)
+    alpha = signart.sign_face(key, size)[..., 3].astype(np.float64) / 255.0
+    h, w = alpha.shape
+    cx = (alpha * np.arange(w)).sum() / alpha.sum()
+    cy = (alpha.T * np.arange(h)).sum() / alpha.sum()
+    assert abs(cx - (w - 1) / 2) < 0.02 and abs(cy - (h - 1) / 2) < 0.02
+    # the first and last rows and columns hold the same share of the shape
+    assert abs(alpha[:, 0].mean() - alpha[:, -1].mean()) < 0.02
+    assert abs(alpha[0].mean() - alpha[-1].mean()) < 0.02
+    shape = signs.get(key).shape
+    exact = 0.5 * w * h if shape == 'diamond' else float(w * h)
+    assert abs(alpha.sum() / exact - 1.0) < 0.06          # anti-aliased edge: a little more
+
+
+@pytest.mark.parametrize('key', ['end_road_work', 'work_zone_begin', 'speed_limit'])
+def test_rectangle_border_line_symmetric(key):
+    # the border line lies as far in from the right edge as from the left one (it was a
+    # drawing pixel further in on the right and bottom)
+    f = signart.sign_face(key, 96)
+    dark = 255.0 - f[..., :3].astype(np.float64).mean(-1)[int(0.9 * f.shape[0])]
+    cols = np.arange(8) + 0.5                       # pixel centres from the edge
+    left = (dark[:8] * cols).sum() / dark[:8].sum()
+    right = (dark[::-1][:8] * cols).sum() / dark[::-1][:8].sum()
+    assert abs(left - right) < 0.05, (left, right)
+
+
 def test_colours_of_work_zone_and_general_signs():
     def main_colour(key):
         f = signart.sign_face(key, 128)

@@ -4,7 +4,7 @@ Every catalogue class (core/signs.py) is drawn with OpenCV primitives into a BGR
 face's bounding rectangle; alpha is 0 outside the shape (diamond, octagon, triangle,
 rectangle, square).  Legends and symbols are exaggerated (thick strokes, few large words) so a
 person can tell every class apart at 64 px, and mirrored variants (``*_left`` / ``*_right``)
-are exact mirror images of each other.  Faces are drawn 2x supersampled and cached per
+are exact mirror images of each other.  Faces are drawn 4x supersampled and cached per
 (key, size, speed value, variant, sheeting colour): they are static.
 
 Orange sheeting varies per sign (:func:`sheeting_orange`): real work-zone signs are more
@@ -45,7 +45,7 @@ OTHER_VARIANTS = ('flagger', 'one_lane', 'shoulder_work')
 #: Class pairs whose faces are mirror images (left, right).
 MIRROR_PAIRS = (('lane_shift_left', 'lane_shift_right'), ('left_lane_ends', 'right_lane_ends'))
 
-_SS = 2   # supersampling factor
+_SS = 4   # supersampling factor
 #: A diamond's black border line: its middle this share of the side in from the outline,
 #: half its width (normal to the edge) this share of the side.
 _BORDER_INSET = 0.035
@@ -265,8 +265,11 @@ def _sym_flagger(img, S: float, color) -> None:
 def _draw(key: str, W: int, H: int, speed: int, variant: str,
           orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
     ORANGE = orange  # noqa: N806 - the sheeting colour of this face
-    img = np.zeros((H, W, 3), np.uint8)
-    mask = np.zeros((H, W), np.uint8)
+    # one pixel more than the face: OpenCV puts a pixel's centre at its integer coordinate,
+    # so the face's rectangle [0, W] x [0, H] reaches half a pixel into the last row and
+    # column (:func:`_downsample` takes half of them)
+    img = np.zeros((H + 1, W + 1, 3), np.uint8)
+    mask = np.zeros((H + 1, W + 1), np.uint8)
     c = signs.get(key)
     shape = c.shape
     poly = outline(shape, W, H)
@@ -335,7 +338,7 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
         _poly(img, poly, WHITE)
         cv2.rectangle(img, (0, 0), (W, int(H / 3)), ORANGE, -1)
         b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
         cv2.line(img, (0, int(H / 3)), (W, int(H / 3)), BLACK, b)
         _lines(img, ['WORK', 'ZONE'], cx, 0.05 * H, 0.29 * H, [0.6 * W, 0.6 * W], BLACK,
                0.2, _FONT_BOLD)
@@ -345,8 +348,8 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
         top = int(0.25 * H)
         cv2.rectangle(img, (0, 0), (W, top), ORANGE, -1)
         b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (b, b), (W - 1 - b, top - b), BLACK, b, cv2.LINE_AA)
-        cv2.rectangle(img, (b, top + b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, b), (W - b, top - b), BLACK, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, top + b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
         _lines(img, ['WORK', 'ZONE'], cx, 0.035 * H, 0.215 * H, [0.6 * W, 0.6 * W], BLACK,
                0.2, _FONT_BOLD)
         _lines(img, ['SPEED', 'LIMIT'], cx, 0.31 * H, 0.53 * H, [0.74 * W, 0.66 * W], BLACK,
@@ -355,13 +358,13 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     elif key == 'end_road_work':
         _poly(img, poly, ORANGE)
         b = max(2, int(0.035 * S))
-        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), BLACK, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
         _lines(img, ['END', 'ROAD WORK'], cx, 0.17 * H, 0.83 * H, [0.36 * W, 0.84 * W],
                BLACK, 0.2, _FONT_BOLD)
     elif key == 'speed_limit':
         _poly(img, poly, WHITE)
         b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (2 * b, 2 * b), (W - 1 - 2 * b, H - 1 - 2 * b), BLACK, b,
+        cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), BLACK, b,
                       cv2.LINE_AA)
         _lines(img, ['SPEED', 'LIMIT'], cx, 0.12 * H, 0.42 * H, [0.76 * W, 0.70 * W], BLACK,
                0.18)
@@ -369,7 +372,7 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     elif key == 'guide':
         _poly(img, poly, GREEN)
         b = max(2, int(0.035 * S))
-        cv2.rectangle(img, (2 * b, 2 * b), (W - 1 - 2 * b, H - 1 - 2 * b), WHITE, b,
+        cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), WHITE, b,
                       cv2.LINE_AA)
         _lines(img, ['EXIT 12', 'HARRISBURG'], cx, 0.2 * H, 0.62 * H, [0.40 * W, 0.84 * W],
                WHITE, 0.18)
@@ -378,7 +381,7 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     elif key == 'mile_marker':
         _poly(img, poly, GREEN)
         b = max(2, int(0.05 * W))
-        cv2.rectangle(img, (b, b), (W - 1 - b, H - 1 - b), WHITE, b, cv2.LINE_AA)
+        cv2.rectangle(img, (b, b), (W - b, H - b), WHITE, b, cv2.LINE_AA)
         _text(img, 'MILE', (cx, 0.17 * H), (0.76 * W, 0.12 * H), WHITE, 0.22)
         digits = str(speed)
         n = len(digits)
@@ -402,10 +405,27 @@ def _cached(key: str, size_px: int, speed: int, variant: str,
         face.flags.writeable = False
         return face
     W, H = face_size(key, size_px)
-    big = _draw(key, W * _SS, H * _SS, speed, variant, orange)
-    face = cv2.resize(big, (W, H), interpolation=cv2.INTER_AREA)
+    face = _downsample(_draw(key, W * _SS, H * _SS, speed, variant, orange), _SS)
     face.flags.writeable = False
     return face
+
+
+def _downsample(big: np.ndarray, f: int) -> np.ndarray:
+    """The face at 1 / ``f`` of the supersampled drawing ``big`` ((f H + 1, f W + 1, C),
+    drawn in OpenCV's coordinates, where pixel ``k`` spans ``[k - 0.5, k + 0.5]``): output
+    pixel ``j`` is the mean over the drawing's ``[f j, f (j + 1)]``, the pixels at both
+    ends taking half.  A plain ``f`` x ``f`` area resize of an (f H, f W) drawing took
+    ``[f j - 0.5, f (j + 1) - 0.5]``: it shifted the art half a drawing pixel right and down
+    and cut its right and bottom tips (a diamond's centroid 0.25 face pixels off its
+    rectangle's centre, the box labels drawn from it so much smaller than the outline on
+    those sides, a mirrored class shifted the other way)."""
+    k = np.ones(f + 1, np.float32)
+    k[0] = k[-1] = 0.5
+    k /= f
+    blurred = cv2.sepFilter2D(big.astype(np.float32), -1, k, k, anchor=(0, 0),
+                              borderType=cv2.BORDER_CONSTANT)
+    out = blurred[:-1:f, :-1:f]
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
 
 
 def over(face: np.ndarray, background) -> np.ndarray:

@@ -1774,3 +1774,18 @@ def test_refined_face_cut_back_to_a_plausible_shape(detector, sx, sy):
         assert abs(got[3] / got[2] - 1.08) < 1e-9 and got[2] == free[2]
     else:
         assert abs(got[2] / got[3] - 1.06) < 1e-9 and got[3] == free[3]
+
+
+def test_small_blurred_sign_merged_with_a_dusk_sky_found_by_the_search():
+    """A small blurred dusk sign (a simulator frame, seed 6011 frame 36, as the camera's
+    JPEG: ``test/data/dusk_small_sign.jpg``; label (377, 214, 18, 19)) whose colour blob
+    runs up into a reddish sky: a tall 'regulatory' blob.  The search finds the face in the
+    brightness, but blur ate more than a pixel of its mask on each side; with the slack of
+    ``diamond_clamp_px`` for that the face is kept (a warning box, IoU >= 0.85), without it
+    (0) the union's box is reported (IoU ~0.5)."""
+    img = _data_frame('dusk_small_sign.jpg')
+    gt = (377, 214, 18, 19)
+    d = _one(_default_detector().detect(img), gt, 0.85)
+    assert d.kind == 'warning'
+    old = _near(_default_detector().with_config(diamond_clamp_px=0.0).detect(img), gt, 0.05)
+    assert len(old) == 1 and old[0].box.iou(Box(*map(float, gt))) < 0.6

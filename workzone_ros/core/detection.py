@@ -2970,8 +2970,9 @@ class ColorDetector:
 
         Kept only when :meth:`_refine` converges from a start with a clear line
         (``search_min_contrast``), the face lies inside the blob's box (a pixel for the
-        blend), the sign is at least ``search_min_share`` of the blob's shorter side, and the
-        orange the outline leaves out is not the face's own (:meth:`_holds`)."""
+        blend, ``diamond_clamp_px`` for a small blurred face's mask), the sign is at least
+        ``search_min_share`` of the blob's shorter side, and the orange the outline leaves
+        out is not the face's own (:meth:`_holds`)."""
         cfg = self.config
         bx, by, bw, bh = box
         shrink = start_shrink(cfg.diamond_border_rel, cfg.diamond_margin_rel)
@@ -2984,11 +2985,13 @@ class ColorDetector:
                 continue
             sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
             k, (scx, scy, sa, sb) = cfg.diamond_face_ratio, sub
-            # the face (orange) within the blob's box, a pixel for the blend: a face larger
-            # than its blob is a fragment's (merge_fragments measures those) or the sign's
-            # outer edge against a dark background taken for the face's
-            if (scx - sa >= bx - 1 and scx + sa <= bx + bw + 1
-                    and scy - sb >= by - 1 and scy + sb <= by + bh + 1
+            # the face (orange) within the blob's box, a pixel for the blend and the pixel
+            # blur eats of a small face's mask (``diamond_clamp_px``): a face larger than its
+            # blob is a fragment's (merge_fragments measures those) or the sign's outer edge
+            # against a dark background taken for the face's
+            e_ = 1.0 + cfg.diamond_clamp_px
+            if (scx - sa >= bx - e_ and scx + sa <= bx + bw + e_
+                    and scy - sb >= by - e_ and scy + sb <= by + bh + e_
                     and 2 * k * min(sa, sb) >= cfg.search_min_share * min(bw, bh)
                     and self._holds(hsv, face_px, sub, searched=True)):
                 return sub

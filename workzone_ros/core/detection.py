@@ -1608,12 +1608,12 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
                         missing=free_top)
     if off is None:
         return None
-    side = off.reshape(2, 3)
+    side = off.reshape(2, 3)                  # the two stretches' left, right, top offsets
     if not np.isfinite(side[:, :2]).all():
         return None
-    left = x + 0.5 * (off[0] + off[3])
-    right = x + w - 0.5 * (off[1] + off[4])
-    tops = side[:, 2][np.isfinite(side[:, 2])]
+    left = x + float(side[:, 0].mean())
+    right = x + w - float(side[:, 1].mean())
+    tops = side[np.isfinite(side[:, 2]), 2]
     top = y + float(tops.mean()) if tops.size else None
     if not abs((right - left) / (w + 2 * inset) - 1) <= max_change:
         return None

@@ -324,6 +324,7 @@ def test_config_validation():
                       ({'diamond_hold': 1.5}, 'diamond_hold'),
                       ({'peel_levels': (0.8, 1.2)}, 'peel_levels'),
                       ({'peel_max': -1}, 'peel_max'), ({'ext_ratio_tol': -0.1}, 'ext_ratio_tol'),
+                      ({'ext_band_long': 0.0}, 'ext_band_long'),
                       ({'merge_max': -1}, 'merge_max'), ({'hold_sat': -0.1}, 'hold_sat'),
                       ({'search_min_px': -1.0}, 'search_min_px'),
                       ({'search_min_share': 2.0}, 'search_min_share'),
@@ -752,13 +753,14 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
 
 
-def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7):
+def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7, orange=None):
     """The simulator's sign art warped to a sub-pixel box (its outer edge at x, y and
     x + size, y + size), composited by its alpha and blurred a little like a camera; the
-    ground-truth box as ``synth`` labels it (pixels more than half covered)."""
+    ground-truth box as ``synth`` labels it (pixels more than half covered).  ``orange``:
+    the sheeting's BGR (default the simulator's)."""
     from workzone_ros.sim import signart
     art = signart.sign_face(key, next(a for a in (32, 48, 64, 96, 128, 192, 256, 384)
-                                      if a >= 1.5 * size))
+                                      if a >= 1.5 * size), orange=orange)
     s = size / art.shape[1]
     hm = np.array([[s, 0, x - 0.5 + 0.5 * s], [0, s, y - 0.5 + 0.5 * s], [0, 0, 1.0]])
     warped = cv2.warpPerspective(art, hm, (img.shape[1], img.shape[0]),
@@ -834,6 +836,29 @@ def test_bold_legend_row_over_snow_is_not_the_bottom_border(detector, key, size)
              if c.box.iou(g) > 0.2]
     if key == 'work_zone_begin' or size < 26:
         assert first and first[0].box.y2 < g.y2 - 4.0
+
+
+
+@pytest.mark.parametrize('size', [26, 34, 44])
+def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, size):
+    """A dim "WORK ZONE BEGINS" (winter light: orange sheeting at about the grey
+    background's brightness) in front of a grey wall: the wall counts as white next to the
+    dim orange, so the white part runs on to the end of the reach, and every row below the
+    sign is darker than the sheeting.  The sign ends where that long dark band begins (its
+    bottom border merges with the wall); taking the band's end, or (no catalogue ratio
+    matching) the first dark row, the legend's, cut the box at "BEGINS"."""
+    rng = np.random.default_rng(size)
+    img = np.empty((480, 640, 3), np.uint8)
+    img[:] = (150, 153, 150)
+    img = cv2.add(img, rng.integers(0, 8, img.shape, dtype=np.uint8))
+    img, gt = _render_art_sign(img, 400.3, 190.4, size, key='work_zone_begin',
+                               orange=(0, 66, 150))
+    g = Box(*map(float, gt))
+    d = _one(detector.detect(img), gt, 0.5)
+    assert abs(d.box.y2 - g.y2) <= 1.5 and dt.box_metrics(d.box, g)[1] > 0.9
+    old = [c for c in detector.with_config(ext_band_long=100.0).detect(img)
+           if c.box.iou(g) > 0.2]
+    assert old and old[0].box.y2 < g.y2 - 4.0
 
 
 def _cone(img, cx, base_y, h):

@@ -232,9 +232,11 @@ class DetectorConfig:
             extension's) is kept.  When an edge shows no face-to-border step the hull box
             grown by ``border_frac`` is used.  ``rect_edge_bias``: each measured edge moves
             in by this (px): with none the boxes of clear (sunny) tuning signs come out
-            0.2-0.3 px too large on every side, and, as for diamonds, 0.1 px more is the
-            operating point (tuning regulatory P / R 0.954 / 0.983 with none, 0.968 / 0.969
-            at 0.2, 0.976 / 0.960 at 0.35).
+            0.2-0.3 px too large on every side (dim winter signs' 0.5-1 px too small).
+            0.2 is the operating point with a like margin over the targets' precision and
+            recall on the 18 tuning bags once the bottom border over a darker background
+            was found (``ext_band_long``): regulatory P / R 0.968 / 0.963 at 0.1, 0.975 /
+            0.957 at 0.2, 0.979 / 0.949 at 0.3.
         peel, peel_gap, peel_levels, peel_clamp: a blob that passes no test is judged again
             at higher likelihood levels (:meth:`ColorDetector._peel`): a sign merged with a
             surface of nearly its colour (an orange dusk sky, a brick wall) is where the
@@ -354,7 +356,10 @@ class DetectorConfig:
             (``_bottom_border``): a row at least ``ext_border_share`` dark; of several, the
             one that gives the sign the height / width of a catalogue two-colour sign
             (within ``ext_ratio_tol``; a bold legend row of a small sign looks like a
-            border too), else the first.
+            border too), else the first.  A dark band's last row is a candidate and, when
+            the band is at least ``ext_band_long`` orange heights long (a background darker
+            than the sheeting that the border line merges with: a grey wall behind a dim
+            winter sign), its first row too.
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
@@ -452,7 +457,7 @@ class DetectorConfig:
     blur_fit_max_sigma: float = 4.0
     rim_chroma: float = 0.35
     rect_refine: bool = True
-    rect_edge_bias: float = 0.3
+    rect_edge_bias: float = 0.2
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
     pixel_boxes: bool = True
@@ -464,6 +469,7 @@ class DetectorConfig:
     merge_fragments: bool = True
     merge_max: int = 6
     ext_ratio_tol: float = 0.12
+    ext_band_long: float = 0.5
     border_dark: float = 0.0
     border_mode: str = 'profile'
     blur_like: float = 0.08
@@ -566,6 +572,8 @@ class DetectorConfig:
             raise ValueError('peel_max, peel_gap and peel_clamp must be >= 0')
         if int(self.merge_max) < 0:
             raise ValueError(f'merge_max must be >= 0 (got {self.merge_max})')
+        if not self.ext_band_long > 0:
+            raise ValueError('ext_band_long must be > 0 (orange heights)')
         if self.ext_ratio_tol < 0:
             raise ValueError('ext_ratio_tol must be >= 0 (0: the first dark row ends the sign)')
 
@@ -3294,7 +3302,9 @@ class ColorDetector:
         bold legend row can look like a border too.  Of the border rows at least ``0.3``
         orange heights down, the one that makes the sign's height / ``width`` nearest a
         two-colour sign's in the catalogue (within ``ext_ratio_tol``) ends the white part,
-        else the first.
+        else the first.  The candidates: each dark band's last row and, for a band at least
+        ``ext_band_long`` orange heights (and 3 rows) long, its first (the border line
+        merged with a darker background below the sign).
         """
         cfg = self.config
         w = white.shape[1]
@@ -3310,12 +3320,17 @@ class ColorDetector:
         if not rows.size:
             return 0
         if width > 0 and cfg.ext_ratio_tol > 0:
-            # the last row of each dark band (a border or a legend row is several rows)
-            ends = rows[np.append(np.diff(rows) > 1, True)]
-            err = np.min(np.abs((orange_h + ends[:, None] + 1) / width
+            # the row after each dark band (a border or a legend row is several rows) and,
+            # for a long band (a background darker than the sheeting continuing the
+            # bottom border), the row after its first
+            brk = np.diff(rows) > 1
+            starts, ends = rows[np.insert(brk, 0, True)], rows[np.append(brk, True)]
+            long = ends - starts + 1 >= max(3.0, cfg.ext_band_long * orange_h)
+            cut = np.concatenate([ends + 1, starts[long] + 1])
+            err = np.min(np.abs((orange_h + cut[:, None]) / width
                                 / np.array(_TWO_COLOUR_RATIOS)[None, :] - 1.0), axis=1)
             if err.min() <= cfg.ext_ratio_tol:
-                return int(ends[int(np.argmin(err))] + 1)
+                return int(cut[int(np.argmin(err))])
         return int(rows[0] + 1)
 
     # -- seed 002 MSER path --

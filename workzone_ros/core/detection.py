@@ -2766,8 +2766,12 @@ class ColorDetector:
                     (right - left) / face_frac if cand.extended else size)
                 bottom = cand.y + cand.h if low is None else oy + low - q + out
                 cand.x, cand.w = ox + left - out, right - left + 2 * out
-                if top is not None:                    # else the hull's top, grown
+                if top is not None:
                     cand.y = oy + top + q - out
+                else:
+                    # the orange part's top as its hull's, moved out like the sides (not a
+                    # diamond fit's box: the part may have been taken for one)
+                    cand.y = y0 + by0 - out
                 cand.h = bottom - cand.y
                 if cfg.pixel_boxes:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)

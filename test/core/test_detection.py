@@ -1814,3 +1814,29 @@ def test_small_blurred_sign_merged_with_a_dusk_sky_found_by_the_search():
     assert d.kind == 'warning'
     old = _near(_default_detector().with_config(diamond_clamp_px=0.0).detect(img), gt, 0.05)
     assert len(old) == 1 and old[0].box.iou(Box(*map(float, gt))) < 0.6
+
+
+def test_rectangle_top_measured_beside_the_legend():
+    """A work-zone speed-limit sign under a dim reddish dusk sky: the orange plaque's top
+    edge, measured on stretches near its corners (``RECT_TOP_STRETCHES``), is right on
+    average; over the middle the legend's first line (just under the top border) pulls
+    it 0.5-1 px up into the sky."""
+    errs = {'corner': [], 'middle': []}
+    for size in (22, 26, 32, 40):
+        for off in (0.0, 0.25, 0.5, 0.75):
+            rng = np.random.default_rng(int(size * 10 + off * 4))
+            img = np.empty((480, 640, 3), np.uint8)
+            img[:] = (48, 62, 85)
+            img = cv2.add(img, rng.integers(0, 6, img.shape, dtype=np.uint8))
+            x, y = 400.0 + off, 190.0 + off
+            img, _ = _render_art_sign(img, x, y, size, key='work_zone_speed_limit', blur=0.8)
+            face_top = y + 0.045 * size                 # inside the border line and margin
+            hull = (x + 0.5, y + 0.5, size - 1.0, 0.25 * 1.75 * size - 1.0)
+            for name, at in (('corner', dt.RECT_TOP_STRETCHES),
+                             ('middle', ((0.2, 0.45), (0.55, 0.8)))):
+                r = dt.refine_rectangle(img.max(axis=2), hull, size, free_top=True, top_at=at)
+                assert r is not None and r[2] is not None
+                errs[name].append(r[2] - face_top)
+    corner, middle = np.array(errs['corner']), np.array(errs['middle'])
+    assert abs(corner.mean()) < 0.15 and np.median(np.abs(corner)) < 0.3
+    assert middle.mean() < -0.5 and np.median(np.abs(middle)) > 0.5

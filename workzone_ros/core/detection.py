@@ -233,10 +233,11 @@ class DetectorConfig:
             grown by ``border_frac`` is used.  ``rect_edge_bias``: each measured edge moves
             in by this (px): with none the boxes of clear (sunny) tuning signs come out
             0.2-0.3 px too large on every side (dim winter signs' 0.5-1 px too small).
-            0.2 is the operating point with a like margin over the targets' precision and
-            recall on the 18 tuning bags once the bottom border over a darker background
-            was found (``ext_band_long``): regulatory P / R 0.968 / 0.963 at 0.1, 0.975 /
-            0.957 at 0.2, 0.979 / 0.949 at 0.3.
+            0.2 is the operating point on the 18 tuning bags, with the bottom border over
+            a darker background (``ext_band_long``) and the top measured beside the legend
+            (``RECT_TOP_STRETCHES``): regulatory P / R 0.973 / 0.961 at 0.1, 0.975 / 0.957
+            at 0.15, 0.979 / 0.955 at 0.2 (the held-out sets' precision ran below the
+            tuning bags').
         peel, peel_gap, peel_levels, peel_clamp: a blob that passes no test is judged again
             at higher likelihood levels (:meth:`ColorDetector._peel`): a sign merged with a
             surface of nearly its colour (an orange dusk sky, a brick wall) is where the

@@ -1840,3 +1840,25 @@ def test_rectangle_top_measured_beside_the_legend():
     corner, middle = np.array(errs['corner']), np.array(errs['middle'])
     assert abs(corner.mean()) < 0.15 and np.median(np.abs(corner)) < 0.3
     assert middle.mean() < -0.5 and np.median(np.abs(middle)) > 0.5
+
+
+@pytest.mark.parametrize('size', [16, 18])
+def test_small_two_colour_sign_thinner_than_the_radius_filter(detector, size):
+    """A 16-18 px wide "WORK ZONE BEGINS": its orange part (6-7 px) is thinner than the
+    radius filter (``min_radius_px``), so it was dropped; it is kept as a plaque when the
+    extension finds the white part below it (``thin_min_radius_px``)."""
+    img, gt = _render_art_sign(_background(), 400.3, 190.4, size, key='work_zone_begin')
+    d = _one(detector.detect(img), gt, 0.5)
+    assert d.color == 'orange' and d.kind == 'regulatory'
+    assert not [c for c in detector.with_config(thin_min_radius_px=0.0).detect(img)
+                if c.box.iou(Box(*map(float, gt))) > 0.2]
+
+
+def test_thin_orange_strip_without_a_white_part_is_not_a_sign(detector):
+    """An orange strip as thin as a small plaque but with nothing white below it (a
+    vehicle's stripe, a barrier's band) stays below the radius filter."""
+    img = _background()
+    cv2.rectangle(img, (400, 190), (421, 195), ORANGE, -1)
+    img = cv2.GaussianBlur(img, (0, 0), 0.7)
+    assert not [d for d in detector.detect(img) if d.box.x < 430 and d.box.x2 > 395
+                and d.box.y < 200 and d.box.y2 > 185]

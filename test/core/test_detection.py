@@ -753,6 +753,14 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
 
 
+def _plain(bgr, noise, seed, shape=(480, 640)):
+    """A frame of one colour plus uniform noise in ``[0, noise)``."""
+    img = np.empty((*shape, 3), np.uint8)
+    img[:] = bgr
+    return cv2.add(img, np.random.default_rng(seed).integers(0, noise, img.shape,
+                                                              dtype=np.uint8))
+
+
 def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7, orange=None):
     """The simulator's sign art warped to a sub-pixel box (its outer edge at x, y and
     x + size, y + size), composited by its alpha and blurred a little like a camera; the
@@ -847,12 +855,8 @@ def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, si
     sign is darker than the sheeting.  The sign ends where that long dark band begins (its
     bottom border merges with the wall); taking the band's end, or (no catalogue ratio
     matching) the first dark row, the legend's, cut the box at "BEGINS"."""
-    rng = np.random.default_rng(size)
-    img = np.empty((480, 640, 3), np.uint8)
-    img[:] = (150, 153, 150)
-    img = cv2.add(img, rng.integers(0, 8, img.shape, dtype=np.uint8))
-    img, gt = _render_art_sign(img, 400.3, 190.4, size, key='work_zone_begin',
-                               orange=(0, 66, 150))
+    img, gt = _render_art_sign(_plain((150, 153, 150), 8, size), 400.3, 190.4, size,
+                               key='work_zone_begin', orange=(0, 66, 150))
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert abs(d.box.y2 - g.y2) <= 1.5 and dt.box_metrics(d.box, g)[1] > 0.9
@@ -1824,10 +1828,7 @@ def test_rectangle_top_measured_beside_the_legend():
     errs = {'corner': [], 'middle': []}
     for size in (22, 26, 32, 40):
         for off in (0.0, 0.25, 0.5, 0.75):
-            rng = np.random.default_rng(int(size * 10 + off * 4))
-            img = np.empty((480, 640, 3), np.uint8)
-            img[:] = (48, 62, 85)
-            img = cv2.add(img, rng.integers(0, 6, img.shape, dtype=np.uint8))
+            img = _plain((48, 62, 85), 6, int(size * 10 + off * 4))
             x, y = 400.0 + off, 190.0 + off
             img, _ = _render_art_sign(img, x, y, size, key='work_zone_speed_limit', blur=0.8)
             face_top = y + 0.045 * size                 # inside the border line and margin

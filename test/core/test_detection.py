@@ -1547,19 +1547,41 @@ def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detec
 def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
     """A guardrail across a sign's lower tip: the labels are the whole sign's, and the
     refined outline (from the edges above the rail) gives its bottom within about a pixel
-    (``refined_clamp``); clamped to the face seen (0.12 of the half-diagonal) it stops
-    short."""
+    (``refined_clamp``, and the face's rows end in a cut: ``cut_min_width``); clamped to
+    the face seen (0.12 of the half-diagonal) and with no cut found it stops short."""
     size = 44
     img, gt = _render_art_sign(_background(), 380.4, 120.3, size)
     rail_top = int(120.3 + 0.86 * size)
     img[rail_top:rail_top + 8, 340:470] = (150, 152, 150)
     g = Box(*map(float, gt))
     bottoms = []
-    for det in (detector, detector.with_config(refined_clamp=0.12)):
+    for det in (detector, detector.with_config(refined_clamp=0.12, cut_min_width=0.0)):
         d = _one(det.detect(img), gt, 0.7)
         assert d.kind == 'warning'
         bottoms.append(g.y2 - d.box.y2)
     assert abs(bottoms[0]) <= 1.0 and bottoms[1] >= 2.0, bottoms
+
+
+@pytest.mark.parametrize('size, x, top', [(30, 380.7, 120.1), (36, 420.6, 140.2),
+                                           (48, 300.4, 110.7), (56, 250.5, 100.5)])
+def test_guardrail_across_the_lower_face_the_tip_below_it_boxed(detector, size, x, top):
+    """A guardrail across a sign's lower part (a portable stand's sign behind it) hides a
+    band of the face, and the tip shows again below it; the labels are the visible pixels'
+    box, the tip included.  The face's rows end in a straight cut, so its edges are measured
+    above the rail (``cut_min_width``) and the outline's bottom is not clamped: every side
+    within a pixel.  Without that the lower edges' stretches fall on the rail and the box
+    stops 2 px or more short of the tip."""
+    img, gt = _render_art_sign(_background(), x, top, size)
+    rail = int(top + 0.7 * size)
+    img[rail:rail + max(4, int(0.2 * size)), 200:600] = (150, 152, 150)
+    g = Box(*map(float, gt))
+    errs = []
+    for det in (detector, detector.with_config(cut_min_width=0.0)):
+        d = _one(det.detect(img), gt, 0.5)
+        assert d.kind == 'warning'
+        errs.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
+    assert np.abs(errs[0]).max() <= 1.0, errs
+    assert errs[1][3] >= 2.0, errs
 
 
 def test_faded_sign_peeled_core_refined_from_a_grown_start():

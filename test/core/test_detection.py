@@ -1171,6 +1171,67 @@ def test_refine_rectangle_finds_the_orange_face_edges(w, gain, tol):
     assert dt.refine_rectangle(np.full((60, 60), 90, np.float32), (10, 10, 30, 12), 30) is None
 
 
+def test_refine_rectangle_side_without_a_step_measured_on_the_white_part():
+    """A two-colour sign whose orange part's left side shows no step (a small plaque's
+    legend reaching it, a dim line merging with a background as bright as the face): with
+    the white part's last row given, that side is measured on the white part below it
+    (within 0.4 px at 30 px); without a white part nothing is returned."""
+    x, y, w = 20.3, 15.6, 30.0
+    h = 1.4 * w
+    img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 80))
+    face = 0.045 * w
+    img[:int(y + 0.4 * w) + 1, :int(x + 3 * face)] = 200.0      # no step beside the orange
+    box = (x - 1.0, y - 1.0, w + 2.0, 0.4 * w)
+    got = dt.refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
+    assert got is not None
+    assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
+    assert dt.refine_rectangle(img, box, w, free_top=True) is None
+
+
+def test_refine_rectangle_hull_wider_than_the_sign():
+    """A 16 px sign whose orange hull took in 1.8 px of background on each side (a dusk
+    sky of its colour): the face is 25 % narrower than the hull and is still measured,
+    within 0.4 px (``max_change`` 0.3, the detector's ``rect_max_change``); at 0.2 it was
+    not."""
+    x, y, w = 20.3, 15.6, 16.0
+    h = 1.8 * w
+    img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 70))
+    face = 0.045 * w
+    box = (x - 1.8, y - 1.0, w + 3.6, w)
+    size = box[2] / 0.91                # as the detector derives it from the hull
+    got = dt.refine_rectangle(img, box, size, max_change=0.3)
+    assert got is not None
+    assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
+    assert dt.refine_rectangle(img, box, size, max_change=0.2) is None
+
+
+def test_refine_rectangle_side_at_the_image_edge():
+    """A sign at the image's right edge: the right side's profiles would leave the image,
+    so that side is returned as None (the caller keeps the hull's and clips the box to
+    the image) and the left and top are measured; before, nothing was."""
+    x, y, w = 20.3, 15.6, 30.0
+    h = 1.4 * w
+    img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, int(x + w) + 1))
+    face = 0.045 * w
+    got = dt.refine_rectangle(img, (x - 1.0, y - 1.0, img.shape[1] - x + 1.0, 0.4 * w), w)
+    assert got is not None and got[1] is None
+    assert abs(got[0] - (x + face)) < 0.4 and abs(got[2] - (y + face)) < 0.4
+
+
+def test_two_colour_sign_at_the_image_edge_boxed_to_it(detector):
+    """A two-colour sign cut by the image's right edge: its left and top edges are
+    measured, the box ends at the image's edge (as the labels, the visible part's box) and
+    every side is within a pixel."""
+    size = 40
+    img, gt = _render_art_sign(_background(), 640 - size + 2.3, 190.4, size,
+                               key='work_zone_speed_limit')
+    g = Box(*map(float, gt))
+    d = _one(detector.detect(img), gt, 0.5)
+    assert d.box.x2 <= 640.0
+    assert max(abs(d.box.x - g.x), abs(d.box.y - g.y), abs(d.box.x2 - g.x2),
+               abs(d.box.y2 - g.y2)) <= 1.0, (d.box, g)
+
+
 def test_soft_mounting_limit_keeps_symbol_and_flag_diamonds(model):
     """Below the usual mounting a diamond whose black symbol cuts its orange face (a lane
     shift arrow) passes on its outline, and so does one whose portable stand's flags sit

@@ -250,7 +250,13 @@ class DetectorConfig:
             a darker background (``ext_band_long``) and the top measured beside the legend
             (``RECT_TOP_STRETCHES``): regulatory P / R 0.973 / 0.961 at 0.1, 0.975 / 0.957
             at 0.15, 0.979 / 0.955 at 0.2 (the held-out sets' precision ran below the
-            tuning bags').
+            tuning bags').  ``rect_max_change``: the measured face's width may differ from
+            the hull's by this share (0.2 before: small dusk signs whose hull took in 1.5-3
+            px of a sky of their colour were left at the hull's grown box, precision ~0.8;
+            105xx / 106xx regulatory precision 0.963 / 0.968 -> 0.965 / 0.974).  A side
+            whose profiles would leave the image (a sign at its edge) keeps the hull's and
+            the box is clipped to the image; a side of the orange part without a step is
+            measured on the white part below it (:func:`refine_rectangle`).
         peel, peel_gap, peel_levels, peel_clamp: a blob that passes no test is judged again
             at higher likelihood levels (:meth:`ColorDetector._peel`): a sign merged with a
             surface of nearly its colour (an orange dusk sky, a brick wall) is where the
@@ -474,6 +480,7 @@ class DetectorConfig:
     rim_chroma: float = 0.35
     rect_refine: bool = True
     rect_edge_bias: float = 0.2
+    rect_max_change: float = 0.3
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
     pixel_boxes: bool = True
@@ -1642,12 +1649,33 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
 RECT_TOP_STRETCHES = ((0.06, 0.2), (0.8, 0.94))
 
 
+def _white_sides(img: np.ndarray, x: float, w: float, y0: float, y1: float, prof: tuple,
+                 min_contrast: float) -> Optional[np.ndarray]:
+    """The left and right edge offsets (from ``x`` and ``x + w``, inwards) of a two-colour
+    sign's white part (rows ``y0`` to ``y1``) on two stretches each (20-45 % and 55-80 % of
+    its height): ``(2, 2)``, NaN where a stretch shows no step; None when the part is too
+    short or a stretch leaves ``img``."""
+    hw = y1 - y0
+    if hw < 4:
+        return None
+    segs, nvecs = [], []
+    for f0, f1 in ((0.2, 0.45), (0.55, 0.8)):
+        segs.append(((x, y0 + f0 * hw), (x, y0 + f1 * hw)))
+        nvecs.append((1.0, 0.0))
+        segs.append(((x + w, y0 + f0 * hw), (x + w, y0 + f1 * hw)))
+        nvecs.append((-1.0, 0.0))
+    off = _edge_offsets(img, np.array(segs, float), np.array(nvecs), prof, min_contrast,
+                        missing=True)
+    return None if off is None else off.reshape(2, 2)
+
+
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
                      border_rel: float = 0.03, margin_rel: float = 0.015,
                      max_change: float = 0.2, min_contrast: float = 0.25,
                      bottom: Optional[float] = None, free_top: bool = False,
                      top_at: tuple = RECT_TOP_STRETCHES
-                     ) -> Optional[tuple[float, float, Optional[float], Optional[float]]]:
+                     ) -> Optional[tuple[Optional[float], Optional[float], Optional[float],
+                                         Optional[float]]]:
     """Sub-pixel left, right and top edges of a rectangular sign's orange face.
 
     ``box = (x, y, w, h)``: a first estimate of the orange part (continuous coordinates), e.g.
@@ -1668,9 +1696,15 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     found below it): its top is measured on those of its stretches that show a step, and
     is None when neither does (a small sign's legend runs into its top line).
 
+    A stretch whose profiles would leave ``value`` (a sign at the image's edge) is not
+    measured: a side (or the top) with such a stretch is returned as None.  A side of the
+    orange part without a step is measured on the white part below it when ``bottom`` is
+    given (:func:`_white_sides`).
+
     Returns the face's ``(left, right, top, bottom)`` (``bottom`` None when not asked for or
-    not measurable) or None when a side or top stretch shows no face-to-border step or lies
-    outside ``value`` (but ``free_top``), or the width moves by more than ``max_change``.
+    not measurable) or None when a side (on neither part) or top stretch in ``value`` shows
+    no face-to-border step (but ``free_top``), neither side is measured, or the width moves
+    by more than ``max_change``.
     """
     x, y, w, h = (float(v) for v in box[:4])
     if w < 6 or h < 4:
@@ -1690,18 +1724,47 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
         nvecs.append((-1.0, 0.0))
         segs.append(((x + g0 * w, y), (x + g1 * w, y)))
         nvecs.append((0.0, 1.0))
-    off = _edge_offsets(img, np.array(segs, float), np.array(nvecs), prof, min_contrast,
-                        missing=free_top)
-    if off is None:
+    segs, nvecs = np.array(segs, float), np.array(nvecs)
+    # a stretch whose profiles leave the image (a sign at its edge) is not measured
+    u = prof[0]
+    ends = np.concatenate([segs + u[0] * nvecs[:, None], segs + u[-1] * nvecs[:, None]], 1)
+    inside = ((ends >= 0.5).all(axis=(1, 2)) & (ends[..., 0] <= img.shape[1] - 0.5).all(1)
+              & (ends[..., 1] <= img.shape[0] - 0.5).all(1))
+    if not inside.any():
         return None
+    off = np.full(len(segs), np.nan)
+    o_ = _edge_offsets(img, segs[inside], nvecs[inside], prof, min_contrast,
+                       missing=free_top or bottom is not None or not inside.all())
+    if o_ is None:
+        return None
+    off[inside] = o_
     side = off.reshape(2, 3)                  # the two stretches' left, right, top offsets
-    if not np.isfinite(side[:, :2]).all():
+    shown = inside.reshape(2, 3)
+    if not (free_top or (np.isfinite(side[:, 2]) | ~shown[:, 2]).all()):
         return None
-    left = x + float(side[:, 0].mean())
-    right = x + w - float(side[:, 1].mean())
+    lost = shown[:, :2] & ~np.isfinite(side[:, :2])
+    if lost.any():
+        # a side of the orange part shows no step (a small plaque's legend runs up to
+        # it, a dim one's line merges with a dark background): that side of the white
+        # part below it, when there is one
+        if bottom is None:
+            return None
+        yw = float(bottom) - inset
+        white = _white_sides(img, x, w, y + h, yw, prof, min_contrast)
+        for k in (0, 1):
+            if lost[:, k].any():
+                if white is None or not np.isfinite(white[:, k]).all():
+                    return None
+                side[:, k] = white[:, k]
+    # a side off the image is the box's own (the caller clips it to the image)
+    left = x + float(side[:, 0].mean()) if shown[:, 0].all() else None
+    right = x + w - float(side[:, 1].mean()) if shown[:, 1].all() else None
     tops = side[np.isfinite(side[:, 2]), 2]
     top = y + float(tops.mean()) if tops.size else None
-    if not abs((right - left) / (w + 2 * inset) - 1) <= max_change:
+    if left is None and right is None:
+        return None
+    if left is not None and right is not None and not abs(
+            (right - left) / (w + 2 * inset) - 1) <= max_change:
         return None
     low = None
     if bottom is not None:
@@ -2849,14 +2912,17 @@ class ColorDetector:
             dx, dy = x0 - ox, y0 - oy
             low = cand.y + cand.h - oy if cand.extended else None
             sub = refine_rectangle(value, (bx0 + dx, by0 + dy, bw, bh), size,
-                                   cfg.rect_border_rel, cfg.rect_margin_rel, bottom=low,
+                                   cfg.rect_border_rel, cfg.rect_margin_rel,
+                                   cfg.rect_max_change, bottom=low,
                                    free_top=cand.extended)
             if entry is not None:
                 entry['rect_refined'] = sub is not None
             if sub is not None:
                 left, right, top, low = sub            # in the brightness window
                 q = cfg.rect_edge_bias
-                left, right = left + q, right - q
+                # a side off the image: the hull's (the box is clipped to the image below)
+                left = bx0 + dx if left is None else left + q
+                right = bx0 + dx + bw if right is None else right - q
                 out = (cfg.rect_border_rel + cfg.rect_margin_rel) * (
                     (right - left) / face_frac if cand.extended else size)
                 bottom = cand.y + cand.h if low is None else oy + low - q + out
@@ -2868,6 +2934,11 @@ class ColorDetector:
                     # diamond fit's box: the part may have been taken for one)
                     cand.y = y0 + by0 - out
                 cand.h = bottom - cand.y
+                # no further than the image (labels are the visible part's box)
+                x_a, y_a = max(cand.x, 0.0), max(cand.y, 0.0)
+                cand.w = min(cand.x + cand.w, float(W)) - x_a
+                cand.h = min(cand.y + cand.h, float(H)) - y_a
+                cand.x, cand.y = x_a, y_a
                 if cfg.pixel_boxes:
                     cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
                 return cand

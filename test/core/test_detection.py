@@ -1188,6 +1188,24 @@ def test_refine_rectangle_side_without_a_step_measured_on_the_white_part():
     assert dt.refine_rectangle(img, box, w, free_top=True) is None
 
 
+@pytest.mark.parametrize('w, short', [(24.0, 3.0), (30.0, 3.5), (40.0, 4.0)])
+def test_refine_rectangle_hull_short_of_a_pale_side(w, short):
+    """A two-colour sign whose orange hull stops 3-4 px short of its left side (over-
+    exposed sheeting turning pale yellow at the side): the edge lies beyond the search on
+    both parts, so the side's stretches are moved out by 1.5 or 3 px and the edge is
+    found within 0.4 px.  A blob not known to be a two-colour sign (no white part below
+    it) gets no such second search: it may be a diamond merged with a sky."""
+    x, y = 20.3, 15.6
+    h = 1.4 * w
+    img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 80))
+    face = 0.045 * w
+    box = (x + short, y - 1.0, w - short + 1.0, 0.4 * w)
+    got = dt.refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
+    assert got is not None
+    assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
+    assert dt.refine_rectangle(img, box, w, free_top=True) is None
+
+
 def test_refine_rectangle_hull_wider_than_the_sign():
     """A 16 px sign whose orange hull took in 1.8 px of background on each side (a dusk
     sky of its colour): the face is 25 % narrower than the hull and is still measured,

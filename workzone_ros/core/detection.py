@@ -1649,6 +1649,23 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
 RECT_TOP_STRETCHES = ((0.06, 0.2), (0.8, 0.94))
 
 
+def _shifted_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
+                     min_contrast: float, shifts: Sequence[float] = (1.5, 3.0)
+                     ) -> Optional[np.ndarray]:
+    """:func:`_edge_offsets` of edge stretches moved out (against their inward normals) by
+    each of ``shifts`` px in turn, as offsets from where they were: the first shift at
+    which every stretch shows a step short of the search's outer end (the edge is not
+    further out still).  None when none does or a stretch leaves ``img``."""
+    outer = float(_PROFILE_U0[prof[3][::_PROFILE_SIG.size]].min())
+    for sh in shifts:
+        off = _edge_offsets(img, segs - sh * nvecs[:, None], nvecs, prof, min_contrast)
+        if off is None:
+            continue
+        if (off > outer + 0.1).all():
+            return off - sh
+    return None
+
+
 def _white_sides(img: np.ndarray, x: float, w: float, y0: float, y1: float, prof: tuple,
                  min_contrast: float) -> Optional[np.ndarray]:
     """The left and right edge offsets (from ``x`` and ``x + w``, inwards) of a two-colour
@@ -1699,7 +1716,9 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     A stretch whose profiles would leave ``value`` (a sign at the image's edge) is not
     measured: a side (or the top) with such a stretch is returned as None.  A side of the
     orange part without a step is measured on the white part below it when ``bottom`` is
-    given (:func:`_white_sides`).
+    given (:func:`_white_sides`), else with its stretches moved out by 1.5 or 3 px
+    (:func:`_shifted_offsets`: a hull short of a pale face); without ``bottom`` such a side
+    fails the fit (the blob may be a diamond merged with a sky of its colour).
 
     Returns the face's ``(left, right, top, bottom)`` (``bottom`` None when not asked for or
     not measurable) or None when a side (on neither part) or top stretch in ``value`` shows
@@ -1733,8 +1752,7 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     if not inside.any():
         return None
     off = np.full(len(segs), np.nan)
-    o_ = _edge_offsets(img, segs[inside], nvecs[inside], prof, min_contrast,
-                       missing=free_top or bottom is not None or not inside.all())
+    o_ = _edge_offsets(img, segs[inside], nvecs[inside], prof, min_contrast, missing=True)
     if o_ is None:
         return None
     off[inside] = o_
@@ -1748,14 +1766,21 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
         # it, a dim one's line merges with a dark background): that side of the white
         # part below it, when there is one
         if bottom is None:
-            return None
-        yw = float(bottom) - inset
-        white = _white_sides(img, x, w, y + h, yw, prof, min_contrast)
+            return None         # (not known to be a rectangle: a diamond merged with a sky)
+        white = _white_sides(img, x, w, y + h, float(bottom) - inset, prof, min_contrast)
         for k in (0, 1):
-            if lost[:, k].any():
-                if white is None or not np.isfinite(white[:, k]).all():
-                    return None
+            if not lost[:, k].any():
+                continue
+            if white is not None and np.isfinite(white[:, k]).all():
                 side[:, k] = white[:, k]
+                continue
+            # or the edge lies beyond the search (a hull short of a pale face's side):
+            # the side's stretches moved out by a search's width or two
+            got = _shifted_offsets(img, segs[[k, 3 + k]], nvecs[[k, 3 + k]], prof,
+                                   min_contrast)
+            if got is None:
+                return None
+            side[:, k] = got
     # a side off the image is the box's own (the caller clips it to the image)
     left = x + float(side[:, 0].mean()) if shown[:, 0].all() else None
     right = x + w - float(side[:, 1].mean()) if shown[:, 1].all() else None

@@ -1685,6 +1685,26 @@ def test_faded_sign_peeled_core_refined_from_a_grown_start():
     assert max(d.box.iou(gt) for d in det.detect(img)) < 0.7
 
 
+def test_wide_blob_grows_by_its_blur_rings_in_pixels():
+    """A small work-zone speed limit sign at dusk (a simulator frame, seed 6011 frame 218,
+    as the camera's JPEG: ``test/data/dusk_speed_limit.jpg``; label (481, 198, 18, 33)):
+    the dusk sky around its 20 x 8 px orange plaque still looks orange for 3 px, and the
+    box grows by those blur rings before the white part is looked for.  Grown by 3 px a
+    side, the strip below holds the white part and its numerals, and the sign is boxed
+    within a pixel; grown by 3 px x the plaque's aspect (the rings as a share of its
+    shorter side, before), the strip was twice the sign's width, its rows looked half
+    white and the white part ended at the numerals, 8 px short."""
+    img = _data_frame('dusk_speed_limit.jpg')
+    det = _default_detector()
+    gt = Box(481.0, 198.0, 18.0, 33.0)
+    d = _one(det.detect(img), (481, 198, 18, 33), 0.85)
+    assert d.kind == 'regulatory' and abs(d.box.y2 - gt.y2) <= 1.0
+    det = det.with_config(blur_px_growth=False)
+    det.reset()
+    old = _one(det.detect(img), (481, 198, 18, 33), 0.5)
+    assert old.box.y2 <= gt.y2 - 6.0
+
+
 def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     """The rain-washed frame of the test above with no refinement from the brightness at all
     (no grown starts, no search): the chroma fit (``blur_fit``) still boxes the sign within

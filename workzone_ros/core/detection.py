@@ -250,10 +250,11 @@ class DetectorConfig:
             by 30 % (``rect_max_change``) and the sides' second searches (stop 19):
             regulatory P / R 0.976 / 0.955 at 0.1, 0.978 / 0.950 at 0.15, 0.981 / 0.947 at
             0.2 (0.2 at stop 18, when the held-out sets' precision ran below the tuning
-            bags': failed fits left at the hull's grown box).  ``rect_max_change``: the measured face's width may differ from
-            the hull's by this share (0.2 before: small dusk signs whose hull took in 1.5-3
-            px of a sky of their colour were left at the hull's grown box, precision ~0.8;
-            105xx / 106xx regulatory precision 0.963 / 0.968 -> 0.965 / 0.974).  A side
+            bags': failed fits left at the hull's grown box).  ``rect_max_change``: the
+            measured face's width may differ from the hull's by this share (0.2 before:
+            small dusk signs whose hull took in 1.5-3 px of a sky of their colour were
+            left at the hull's grown box, precision ~0.8; 105xx / 106xx regulatory
+            precision 0.963 / 0.968 -> 0.965 / 0.974).  A side
             whose profiles would leave the image (a sign at its edge) keeps the hull's and
             the box is clipped to the image; a side of the orange part without a step is
             measured on the white part below it (:func:`refine_rectangle`).
@@ -265,6 +266,14 @@ class DetectorConfig:
             candidates wins; no hysteresis back into the surface; a warning box may reach
             ``peel_clamp`` x the half-diagonal beyond the core (``diamond_clamp``
             otherwise).  At most ``peel_max`` blobs per frame, the largest first.
+        blur_px_growth: a box left at its hull grows by the blur rings
+            (:meth:`ColorDetector._border_growth`: 1-px rings outside the hull that still
+            look like the sign's colour) in pixels on every side; off: by the rings as a
+            share of the hull's shorter side times each side's length (the behaviour before
+            stop 19), which grew a wide plaque's width by its aspect times the blur, and the
+            two-colour extension then judged a strip twice the sign's width (tuning
+            regulatory found 0.770 -> 0.791, dusk 0.833 -> 0.872, P / R 0.978 / 0.950 ->
+            0.979 / 0.952).
         merge_fragments, merge_max: two blobs (of the ``merge_max`` largest) that lie
             next to each other inside an about square joint box are measured as one when a
             symbol cuts a diamond's face from edge to edge
@@ -480,6 +489,7 @@ class DetectorConfig:
     rim_chroma: float = 0.35
     rect_refine: bool = True
     rect_edge_bias: float = 0.15
+    blur_px_growth: bool = True
     rect_max_change: float = 0.3
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
@@ -2909,7 +2919,12 @@ class ColorDetector:
             cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
             cand.chroma_fit = cand.refined and sub is None
         elif grow > 0:
-            gx, gy = grow * bw, grow * bh
+            # the border's share of each side, plus the blur rings (px, the same on every
+            # side: as a share of the shorter side they grew a wide blob's width by its
+            # aspect times the blur)
+            b_px = float(feats['blur']) if cfg.blur_px_growth else 0.0
+            g_ = grow - b_px / float(min(bw, bh))
+            gx, gy = g_ * bw + b_px, g_ * bh + b_px
             cand.x, cand.y = cand.x - gx, cand.y - gy
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
         if needs_outline and not (outer is not None and sub is not None):

@@ -1705,6 +1705,23 @@ def test_wide_blob_grows_by_its_blur_rings_in_pixels():
     assert old.box.y2 <= gt.y2 - 6.0
 
 
+def test_sign_cut_into_three_pieces_is_measured_whole():
+    """A "ROAD WORK AHEAD" diamond in rain light (a simulator frame, seed 10607 frame 21,
+    as the camera's JPEG: ``test/data/rain_split_sign.jpg``; label (453, 180, 42, 43)): its
+    bold legend cuts the orange face into three pieces, two of which refine as small
+    diamonds of their own.  Measured together (``merge_triples``) they give the sign within
+    a pixel; pairs alone left three detections, the largest of IoU 0.54."""
+    img = _data_frame('rain_split_sign.jpg')
+    det = _default_detector()
+    gt = (453, 180, 42, 43)
+    d = _one(det.detect(img), gt, 0.9)
+    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
+    det = det.with_config(merge_triples=False)
+    det.reset()
+    pieces = _near(det.detect(img), gt, 0.05)
+    assert len(pieces) == 3 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.6
+
+
 def test_faded_sign_without_a_line_is_boxed_from_its_blurred_colour():
     """The rain-washed frame of the test above with no refinement from the brightness at all
     (no grown starts, no search): the chroma fit (``blur_fit``) still boxes the sign within

@@ -278,7 +278,10 @@ class DetectorConfig:
             next to each other inside an about square joint box are measured as one when a
             symbol cuts a diamond's face from edge to edge
             (:meth:`ColorDetector._merge_fragments`); the pieces give way when that makes a
-            refined warning diamond.
+            refined warning diamond.  ``merge_triples``: then three blobs the same way, small
+            refined diamonds among them when the joint diamond holds them all (a bold legend
+            in rain light cuts a face into three; 106xx rain warning P / R 0.965 / 0.886 ->
+            0.978 / 0.926, the tuning bags unchanged).
         diamond_search, search_min_px, search_min_share, search_min_contrast: when no
             start from the mask
             refines, a blob at least ``search_min_px`` on its shorter side (a warning, or
@@ -501,6 +504,7 @@ class DetectorConfig:
     peel_max: int = 2
     merge_fragments: bool = True
     merge_max: int = 6
+    merge_triples: bool = True
     ext_ratio_tol: float = 0.12
     ext_band_long: float = 0.5
     border_dark: float = 0.0
@@ -2417,14 +2421,17 @@ class ColorDetector:
                          stats: np.ndarray, bgr: np.ndarray, off: tuple[int, int], s: int,
                          thr_base: np.ndarray, lboxes: list
                          ) -> tuple[list[Candidate], set]:
-        """Two blobs that are the pieces of one warning diamond, measured together.
+        """Two or three blobs that are the pieces of one warning diamond, measured together.
 
         A symbol that runs from edge to edge (the lane-ends arrow, a reverse curve) cuts a
         diamond's orange face into pieces; each is half a diamond, measured as a narrow sign
         or none.  Blobs (of the ``merge_max`` largest, no refined diamond among them) whose
         boxes lie within a quarter of their joint box of each other and whose joint box is
         about square are measured as one blob: when that gives a warning diamond whose
-        edges the brightness confirms (a refined one), it replaces the pieces.  Returns the
+        edges the brightness confirms (a refined one), it replaces the pieces.  Then, with
+        ``merge_triples``, three blobs the same way, refined pieces among them too when the
+        joint diamond holds every piece's box (a bold legend in rain light cuts a face into
+        three pieces, two of which refine as small diamonds of their own).  Returns the
         candidates and the components merged.
         """
         cfg = self.config
@@ -2436,29 +2443,61 @@ class ColorDetector:
         for a, b in itertools.combinations(keys, 2):
             if a in used or b in used:
                 continue
-            xa, ya, wa, ha = (int(v) for v in stats[a, :4])
-            xb, yb, wb, hb = (int(v) for v in stats[b, :4])
-            x0, y0 = min(xa, xb), min(ya, yb)
-            x1, y1 = max(xa + wa, xb + wb), max(ya + ha, yb + hb)
-            w, h = x1 - x0, y1 - y0
-            gap_x = max(xa, xb) - min(xa + wa, xb + wb)
-            gap_y = max(ya, yb) - min(ya + ha, yb + hb)
-            if (max(gap_x, 0) > max(1, 0.25 * w) or max(gap_y, 0) > max(1, 0.25 * h)
-                    or not 0.7 <= w / h <= 1.4 or max(wa * ha, wb * hb) > 0.8 * w * h):
-                continue
-            fx, fy, fw, fh = (x0 + off[0]) * s, (y0 + off[1]) * s, w * s, h * s
-            if max(fw, fh) / 2.0 > cfg.max_radius_px:
-                continue
-            sub = labels[y0:y1, x0:x1]
-            comp = ((sub == a) | (sub == b)).astype(np.uint8)
-            c = self._measure(bgr, comp, (fx, fy, fw, fh), 'orange', s, thr_base, lboxes,
-                              float(np.count_nonzero(comp)) / (w * h), None, whole=True)
-            if c is None or not c.refined or (c.chroma_fit and any(
+            c = self._merged(parts, (a, b), labels, stats, bgr, off, s, thr_base, lboxes)
+            if c is None or (c.chroma_fit and any(
                     parts[i] is not None and parts[i].refined for i in (a, b))):
                 continue
             used |= {a, b}
             out = [o for o in out if o is not parts[a] and o is not parts[b]] + [c]
+        if not cfg.merge_triples:
+            return out, used
+        keys = sorted((i for i in parts if i not in used),
+                      key=lambda i: -int(stats[i, cv2.CC_STAT_AREA]))[:cfg.merge_max]
+        for trio in itertools.combinations(keys, 3):
+            if used & set(trio):
+                continue
+            c = self._merged(parts, trio, labels, stats, bgr, off, s, thr_base, lboxes)
+            if c is None or c.chroma_fit or not all(
+                    c.x - s <= (stats[i, 0] + off[0]) * s and (stats[i, 0] + stats[i, 2]
+                                                              + off[0]) * s <= c.x + c.w + s
+                    and c.y - s <= (stats[i, 1] + off[1]) * s and (stats[i, 1] + stats[i, 3]
+                                                                  + off[1]) * s <= c.y + c.h + s
+                    for i in trio):
+                continue
+            used |= set(trio)
+            out = [o for o in out if all(o is not parts[i] for i in trio)] + [c]
         return out, used
+
+    def _merged(self, parts: dict, ids: tuple, labels: np.ndarray, stats: np.ndarray,
+                bgr: np.ndarray, off: tuple[int, int], s: int, thr_base: np.ndarray,
+                lboxes: list) -> Optional[Candidate]:
+        """Blobs ``ids`` measured as one (:meth:`_merge_fragments`): None unless each lies
+        within a quarter of their joint box of the others, the joint box is about square and
+        more than 1.25 x each blob's box, and the measure gives a refined diamond."""
+        cfg = self.config
+        boxes = [tuple(int(v) for v in stats[i, :4]) for i in ids]
+        x0, y0 = min(b[0] for b in boxes), min(b[1] for b in boxes)
+        x1 = max(b[0] + b[2] for b in boxes)
+        y1 = max(b[1] + b[3] for b in boxes)
+        w, h = x1 - x0, y1 - y0
+        if not 0.7 <= w / h <= 1.4 or max(b[2] * b[3] for b in boxes) > 0.8 * w * h:
+            return None
+        def near(p: tuple, q: tuple) -> bool:
+            gx = max(p[0], q[0]) - min(p[0] + p[2], q[0] + q[2])
+            gy = max(p[1], q[1]) - min(p[1] + p[3], q[1] + q[3])
+            return max(gx, 0) <= max(1, 0.25 * w) and max(gy, 0) <= max(1, 0.25 * h)
+
+        # each piece next to another
+        if not all(any(near(p, q) for q in boxes if q is not p) for p in boxes):
+            return None
+        fx, fy, fw, fh = (x0 + off[0]) * s, (y0 + off[1]) * s, w * s, h * s
+        if max(fw, fh) / 2.0 > cfg.max_radius_px:
+            return None
+        sub = labels[y0:y1, x0:x1]
+        comp = np.isin(sub, ids).astype(np.uint8)
+        c = self._measure(bgr, comp, (fx, fy, fw, fh), 'orange', s, thr_base, lboxes,
+                          float(np.count_nonzero(comp)) / (w * h), None, whole=True)
+        return c if c is not None and c.refined else None
 
     def _peel(self, comp: np.ndarray, prob: np.ndarray, org: tuple[int, int],
               bgr: np.ndarray, s: int, thr_base: np.ndarray, lboxes: list

@@ -1663,6 +1663,25 @@ def test_guardrail_across_the_lower_face_the_tip_below_it_boxed(detector, size, 
     assert errs[1][3] >= 2.0, errs
 
 
+@pytest.mark.parametrize('size, x, top', [(30, 380.7, 120.1), (36, 420.6, 140.2),
+                                           (48, 300.4, 110.7), (56, 250.5, 100.5)])
+def test_occluder_past_the_sign_bottom_hides_its_tip(detector, size, x, top):
+    """A vehicle's side across a sign's lower part, reaching past its bottom corner: the
+    tip does not show again, and the labels (the visible part's box) end at the vehicle.
+    The occluder is told from a guardrail with the tip below it by its rows down to the
+    sign's bottom looking like its own first rows (``tip_check``): the box ends within a
+    pixel of it; without the check it runs on to the whole outline's bottom."""
+    img, gt = _render_art_sign(_background(), x, top, size)
+    edge = int(top + 0.72 * size)
+    img[edge:edge + size, 150:620] = (62, 60, 58)
+    g = Box(float(gt[0]), float(gt[1]), float(gt[2]), float(edge - gt[1]))
+    d = _one(detector.detect(img), (gt[0], gt[1], gt[2], edge - gt[1]), 0.8)
+    assert d.kind == 'warning' and abs(d.box.y2 - g.y2) <= 1.0
+    full = _one(detector.with_config(tip_check=False).detect(img),
+                (gt[0], gt[1], gt[2], edge - gt[1]), 0.5)
+    assert full.box.y2 >= g.y2 + 0.2 * size
+
+
 def test_faded_sign_peeled_core_refined_from_a_grown_start():
     """A rain-washed warning sign (a simulator frame, seed 6005 frame 2, as the camera's
     JPEG: ``test/data/rain_faded_sign.jpg``) with the default model: its blob passes no test,

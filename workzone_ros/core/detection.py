@@ -1226,7 +1226,6 @@ _STRETCH_SIGNS = np.repeat(_RHOMBUS_SIGNS, 2, axis=0)      # two stretches per e
 # the two stretches of each edge, as fractions of its length from its first corner
 _STRETCH_FROM = np.array([0.15, 0.55])
 _STRETCH_TO = np.array([0.45, 0.85])
-_STRETCH_MID = 0.5 * (_STRETCH_FROM + _STRETCH_TO)
 
 
 def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
@@ -2446,7 +2445,7 @@ class ColorDetector:
         for a, b in itertools.combinations(keys, 2):
             if a in used or b in used:
                 continue
-            c = self._merged(parts, (a, b), labels, stats, bgr, off, s, thr_base, lboxes)
+            c = self._merged((a, b), labels, stats, bgr, off, s, thr_base, lboxes)
             if c is None or (c.chroma_fit and any(
                     parts[i] is not None and parts[i].refined for i in (a, b))):
                 continue
@@ -2459,21 +2458,22 @@ class ColorDetector:
         for trio in itertools.combinations(keys, 3):
             if used & set(trio):
                 continue
-            c = self._merged(parts, trio, labels, stats, bgr, off, s, thr_base, lboxes)
-            if c is None or c.chroma_fit or not all(
-                    c.x - s <= (stats[i, 0] + off[0]) * s and (stats[i, 0] + stats[i, 2]
-                                                              + off[0]) * s <= c.x + c.w + s
-                    and c.y - s <= (stats[i, 1] + off[1]) * s and (stats[i, 1] + stats[i, 3]
-                                                                  + off[1]) * s <= c.y + c.h + s
-                    for i in trio):
+            c = self._merged(trio, labels, stats, bgr, off, s, thr_base, lboxes)
+            if c is None or c.chroma_fit:
+                continue
+            # the joint diamond holds every piece's box (to a mask pixel)
+            px0, py0 = (stats[trio, 0] + off[0]) * s, (stats[trio, 1] + off[1]) * s
+            px1, py1 = px0 + stats[trio, 2] * s, py0 + stats[trio, 3] * s
+            if not ((px0 >= c.x - s).all() and (px1 <= c.x + c.w + s).all()
+                    and (py0 >= c.y - s).all() and (py1 <= c.y + c.h + s).all()):
                 continue
             used |= set(trio)
             out = [o for o in out if all(o is not parts[i] for i in trio)] + [c]
         return out, used
 
-    def _merged(self, parts: dict, ids: tuple, labels: np.ndarray, stats: np.ndarray,
-                bgr: np.ndarray, off: tuple[int, int], s: int, thr_base: np.ndarray,
-                lboxes: list) -> Optional[Candidate]:
+    def _merged(self, ids: tuple, labels: np.ndarray, stats: np.ndarray, bgr: np.ndarray,
+                off: tuple[int, int], s: int, thr_base: np.ndarray, lboxes: list
+                ) -> Optional[Candidate]:
         """Blobs ``ids`` measured as one (:meth:`_merge_fragments`): None unless each lies
         within a quarter of their joint box of the others, the joint box is about square and
         more than 1.25 x each blob's box, and the measure gives a refined diamond."""
@@ -2485,6 +2485,7 @@ class ColorDetector:
         w, h = x1 - x0, y1 - y0
         if not 0.7 <= w / h <= 1.4 or max(b[2] * b[3] for b in boxes) > 0.8 * w * h:
             return None
+
         def near(p: tuple, q: tuple) -> bool:
             gx = max(p[0], q[0]) - min(p[0] + p[2], q[0] + q[2])
             gy = max(p[1], q[1]) - min(p[1] + p[3], q[1] + q[3])
@@ -3160,11 +3161,11 @@ class ColorDetector:
         ``sign = (cx, cy, a, b)``: the sign's whole outline in the window ``win`` (reaching
         down past the sign); ``cut``: the first row hidden.  Across: on the two rows below
         the cut the pixels inside the outline differ from those 1-3 px beside it by less
-        than 0.3 x the face's own
-        difference just above the cut (the largest channel difference of the means).
-        Reaching past the bottom: every row from the cut to a row below the sign's bottom
-        corner, over the sign's width, differs from those first two rows by less than that
-        too (a vehicle's side, not a guardrail with the tip showing below it)."""
+        than 0.3 x the face's own difference just above the cut (the largest channel
+        difference of the means).  Reaching past the bottom: every row from the cut to a
+        row below the sign's bottom corner, over the sign's width, differs from those first
+        two rows by less than that too (a vehicle's side, not a guardrail with the tip
+        showing below it)."""
         cx, cy, a, b = sign
         h, w = win.shape[:2]
         end = int(math.ceil(cy + b)) + 1

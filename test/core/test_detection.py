@@ -1724,20 +1724,27 @@ def test_wide_blob_grows_by_its_blur_rings_in_pixels():
     assert old.box.y2 <= gt.y2 - 6.0
 
 
+def _whole_then_pieces(name, gt, **off):
+    """The default detector on frame ``name`` (``test/data``) finds one warning sign at
+    ``gt`` (IoU >= 0.9) and nothing else near it; returns what it finds near ``gt`` with
+    the configuration changes ``off`` (the pieces)."""
+    img = _data_frame(name)
+    det = _default_detector()
+    d = _one(det.detect(img), gt, 0.9)
+    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
+    det = det.with_config(**off)
+    det.reset()
+    return _near(det.detect(img), gt, 0.05)
+
+
 def test_sign_cut_into_three_pieces_is_measured_whole():
     """A "ROAD WORK AHEAD" diamond in rain light (a simulator frame, seed 10607 frame 21,
     as the camera's JPEG: ``test/data/rain_split_sign.jpg``; label (453, 180, 42, 43)): its
     bold legend cuts the orange face into three pieces, two of which refine as small
     diamonds of their own.  Measured together (``merge_triples``) they give the sign within
     a pixel; pairs alone left three detections, the largest of IoU 0.54."""
-    img = _data_frame('rain_split_sign.jpg')
-    det = _default_detector()
     gt = (453, 180, 42, 43)
-    d = _one(det.detect(img), gt, 0.9)
-    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
-    det = det.with_config(merge_triples=False)
-    det.reset()
-    pieces = _near(det.detect(img), gt, 0.05)
+    pieces = _whole_then_pieces('rain_split_sign.jpg', gt, merge_triples=False)
     assert len(pieces) == 3 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.6
 
 
@@ -1911,14 +1918,8 @@ def test_lane_ends_piece_boxed_by_its_colour_is_merged_with_the_rest():
     chroma fit alone; such a piece is still a fragment to merge, and the two pieces measured
     together give the sign (IoU >= 0.9) instead of the large piece (IoU ~0.8, 11 px short on
     the left) and a stray 'regulatory' box on the strip."""
-    img = _data_frame('winter_lane_ends.jpg')
-    det = _default_detector()
     gt = (516, 158, 57, 60)
-    d = _one(det.detect(img), gt, 0.9)
-    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
-    det = det.with_config(merge_fragments=False)
-    det.reset()
-    pieces = _near(det.detect(img), gt, 0.05)
+    pieces = _whole_then_pieces('winter_lane_ends.jpg', gt, merge_fragments=False)
     assert len(pieces) == 2 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.85
 
 

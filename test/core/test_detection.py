@@ -1631,14 +1631,16 @@ def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detec
 
 
 def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
-    """A guardrail across a sign's lower tip: the labels are the whole sign's, and the
-    refined outline (from the edges above the rail) gives its bottom within about a pixel
-    (``refined_clamp``, and the face's rows end in a cut: ``cut_min_width``); clamped to
-    the face seen (0.12 of the half-diagonal) and with no cut found it stops short."""
+    """A guardrail across a sign's lower part, the tip showing below it: the labels are
+    the whole sign's, and the refined outline (from the edges above the rail) gives its
+    bottom within about a pixel (``refined_clamp``, and the face's rows end in a cut:
+    ``cut_min_width``); clamped to the face seen (0.12 of the half-diagonal) and with no
+    cut found it stops short.  (A rail that covers the tip to below the sign's bottom
+    corner hides it: the labels, and the box, end at the rail; ``tip_colour``.)"""
     size = 44
     img, gt = _render_art_sign(_background(), 380.4, 120.3, size)
-    rail_top = int(120.3 + 0.86 * size)
-    img[rail_top:rail_top + 8, 340:470] = (150, 152, 150)
+    rail_top = int(120.3 + 0.82 * size)
+    img[rail_top:rail_top + 5, 340:470] = (150, 152, 150)
     g = Box(*map(float, gt))
     bottoms = []
     for det in (detector, detector.with_config(refined_clamp=0.12, cut_min_width=0.0)):
@@ -1687,6 +1689,24 @@ def test_occluder_past_the_sign_bottom_hides_its_tip(detector, size, x, top):
     full = _one(detector.with_config(tip_check=False).detect(img),
                 (gt[0], gt[1], gt[2], edge - gt[1]), 0.5)
     assert full.box.y2 >= g.y2 + 0.2 * size
+
+
+@pytest.mark.parametrize('size', [36, 48])
+def test_two_tone_occluder_past_the_sign_bottom_hides_its_tip(detector, size):
+    """A vehicle whose pale side gives way to a dark sill before the sign's bottom corner
+    (seed 10808 frames 26-29): its rows are not all like its first two, but nothing of the
+    sign's colour shows inside the outline below them (``tip_colour``): the box ends at the
+    vehicle; without that it ran on to the whole outline's bottom."""
+    x, top = 400.3, 150.4
+    img, gt = _render_art_sign(_background(), x, top, size)
+    edge = int(top + 0.72 * size)
+    img[edge:edge + 6, 150:620] = (150, 152, 155)
+    img[edge + 6:edge + size, 150:620] = (45, 40, 38)
+    g = (gt[0], gt[1], gt[2], edge - gt[1])
+    d = _one(detector.detect(img), g, 0.8)
+    assert d.kind == 'warning' and abs(d.box.y2 - edge) <= 1.0
+    full = _one(detector.with_config(tip_colour=False).detect(img), g, 0.5)
+    assert full.box.y2 >= edge + 0.2 * size
 
 
 def test_faded_sign_peeled_core_refined_from_a_grown_start():

@@ -218,6 +218,10 @@ class DetectorConfig:
             -> 0.974; 0: off); ``tip_check``: unless the occluder reaches past the sign's
             bottom corner (a vehicle's side, :meth:`ColorDetector._tip_hidden`): then the box
             ends at it (105xx sunny warning precision 0.964 -> 0.972, recall unchanged);
+            ``tip_colour``: an occluder of two tones (a vehicle's pale side over its dark
+            sill) counts as reaching past the bottom too when nothing inside the outline
+            below its first rows has the sign's colour (stop 20: 108xx paper_c_10808
+            frames 27-29; 105xx sunny warning precision 0.972 -> 0.974, tuning unchanged);
             ``diamond_luma``: the edges measured on the luma, not the HSV value (the max of
             B, G, R is not linear in a blend of the orange margin and a background brighter
             in another channel, a blue sky: with blur the face came out up to 0.8 px larger
@@ -477,6 +481,7 @@ class DetectorConfig:
     refined_clamp: float = 0.25
     cut_min_width: float = 0.5
     tip_check: bool = True
+    tip_colour: bool = True
     diamond_grown_starts: tuple = (1.2, 1.4)
     diamond_ring_test: bool = True
     diamond_refine: bool = True
@@ -3007,7 +3012,7 @@ class ColorDetector:
                 # (the frame below the blob's window: the occluder reaches past it)
                 hidden_tip = cut and cfg.tip_check and self._tip_hidden(
                     bgr[y0:, x0:x1], (diamond[0], diamond[1], diamond[4] * diamond[2],
-                          diamond[4] * diamond[3]), cut_row)
+                          diamond[4] * diamond[3]), cut_row, t)
                 box_ = self._diamond_box(diamond, sub is not None or blurred is not None,
                                          (bx0, by0, bw, bh), peel_t, searched or larger,
                                          cut and not hidden_tip)
@@ -3236,8 +3241,7 @@ class ColorDetector:
                     return None
         return 'blended'
 
-    @staticmethod
-    def _tip_hidden(win: np.ndarray, sign: tuple, cut: int) -> bool:
+    def _tip_hidden(self, win: np.ndarray, sign: tuple, cut: int, level: float) -> bool:
         """Whether an occluder across a warning sign's lower part (see :meth:`_cut_row`)
         hides its tip: it lies across the face and reaches past the sign's bottom.
 
@@ -3248,7 +3252,10 @@ class ColorDetector:
         difference of the means).  Reaching past the bottom: every row from the cut to a
         row below the sign's bottom corner, over the sign's width, differs from those first
         two rows by less than that too (a vehicle's side, not a guardrail with the tip
-        showing below it)."""
+        showing below it), or (``tip_colour``; an occluder of two tones, a vehicle's pale
+        side over its dark sill) no pixel inside the outline below those two rows has the
+        sign's colour (orange likelihood >= ``level``, the blob's threshold: a tip
+        showing below a rail is the face's colour)."""
         cx, cy, a, b = sign
         h, w = win.shape[:2]
         end = int(math.ceil(cy + b)) + 1
@@ -3275,7 +3282,19 @@ class ColorDetector:
             return False
         occ = np.mean([0.5 * (i + f) for i, f in first], axis=0)
         span = img[cut:end + 1, np.abs(np.arange(w) + 0.5 - cx) <= a].mean(axis=1)
-        return bool((np.abs(span - occ).max(axis=1) < tol).all())
+        if (np.abs(span - occ).max(axis=1) < tol).all():
+            return True
+        if not self.config.tip_colour or end < cut + 2:
+            return False
+        rows = win[cut + 2:end + 1]
+        hsv = cv2.cvtColor(rows if self._gains is None else apply_gains(rows, self._gains),
+                           cv2.COLOR_BGR2HSV)
+        i = self._idx['orange']
+        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
+        like[hsv[..., 2] < self.model.v_min[i]] = 0.0
+        ry = np.arange(cut + 2, end + 1)[:, None] + 0.5
+        outline = xs[None, :] <= a * (1.0 - np.abs(ry - cy) / b)
+        return not (outline & (like >= level)).any()
 
     def _cut_row(self, face: np.ndarray, row_fit: Optional[tuple]) -> Optional[int]:
         """The row where an occluder across a warning face's lower part begins, or None.

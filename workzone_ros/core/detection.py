@@ -256,10 +256,10 @@ class DetectorConfig:
             at stop 19): tuning regulatory P / R 0.976 / 0.963 at 0.15, 0.979 / 0.959 at
             0.2, 0.982 / 0.955 at 0.25; 105xx / 106xx 0.966 / 0.969, 0.970 / 0.974 at 0.15,
             0.968 / 0.965, 0.973 / 0.971 at 0.2 (precision is the target these miss).
-            ``rect_max_change``: the measured face's width may differ from the hull's by this share (0.2 before:
-            small dusk signs whose hull took in 1.5-3 px of a sky of their colour were
-            left at the hull's grown box, precision ~0.8; 105xx / 106xx regulatory
-            precision 0.963 / 0.968 -> 0.965 / 0.974).  A side
+            ``rect_max_change``: the measured face's width may differ from the hull's by
+            this share (0.2 before: small dusk signs whose hull took in 1.5-3 px of a sky
+            of their colour were left at the hull's grown box, precision ~0.8; 105xx /
+            106xx regulatory precision 0.963 / 0.968 -> 0.965 / 0.974).  A side
             whose profiles would leave the image (a sign at its edge) keeps the hull's and
             the box is clipped to the image; a side of the orange part without a step is
             measured on the white part below it (:func:`refine_rectangle`).

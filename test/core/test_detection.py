@@ -2103,3 +2103,46 @@ def test_rectangle_lean_rejects_what_it_cannot_measure():
     assert dt.rectangle_lean(value, (10, 10, 40, 20), 30) is None
     assert dt.rectangle_lean(value, (-5, 10, 40, 50), 30) is None
     assert dt.rectangle_lean(np.full((60, 60), 100.0, np.float32), (10, 10, 40, 50), 30) is None
+
+
+def test_split_winter_plaque_boxed_to_the_white_part():
+    """A small work-zone speed limit sign in winter light (a simulator frame, seed 10602
+    frame 204, the camera's JPEG: ``test/data/winter_split_plaque.jpg``; label (425, 185,
+    24, 44)): its legend cuts the dim plaque into pieces and only the right one became a
+    blob, so the box was the right two thirds of the sign (16 px wide).  The white part
+    runs on 7 px past the box's left side, ending at the sign's border, with the plaque's
+    colour above it (``white_ends``): the box takes it in."""
+    img = _data_frame('winter_split_plaque.jpg')
+    det = _default_detector()
+    gt = Box(425.0, 185.0, 24.0, 44.0)
+    d = _one(det.detect(img), (425, 185, 24, 44), 0.8)
+    assert d.kind == 'regulatory' and abs(d.box.x - gt.x) <= 1.0 and d.box.w >= 22
+    det = det.with_config(white_ends=False)
+    det.reset()
+    old = _one(det.detect(img), (425, 185, 24, 44), 0.5)
+    assert old.box.w <= 17
+
+
+def test_white_part_ends_past_the_face_and_white_beside_the_sign():
+    """:func:`white_part_ends` on a drawn two-colour sign given only its right part as the
+    face: the white part's left end is found at the face's true edge; given the whole
+    face it runs on nowhere.  A white panel beside a sign (no orange above it) is not
+    taken in by the detector."""
+    img = _plain((60, 75, 70), 6, 3)
+    img[100:120, 200:230] = (0, 110, 245)                  # plaque
+    img[120:150, 200:230] = (235, 235, 235)                # white part
+    img[100:150, 198:200] = img[100:150, 230:232] = (20, 20, 20)   # side lines
+    assert dt.white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 14.0) == (200.0, None)
+    assert dt.white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 11.0) == (None, None)
+    assert dt.white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 12.0) == (None, None)
+    assert dt.white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 3.0, 4.0) == (None, None)
+    # a sign with a white panel beside its white part, ending in a dark edge
+    img, gt = _render_art_sign(_plain((60, 75, 70), 6, 40), 400.3, 150.4, 40,
+                               key='work_zone_speed_limit')
+    y_w = int(150.4 + 0.3 * 40)
+    img[y_w:int(150.4 + 1.75 * 40) - 2, 385:400] = (230, 230, 230)
+    img[y_w:int(150.4 + 1.75 * 40) - 2, 383:385] = (30, 30, 30)
+    a = _one(_default_detector().with_config(use_prior=False).detect(img), gt, 0.7).box
+    b = _one(_default_detector().with_config(use_prior=False, white_ends=False).detect(img),
+             gt, 0.7).box
+    assert (a.x, a.w) == (b.x, b.w)

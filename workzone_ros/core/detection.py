@@ -263,6 +263,13 @@ class DetectorConfig:
             whose profiles would leave the image (a sign at its edge) keeps the hull's and
             the box is clipped to the image; a side of the orange part without a step is
             measured on the white part below it (:func:`refine_rectangle`).
+        white_ends: a measured two-colour sign whose white part runs on past its sides
+            and ends (its border) within half the box's width is widened to it, when the
+            orange part's colour runs on above the new columns too (:func:`white_part_ends`,
+            :meth:`ColorDetector._white_ends`): a dim winter plaque cut by its legend into
+            pieces, only one of which became a blob, was boxed to that piece (105xx / 106xx
+            winter regulatory recall 0.937 / 0.953 -> 0.948 / 0.958, tuning unchanged;
+            without the colour check two signs beside white panels were widened).
         rect_lean, rect_lean_min, rect_lean_agree: a measured two-colour sign's left and
             right edges are measured again over the upper and lower quarters of its face
             (:func:`rectangle_lean`); when both lean alike (slopes of one sign, within
@@ -512,6 +519,7 @@ class DetectorConfig:
     blur_px_growth: bool = True
     rect_max_change: float = 0.3
     rect_lean: bool = True
+    white_ends: bool = True
     rect_lean_min: float = 0.025
     rect_lean_agree: float = 0.05
     rect_border_rel: float = 0.03
@@ -1876,6 +1884,60 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     return left, right, top, low
 
 
+def white_part_ends(bgr: np.ndarray, face: Sequence[float], rows: Sequence[float],
+                    max_out: float, min_gap: float = 2.0
+                    ) -> tuple[Optional[float], Optional[float]]:
+    """Where a two-colour sign's white part ends left and right, when it runs on past the
+    face's sides as measured on its orange part.
+
+    A small plaque in dim (winter) light is cut by its legend into pieces, and the sign was
+    boxed to the piece that became a blob.  ``face = (left, right)``: the face's edges
+    (continuous image coordinates); ``rows = (top, bottom)``: the white part's rows.  Per
+    column, the share of the white part's middle rows (10-90 %) that are white (brightness
+    at least 0.85 x the white part's own, its 75th percentile between the sides;
+    saturation at most 90 of 255); from a pixel inside each side outwards the part runs on
+    from the first column where that share is at least a half (the side may lie on a
+    legend stroke) and ends at the first column where it is not (the border line, the
+    background).  Returns the face's new left and right edges (the
+    end columns' inner boundaries) where the part runs on at least ``min_gap`` px past the
+    side and ends within ``max_out`` px of it; else None for that side (also at the
+    image's edge)."""
+    left, right = float(face[0]), float(face[1])
+    h, w = bgr.shape[:2]
+    top, bottom = float(rows[0]), float(rows[1])
+    r0, r1 = int(math.ceil(top + 0.1 * (bottom - top))), int(bottom - 0.1 * (bottom - top))
+    c0, c1 = int(math.floor(left - max_out)), int(math.ceil(right + max_out))
+    if r1 - r0 < 3 or right - left < 4 or c0 < 0 or c1 >= w or r0 < 0 or r1 > h:
+        return None, None
+    hsv = cv2.cvtColor(bgr[r0:r1, c0:c1 + 1], cv2.COLOR_BGR2HSV)
+    v, sat = hsv[..., 2].astype(np.float32), hsv[..., 1]
+    inner = v[:, int(math.ceil(left)) + 1 - c0:int(right) - 1 - c0]
+    if inner.size == 0:
+        return None, None
+    level = float(np.percentile(inner, 75))
+    share = ((v >= 0.85 * level) & (sat <= 90)).mean(axis=0)
+
+    def end(start: int, step: int) -> Optional[int]:
+        c, seen = start, False
+        while 0 <= c - c0 < share.size:
+            white = share[c - c0] >= 0.5
+            if seen and not white:
+                return c
+            # (the side may lie on a legend stroke: the run starts at its first white column)
+            seen = seen or white
+            c += step
+        return None
+
+    out: list = [None, None]
+    stop = end(int(math.ceil(left)), -1)              # the first column left of the run
+    if stop is not None and left - (stop + 1) >= min_gap:
+        out[0] = float(stop + 1)
+    stop = end(int(right) - 1, 1)
+    if stop is not None and stop - right >= min_gap:
+        out[1] = float(stop)
+    return out[0], out[1]
+
+
 # --- seed 002: linear RGB thresholds chosen by a Boolean LP ------------------------------
 
 _RGB_Q = 8            # RGB quantisation step for the LP's pixel bins
@@ -3081,6 +3143,8 @@ class ColorDetector:
                     # diamond fit's box: the part may have been taken for one)
                     cand.y = y0 + by0 - out
                 cand.h = bottom - cand.y
+                if cfg.white_ends and cand.extended and low is not None:
+                    self._white_ends(bgr, cand, out, y0 + by0 + bh, entry)
                 if cfg.rect_lean and cand.extended and top is not None and low is not None \
                         and sub[0] is not None and sub[1] is not None:
                     self._lean(value, cand, (ox, oy), out, by0 + dy + 0.5 * bh, size, entry)
@@ -3108,6 +3172,40 @@ class ColorDetector:
                 cand.x, cand.y, cand.w, cand.h = x0 + box_[0], y0 + box_[1], box_[2], box_[3]
                 cand.kind, cand.refined = 'warning', True
         return cand
+
+    def _white_ends(self, bgr: np.ndarray, cand: Candidate, out: float, white_top: float,
+                    entry: Optional[dict]) -> None:
+        """Widen a measured two-colour sign's box ``cand`` to its white part's ends where
+        the part runs on past the sides (:func:`white_part_ends`; the orange part was cut
+        into pieces), within half the box's width beyond each side and to a width no more
+        than the box's height (two-colour signs are taller than wide).  ``out``: the border
+        line and margin outside the face (px); ``white_top``: the white part's first
+        row."""
+        face = (cand.x + out, cand.x + cand.w - out)
+        ends = white_part_ends(bgr, face, (white_top, cand.y + cand.h - out),
+                               0.5 * (face[1] - face[0]), max(2.0, 0.1 * (face[1] - face[0])))
+        if entry is not None:
+            entry['white_ends'] = ends
+        new_l = face[0] if ends[0] is None else ends[0]
+        new_r = face[1] if ends[1] is None else ends[1]
+        if (new_l, new_r) == face or new_r - new_l + 2 * out > cand.h:
+            return
+        # the orange part runs on over the white part's new columns too (its other piece),
+        # else the white beside the sign is the background's
+        r0, r1 = int(math.ceil(cand.y + out)), int(white_top)
+        if r1 - r0 < 2:
+            return
+        hsv = cv2.cvtColor(bgr[r0:r1, int(new_l):int(math.ceil(new_r))], cv2.COLOR_BGR2HSV)
+        cols = np.arange(int(new_l), int(math.ceil(new_r))) + 0.5
+        old = (cols > face[0]) & (cols < face[1])
+        if not old.any() or old.all():
+            return
+        h_old, s_old = _median(hsv[:, old, 0]), float(_median(hsv[:, old, 1]))
+        for side in (cols < face[0], cols > face[1]):
+            if side.any() and not (abs(float(_median(hsv[:, side, 0])) - float(h_old)) <= 12
+                                   and float(_median(hsv[:, side, 1])) >= 0.5 * s_old):
+                return
+        cand.x, cand.w = new_l - out, new_r - new_l + 2 * out
 
     def _lean(self, value: np.ndarray, cand: Candidate, org: tuple[float, float], out: float,
               y_sides: float, size: float, entry: Optional[dict]) -> None:

@@ -519,9 +519,9 @@ class DetectorConfig:
     blur_px_growth: bool = True
     rect_max_change: float = 0.3
     rect_lean: bool = True
-    white_ends: bool = True
     rect_lean_min: float = 0.025
     rect_lean_agree: float = 0.05
+    white_ends: bool = True
     rect_border_rel: float = 0.03
     rect_margin_rel: float = 0.015
     pixel_boxes: bool = True
@@ -1898,10 +1898,9 @@ def white_part_ends(bgr: np.ndarray, face: Sequence[float], rows: Sequence[float
     saturation at most 90 of 255); from a pixel inside each side outwards the part runs on
     from the first column where that share is at least a half (the side may lie on a
     legend stroke) and ends at the first column where it is not (the border line, the
-    background).  Returns the face's new left and right edges (the
-    end columns' inner boundaries) where the part runs on at least ``min_gap`` px past the
-    side and ends within ``max_out`` px of it; else None for that side (also at the
-    image's edge)."""
+    background).  Returns the face's new left and right edges (the end columns' inner
+    boundaries) where the part runs on at least ``min_gap`` px past the side and ends
+    within ``max_out`` px of it; else None for that side (also at the image's edge)."""
     left, right = float(face[0]), float(face[1])
     h, w = bgr.shape[:2]
     top, bottom = float(rows[0]), float(rows[1])
@@ -2770,6 +2769,14 @@ class ColorDetector:
         fit that is too large puts an edge's outer samples outside the window)."""
         return self._value(bgr, *_padded(window, bw, bh), self.config.diamond_luma)
 
+    def _orange_like(self, hsv: np.ndarray) -> np.ndarray:
+        """The orange table's likelihood of each pixel of ``hsv`` (0 below its brightness
+        floor)."""
+        i = self._idx['orange']
+        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
+        like[hsv[..., 2] < self.model.v_min[i]] = 0.0
+        return like
+
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""
         s = hsv[..., 1]
@@ -2811,10 +2818,8 @@ class ColorDetector:
         if self._gains is not None:
             win = apply_gains(win, self._gains)
         hsv = cv2.cvtColor(win, cv2.COLOR_BGR2HSV)
-        i = self._idx['orange']
-        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
+        like = self._orange_like(hsv)
         vch = hsv[..., 2]
-        like[vch < self.model.v_min[i]] = 0.0
         cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
         cy, cx = min(cy, thr_base.shape[0] - 1), min(cx, thr_base.shape[1] - 1)
         t = thr_base[cy, cx] / _P_SCALE
@@ -3385,11 +3390,8 @@ class ColorDetector:
         if not self.config.tip_colour or end < cut + 2:
             return False
         rows = win[cut + 2:end + 1]
-        hsv = cv2.cvtColor(rows if self._gains is None else apply_gains(rows, self._gains),
-                           cv2.COLOR_BGR2HSV)
-        i = self._idx['orange']
-        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
-        like[hsv[..., 2] < self.model.v_min[i]] = 0.0
+        like = self._orange_like(cv2.cvtColor(
+            rows if self._gains is None else apply_gains(rows, self._gains), cv2.COLOR_BGR2HSV))
         ry = np.arange(cut + 2, end + 1)[:, None] + 0.5
         outline = xs[None, :] <= a * (1.0 - np.abs(ry - cy) / b)
         return not (outline & (like >= level)).any()

@@ -269,7 +269,7 @@ class DetectorConfig:
             :meth:`ColorDetector._white_ends`): a dim winter plaque cut by its legend into
             pieces, only one of which became a blob, was boxed to that piece (105xx / 106xx
             winter regulatory recall 0.937 / 0.953 -> 0.948 / 0.958, tuning unchanged;
-            without the colour check two signs beside white panels were widened).
+            without the colour check two signs were widened over a pale background).
         rect_lean, rect_lean_min, rect_lean_agree: a measured two-colour sign's left and
             right edges are measured again over the upper and lower quarters of its face
             (:func:`rectangle_lean`); when both lean alike (slopes of one sign, within

@@ -179,7 +179,11 @@ class DetectorConfig:
             mostly follow a fitted diamond (:func:`fit_diamond`) loses the rows more than
             ``0.5 + diamond_trim x b`` px beyond the diamond's top or bottom corner (b: its
             half-height) before its kind and box are measured: a portable stand's orange
-            flags above the top corner (negative: off).
+            flags above the top corner (negative: off).  ``neck_trim``: then also the rows
+            above a neck where the rows narrow from the flags to the diamond's top corner
+            and widen again (:meth:`ColorDetector._neck_trim`: a face cut by its symbol,
+            whose diamond fit does not find the corners; stop 20: tuning sunny warning
+            found 0.942 -> 0.974, 106xx 0.927 -> 0.984).
         diamond_scale, diamond_clamp: a warning (diamond) blob's box is the box of the diamond
             fitted to its face (:func:`fit_diamond_2d`, corners extrapolated from the
             straight edges), its half-diagonals times ``diamond_scale`` (the black border
@@ -483,6 +487,7 @@ class DetectorConfig:
     weak_threshold: float = 0.3
     border_frac: float = 0.04
     diamond_trim: float = 0.0
+    neck_trim: bool = True
     diamond_scale: float = 1.07
     diamond_clamp: float = 0.12
     refined_clamp: float = 0.25
@@ -2943,6 +2948,12 @@ class ColorDetector:
             # rows beyond a fitted diamond's corners are not the face (a portable stand's
             # orange flags above the top corner): shape, kind and box go without them
             trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim, pix_fit)
+            if cfg.neck_trim:
+                # flags the fit took for part of the face (a cut face fits badly): the rows
+                # above the neck between them and the diamond's top corner
+                necked = self._neck_trim(pix if trimmed is None else trimmed)
+                if necked is not None:
+                    trimmed = necked
             if trimmed is not None:
                 row_fit = None
                 # the cut-off part must not come back as the border's blur rings
@@ -3700,6 +3711,45 @@ class ColorDetector:
         if np.count_nonzero(out) < 0.5 * np.count_nonzero(pix):
             return None, fd
         return out, fd
+
+    @staticmethod
+    def _neck_trim(pix: np.ndarray) -> Optional[np.ndarray]:
+        """``pix`` without its rows above a neck, or None when it has none.
+
+        A portable stand's orange flags merged with the diamond below them by blur: the
+        rows' extents narrow from the flags' width to the diamond's top corner and widen
+        again.  A neck: a row in the upper half of the blob at most half as wide as the
+        widest row below it, with a row above it at least 1.5 x as wide (the flags) that
+        tapers into it (the widest row at least two rows up, the row just above at most
+        0.8 x as wide: not a diamond's widening upper half over a row that a legend line
+        cut short), and the part from it down about as tall as wide (0.7-1.4) and ending in
+        a corner (its last row at most 0.6 x its widest: a diamond).
+        """
+        rows, left, right = _row_extents(pix)
+        n = rows.size
+        if n < 12 or rows[-1] - rows[0] + 1 != n:
+            return None
+        ext = right - left
+        best = None
+        for k in range(2, n // 2 + 1):
+            below, above = ext[k + 1:], ext[:k]
+            if not (ext[k] <= 0.5 * below.max() and above.max() >= 1.5 * ext[k]):
+                continue
+            # the flags taper into the neck; a row cut short by a legend line under a
+            # diamond's widening upper half does not
+            j = int(np.argmax(above))
+            if k - j < 2 or ext[k - 1] > 0.8 * above[j]:
+                continue
+            height, width = n - k, below.max()
+            if not 0.7 <= height / width <= 1.4 or ext[-1] > 0.6 * width:
+                continue
+            if best is None or ext[k] <= ext[best]:
+                best = k
+        if best is None:
+            return None
+        out = pix.copy()
+        out[:int(rows[best] - 0.5)] = 0
+        return out
 
     @staticmethod
     def _relative_levels(like: np.ndarray, strong: np.ndarray, region: np.ndarray,

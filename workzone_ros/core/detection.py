@@ -3730,23 +3730,25 @@ class ColorDetector:
         if n < 12 or rows[-1] - rows[0] + 1 != n:
             return None
         ext = right - left
-        best = None
-        for k in range(2, n // 2 + 1):
-            below, above = ext[k + 1:], ext[:k]
-            if not (ext[k] <= 0.5 * below.max() and above.max() >= 1.5 * ext[k]):
-                continue
-            # the flags taper into the neck; a row cut short by a legend line under a
-            # diamond's widening upper half does not
-            j = int(np.argmax(above))
-            if k - j < 2 or ext[k - 1] > 0.8 * above[j]:
-                continue
-            height, width = n - k, below.max()
-            if not 0.7 <= height / width <= 1.4 or ext[-1] > 0.6 * width:
-                continue
-            if best is None or ext[k] <= ext[best]:
-                best = k
-        if best is None:
+        # per candidate row k (2 .. n / 2): the widest row above it (the first such) and
+        # the widest below it, from running maxima (this runs on every blob not wide)
+        idx = np.arange(n)
+        top_max = np.maximum.accumulate(ext)
+        first = np.maximum.accumulate(np.where(ext > np.r_[-np.inf, top_max[:-1]], idx, 0))
+        low_max = np.maximum.accumulate(ext[::-1])[::-1]
+        k = np.arange(2, n // 2 + 1)
+        above, j, width = top_max[k - 1], first[k - 1], low_max[k + 1]
+        ok = (ext[k] <= 0.5 * width) & (above >= 1.5 * ext[k])
+        # the flags taper into the neck; a row cut short by a legend line under a
+        # diamond's widening upper half does not
+        ok &= (k - j >= 2) & (ext[k - 1] <= 0.8 * above)
+        ratio = (n - k) / width
+        ok &= (ratio >= 0.7) & (ratio <= 1.4) & (ext[-1] <= 0.6 * width)
+        if not ok.any():
             return None
+        cand = k[ok]
+        # the narrowest neck, the lowest of equals
+        best = int(cand[np.flatnonzero(ext[cand] == ext[cand].min())[-1]])
         out = pix.copy()
         out[:int(rows[best] - 0.5)] = 0
         return out

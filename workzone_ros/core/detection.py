@@ -1356,7 +1356,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     head, a lane-ends line: the dark stroke beside the border line reads as a wide, soft
     step 0.5-1.5 px inside the edge, often still within ``outlier_px`` of the others);
     it counts as one of the lost points, the widest first, while at most ``max_lost`` are
-    lost and each edge keeps a stretch.  0 = off.
+    lost and each edge keeps a stretch; when the points left then do not agree on a
+    diamond, the round is fitted with them kept (as with 0 = off).
 
     ``info``, when given, receives ``blur``: the median of the edge stretches' fitted blur
     widths (px) in the last round.
@@ -1423,12 +1424,19 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
         # counts as one of the points the fit may drop
         seen = np.isfinite(off)
         lost = int(np.count_nonzero(shown & ~seen))
-        if stroke_steps > 0:
-            lost = _drop_stroke_stretches(off, blur, seen, lost, max_lost, stroke_steps)
         if lost > max_lost:
             return None
-        q = mids[seen] + off[seen, None] * nv[seen]
-        fit_ = fit_rhombus(q, _STRETCH_SIGNS[seen], outlier_px, max_lost - lost)
+        fit_ = None
+        if stroke_steps > 0:
+            # without the stretches a stroke runs into, unless the rest then disagree
+            s_seen, s_off = seen.copy(), off.copy()
+            s_lost = _drop_stroke_stretches(s_off, blur, s_seen, lost, max_lost, stroke_steps)
+            if s_lost > lost:
+                fit_ = fit_rhombus(mids[s_seen] + s_off[s_seen, None] * nv[s_seen],
+                                   _STRETCH_SIGNS[s_seen], outlier_px, max_lost - s_lost)
+        if fit_ is None:
+            q = mids[seen] + off[seen, None] * nv[seen]
+            fit_ = fit_rhombus(q, _STRETCH_SIGNS[seen], outlier_px, max_lost - lost)
         if fit_ is None:
             return None
         cx, cy, a, b = fit_

@@ -1357,7 +1357,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     step 0.5-1.5 px inside the edge, often still within ``outlier_px`` of the others);
     it counts as one of the lost points, the widest first, while at most ``max_lost`` are
     lost and each edge keeps a stretch; when the points left then do not agree on a
-    diamond, the round is fitted with them kept (as with 0 = off).
+    diamond, the round is fitted with them kept, and when the refinement fails after
+    leaving any out, it is done again without the test (as with 0 = off).
 
     ``info``, when given, receives ``blur``: the median of the edge stretches' fitted blur
     widths (px) in the last round.
@@ -1376,6 +1377,25 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     the road (``a / b`` outside ``aspect``: turned away by up to ~40 deg, rolled or
     distorted a little).
     """
+    used = [False]
+    out = _refine_diamond_rounds(value, fit, border_rel, margin_rel, max_change, min_contrast,
+                                 iterations, aspect, outlier_px, max_lost, info, hidden_below,
+                                 stroke_steps, used)
+    if out is None and used[0]:
+        out = _refine_diamond_rounds(value, fit, border_rel, margin_rel, max_change,
+                                     min_contrast, iterations, aspect, outlier_px, max_lost,
+                                     info, hidden_below, 0, used)
+    return out
+
+
+def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: float,
+                           margin_rel: float, max_change: float, min_contrast: float,
+                           iterations: int, aspect: tuple[float, float], outlier_px: float,
+                           max_lost: int, info: Optional[dict], hidden_below: Optional[float],
+                           stroke_steps: int, used: list
+                           ) -> Optional[tuple[float, float, float, float]]:
+    """:func:`refine_diamond`'s rounds; ``used[0]`` is set when a round's fit left out a
+    stroke's stretches."""
     cx, cy, a, b = (float(v) for v in fit[:4])
     a_in, b_in = a, b
     if a < 3 or b < 3:
@@ -1434,6 +1454,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
             if s_lost > lost:
                 fit_ = fit_rhombus(mids[s_seen] + s_off[s_seen, None] * nv[s_seen],
                                    _STRETCH_SIGNS[s_seen], outlier_px, max_lost - s_lost)
+                used[0] = used[0] or fit_ is not None
         if fit_ is None:
             q = mids[seen] + off[seen, None] * nv[seen]
             fit_ = fit_rhombus(q, _STRETCH_SIGNS[seen], outlier_px, max_lost - lost)
@@ -3476,18 +3497,22 @@ class ColorDetector:
         return None
 
     def _refine(self, value: np.ndarray, start: Sequence[float],
-                min_contrast: float = EDGE_MIN_CONTRAST, hidden: Optional[float] = None
-                ) -> Optional[tuple[float, float, float, float]]:
+                min_contrast: float = EDGE_MIN_CONTRAST, hidden: Optional[float] = None,
+                strokes: bool = True) -> Optional[tuple[float, float, float, float]]:
         """:func:`refine_diamond` with this detector's settings; the face's half-diagonals
         less ``diamond_edge_bias`` (a blurred border line puts the measured edge that far
         out, whatever the sign's size), or less ``diamond_blur_bias`` when the edges' fitted
         blur is ``diamond_blur_sigma`` px or more; the height at most ``diamond_tall_max`` x
-        the width and the width at most ``diamond_wide_max`` x the height."""
+        the width and the width at most ``diamond_wide_max`` x the height.  ``strokes``:
+        leave out the edge stretches a stroke runs into (``diamond_stroke_steps``); not for
+        the search's starts, which are guesses: with fewer stretches a small diamond inside a
+        symbol's strokes can pass."""
         cfg = self.config
         info: dict = {}
         sub = refine_diamond(value, start, cfg.diamond_border_rel, cfg.diamond_margin_rel,
                              cfg.diamond_max_change, min_contrast, info=info,
-                             hidden_below=hidden, stroke_steps=cfg.diamond_stroke_steps)
+                             hidden_below=hidden,
+                             stroke_steps=cfg.diamond_stroke_steps if strokes else 0)
         if sub is None:
             return None
         bias = cfg.diamond_edge_bias
@@ -3593,7 +3618,8 @@ class ColorDetector:
                                               0.3 * min(bw, bh), 0.6 * max(bw, bh)):
             # refine_diamond shrinks its start from an outline to the face: undo that; a
             # clear line: the sign's outer edge against dark asphalt is no face's edge
-            sub = self._refine(value, (cx, cy, a / shrink, a / shrink), cfg.search_min_contrast)
+            sub = self._refine(value, (cx, cy, a / shrink, a / shrink), cfg.search_min_contrast,
+                               strokes=False)
             if sub is None:
                 continue
             sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])

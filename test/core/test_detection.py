@@ -1994,11 +1994,12 @@ def test_lane_ends_piece_boxed_by_its_colour_is_merged_with_the_rest():
     ``test/data/winter_lane_ends.jpg``; label (516, 158, 57, 60)): its symbol cuts a narrow
     left strip off the faded face.  The large piece has no line to refine and is boxed by the
     chroma fit alone; such a piece is still a fragment to merge, and the two pieces measured
-    together give the sign (IoU >= 0.9) instead of the large piece (IoU ~0.8, 11 px short on
-    the left) and a stray 'regulatory' box on the strip."""
+    together give the sign (IoU >= 0.9) instead of the large piece alone (IoU 0.73-0.8, 7-11 px
+    short on the left; with ``refined_clamp`` 0.25 also a stray 'regulatory' box on the
+    strip)."""
     gt = (516, 158, 57, 60)
     pieces = _whole_then_pieces('winter_lane_ends.jpg', gt, merge_fragments=False)
-    assert len(pieces) == 2 and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.85
+    assert pieces and max(p.box.iou(Box(*map(float, gt))) for p in pieces) < 0.85
 
 
 @pytest.mark.parametrize('size, top', [(30, 222.4), (34, 223.4), (40, 220.4), (40, 226.4)])

@@ -213,7 +213,10 @@ class DetectorConfig:
             0.4. No side more than ``refined_clamp`` x the half-diagonal + ``diamond_clamp_px``
             beyond the face's own pixels (blur eats about a pixel of a small face's mask; the
             labels are the whole sign's, and a refined outline extrapolates a tip a guardrail
-            hides: 0.25 on tuning renders, recall +0.005, precision -0.002; 0.12 before);
+            hides: 0.25 on tuning renders, recall +0.005, precision -0.002; 0.12 before;
+            0.4 since stop 21: a dim winter face's mask can cover only its middle 60 %, and
+            0.25 cut its refined outline's tips; warning recall +0.001 to +0.004 on tuning
+            and five held-out sets, precision 0 to -0.002);
             ``cut_min_width``: a face whose rows end in a straight cut at least this share
             of the fitted diamond's width there, well above its bottom corner (a guardrail
             across a sign on a stand), has its edges measured above the cut and its
@@ -495,7 +498,7 @@ class DetectorConfig:
     neck_trim: bool = True
     diamond_scale: float = 1.07
     diamond_clamp: float = 0.12
-    refined_clamp: float = 0.25
+    refined_clamp: float = 0.4
     cut_min_width: float = 0.5
     tip_check: bool = True
     tip_colour: bool = True

@@ -2179,6 +2179,25 @@ def test_split_winter_plaque_boxed_to_the_white_part():
     assert old.box.w <= 17
 
 
+def test_begins_legend_row_not_taken_for_the_bottom_border():
+    """A small "WORK ZONE BEGINS" sign in winter light (a simulator frame, seed 10902 frame
+    327, the camera's JPEG: ``test/data/winter_begins_legend.jpg``; label (486, 205, 21,
+    26)) before a pale background: the white part runs on to the end of the reach and ends
+    at a dark row.  The dim orange blob is 17 px wide, and by that width neither the bold
+    "BEGINS" row nor the border below it gives a catalogue shape, so the first dark row, the
+    legend's, ended the box (20 x 17).  With the width measured on the orange part's
+    edges (20 px) the border below the legend gives the shape of WORK ZONE BEGINS
+    (``ext_rechoose``): the box is the sign's (IoU >= 0.85)."""
+    img = _data_frame('winter_begins_legend.jpg')
+    det = _default_detector()
+    d = _one(det.detect(img), (486, 205, 21, 26), 0.85)
+    assert d.kind == 'regulatory'
+    det = det.with_config(ext_rechoose=False)
+    det.reset()
+    old = _one(det.detect(img), (486, 205, 21, 26), 0.5)
+    assert old.box.h <= 18
+
+
 def test_white_part_ends_past_the_face_and_white_beside_the_sign():
     """:func:`white_part_ends` on a drawn two-colour sign given only its right part as the
     face: the white part's left end is found at the face's true edge; given the whole

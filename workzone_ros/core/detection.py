@@ -120,6 +120,13 @@ from workzone_ros.interfaces import Box, Detection, Roi
 _TWO_COLOUR_RATIOS = tuple(sorted({c.height_m / c.width_m for c in CATALOGUE
                                    if c.regulatory_two_color}))
 
+def _ratio_error(heights: np.ndarray, width: float) -> np.ndarray:
+    """Per height: the relative difference of ``height / width`` to the nearest two-colour
+    sign's height / width in the catalogue."""
+    return np.min(np.abs(np.asarray(heights, float)[:, None] / width
+                         / np.array(_TWO_COLOUR_RATIOS)[None, :] - 1.0), axis=1)
+
+
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
@@ -425,7 +432,10 @@ class DetectorConfig:
             border too), else the first.  A dark band's last row is a candidate and, when
             the band is at least ``ext_band_long`` orange heights long (a background darker
             than the sheeting that the border line merges with: a grey wall behind a dim
-            winter sign), its first row too.
+            winter sign), its first row too.  ``ext_rechoose``: the choice is made again
+            with the sign's measured top and width once the orange part's edges are
+            measured (the blob of a dim winter sign is narrower than the sign, and by its
+            width a "BEGINS" row made the better shape; stop 21).
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
@@ -548,6 +558,7 @@ class DetectorConfig:
     merge_max: int = 6
     merge_triples: bool = True
     ext_ratio_tol: float = 0.12
+    ext_rechoose: bool = True
     ext_band_long: float = 0.5
     border_dark: float = 0.0
     border_mode: str = 'profile'
@@ -3191,8 +3202,9 @@ class ColorDetector:
             cand.y -= 0.5 * (sy - 1.0) * cand.h
             cand.w, cand.h = sx * cand.w, sy * cand.h
         entry = self.debug[-1] if self.debug is not None else None
+        bands = None
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
-            self._extend(bgr, cand, hsv[pix > 0])
+            bands = self._extend(bgr, cand, hsv[pix > 0])
         if kind == 'regulatory' and cfg.rect_refine and cfg.border_frac > 0:
             # the orange part's left, right and top edges from the brightness profile; the
             # sign's outer edges lie the border line and margin further out (in units of
@@ -3228,6 +3240,8 @@ class ColorDetector:
                     # the orange part's top as its hull's, moved out like the sides (not a
                     # diamond fit's box: the part may have been taken for one)
                     cand.y = y0 + by0 - out
+                if cfg.ext_rechoose and bands is not None:
+                    bottom = self._rechoose_bottom(bands, cand, bottom, entry)
                 cand.h = bottom - cand.y
                 if cfg.white_ends and cand.extended and low is not None:
                     self._white_ends(bgr, cand, out, y0 + by0 + bh, entry)
@@ -3889,8 +3903,13 @@ class ColorDetector:
             line_out = False
         return (cfg.border_frac if line_out else 0.0) + blur / float(size), feats
 
-    def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:
-        """Seed 000's regulatory two-colour extension: grow the box over a white bottom."""
+    def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray
+                ) -> Optional[tuple[int, list]]:
+        """Seed 000's regulatory two-colour extension: grow the box over a white bottom.
+        Returns, when the white part's end was looked for among several dark bands and
+        none gave a catalogue shape by the blob's width (:meth:`_bottom_border`), the
+        strip's top row and those bands' rows (after it) for :meth:`_measure_orange` to
+        choose again with the measured width; else None."""
         cfg = self.config
         H = bgr.shape[0]
         x0, x1 = int(cand.x), int(cand.x + cand.w)
@@ -3899,10 +3918,10 @@ class ColorDetector:
         # sign, R2-1 + G20-5aP) up to ``ext_max_wratio`` x the width
         y_max = min(H, int(y_top + max(cfg.ext_max_ratio * cand.h, cfg.ext_max_wratio * cand.w)))
         if y_max - y_top < 2:
-            return
+            return None
         strip = bgr[y_top:y_max, max(0, x0):x1]
         if strip.size == 0:
-            return
+            return None
         raw_s = None
         if self._gains is not None:
             # white is judged both as the camera balanced it and after the grey-world gains:
@@ -3943,30 +3962,53 @@ class ColorDetector:
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
+        cuts: list = []
         if cfg.ext_frame and y_top + run >= y_max - 1:
             # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
             # pale sky or wall behind the sign.  The white part ends with its black bottom
             # border
-            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w)
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w, cuts)
             if end:
                 run = end
         if self.debug is not None:
             self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
                                    ext_frac=np.round(frac, 2).tolist()))
         if run < 0.3 * cand.h or y_top + run >= y_max - 1:
-            return              # too short, or no bottom edge found (sky, a white wall)
+            return None         # too short, or no bottom edge found (sky, a white wall)
         # a sign's white part carries a black legend and border; sky and walls do not
         # (dark relative to the white part itself: under overcast light the legend is grey)
         part = strip[:run]
         v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
         dark = part[..., 2] < cfg.dark_rel * v_white
         if dark.mean() < cfg.ext_min_dark:
-            return
+            return None
         cand.h = float(run + cand.h)
         cand.extended = True
+        return (y_top, cuts) if cuts else None
+
+    def _rechoose_bottom(self, bands: tuple[int, list], cand: Candidate, bottom: float,
+                         entry: Optional[dict]) -> float:
+        """The white part's end chosen again among :meth:`_extend`'s dark bands with the
+        sign's measured top and width (``cand``): the orange blob of a dim sign is narrower
+        than the sign, and with its width a bold legend row ("BEGINS") could pass for the
+        bottom border.  ``bottom``: the measured bottom, kept when it gives a catalogue
+        shape (within ``ext_ratio_tol``), when no band does, or when the band nearest one
+        is the chosen one."""
+        tol = self.config.ext_ratio_tol
+        if _ratio_error(np.array([bottom - cand.y]), cand.w)[0] <= tol:
+            return bottom                   # a catalogue shape as measured
+        y_top, cuts = bands
+        rows = y_top + np.array(cuts, float)
+        err = _ratio_error(rows - cand.y, cand.w)
+        k = int(np.argmin(err))
+        if entry is not None:
+            entry['rechosen'] = (round(bottom, 2), float(rows[k]), round(float(err[k]), 3))
+        if err[k] > tol or abs(rows[k] - bottom) <= 1.5:
+            return bottom
+        return float(rows[k])
 
     def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float,
-                       width: float = 0.0) -> int:
+                       width: float = 0.0, cuts: Optional[list] = None) -> int:
         """The row just after the white part's black bottom border (0: none seen).
 
         ``white``, ``value``: the white mask and brightness of the strip below the orange
@@ -3979,7 +4021,9 @@ class ColorDetector:
         two-colour sign's in the catalogue (within ``ext_ratio_tol``) ends the white part,
         else the first.  The candidates: each dark band's last row and, for a band at least
         ``ext_band_long`` orange heights (and 3 rows) long, its first (the border line
-        merged with a darker background below the sign).
+        merged with a darker background below the sign).  ``cuts``, when given, receives
+        those candidates (rows after the strip's top) when there are several and none
+        gives a catalogue shape (the first row was taken).
         """
         cfg = self.config
         w = white.shape[1]
@@ -4002,10 +4046,11 @@ class ColorDetector:
             starts, ends = rows[np.insert(brk, 0, True)], rows[np.append(brk, True)]
             long = ends - starts + 1 >= max(3.0, cfg.ext_band_long * orange_h)
             cut = np.concatenate([ends + 1, starts[long] + 1])
-            err = np.min(np.abs((orange_h + cut[:, None]) / width
-                                / np.array(_TWO_COLOUR_RATIOS)[None, :] - 1.0), axis=1)
+            err = _ratio_error(orange_h + cut, width)
             if err.min() <= cfg.ext_ratio_tol:
                 return int(cut[int(np.argmin(err))])
+            if cuts is not None and cut.size > 1:
+                cuts.extend(int(c) for c in cut)
         return int(rows[0] + 1)
 
     # -- seed 002 MSER path --

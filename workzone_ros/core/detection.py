@@ -120,6 +120,7 @@ from workzone_ros.interfaces import Box, Detection, Roi
 _TWO_COLOUR_RATIOS = tuple(sorted({c.height_m / c.width_m for c in CATALOGUE
                                    if c.regulatory_two_color}))
 
+
 def _ratio_error(heights: np.ndarray, width: float) -> np.ndarray:
     """Per height: the relative difference of ``height / width`` to the nearest two-colour
     sign's height / width in the catalogue."""
@@ -239,8 +240,9 @@ class DetectorConfig:
             ``diamond_stroke_steps``: an edge stretch fitted with a blur this many steps
             of the edge model's grid wider than the sign's other stretches is a legend
             stroke running into the edge and is left out (:func:`refine_diamond`'s
-            ``stroke_steps``; stop 21: lane-ends and lane-shift diamonds came out 0.6 px
-            short, tuning warning P / R 0.978 / 0.961 -> 0.979 / 0.962; 0 = off);
+            ``stroke_steps``; stop 21: lane-ends diamonds came out 0.6 px short, 0.4 with
+            it; tuning warning P / R 0.978 / 0.961 -> 0.978 / 0.962, 106xx 0.980 / 0.954
+            -> 0.980 / 0.957; 0 = off);
             ``diamond_luma``: the edges measured on the luma, not the HSV value (the max of
             B, G, R is not linear in a blend of the orange margin and a background brighter
             in another channel, a blue sky: with blur the face came out up to 0.8 px larger

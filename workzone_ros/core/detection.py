@@ -1465,11 +1465,12 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
         fit_ = None
         if stroke_steps > 0:
             # without the stretches a stroke runs into, unless the rest then disagree
-            s_seen, s_off = seen.copy(), off.copy()
-            s_lost = _drop_stroke_stretches(s_off, blur, s_seen, lost, max_lost, stroke_steps)
-            if s_lost > lost:
-                fit_ = fit_rhombus(mids[s_seen] + s_off[s_seen, None] * nv[s_seen],
-                                   _STRETCH_SIGNS[s_seen], outlier_px, max_lost - s_lost)
+            drop = _stroke_stretches(blur, seen, max_lost - lost, stroke_steps)
+            if drop.any():
+                s_seen = seen & ~drop
+                fit_ = fit_rhombus(mids[s_seen] + off[s_seen, None] * nv[s_seen],
+                                   _STRETCH_SIGNS[s_seen], outlier_px,
+                                   max_lost - lost - int(np.count_nonzero(drop)))
                 used[0] = used[0] or fit_ is not None
         if fit_ is None:
             q = mids[seen] + off[seen, None] * nv[seen]
@@ -1485,23 +1486,23 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
     return cx, cy, a, b
 
 
-def _drop_stroke_stretches(off: np.ndarray, blur: np.ndarray, seen: np.ndarray, lost: int,
-                           max_lost: int, steps: int) -> int:
-    """:func:`refine_diamond`'s ``stroke_steps`` test on one round's eight stretches:
-    ``off`` and ``seen`` are updated in place (a dropped stretch's offset becomes NaN);
-    returns the new count of lost points."""
-    if lost >= max_lost or np.count_nonzero(seen) <= 4:
-        return lost
+def _stroke_stretches(blur: np.ndarray, seen: np.ndarray, spare: int, steps: int
+                      ) -> np.ndarray:
+    """:func:`refine_diamond`'s ``stroke_steps`` test on one round's eight stretches: the
+    mask of those to leave out, the widest-blurred first, at most ``spare`` of them, each
+    edge keeping one (``seen``: the stretches measured; ``blur``: their fitted blur)."""
+    drop = np.zeros(seen.shape, bool)
+    if spare <= 0 or np.count_nonzero(seen) <= 4:
+        return drop
     level = np.searchsorted(_PROFILE_SIG, np.where(seen, blur, 0.0) - 1e-6)
     cut = np.median(level[seen]) + steps
     for j in np.argsort(-np.where(seen, level, -1), kind='stable'):
-        if lost >= max_lost or level[j] < cut:
+        if spare <= 0 or level[j] < cut:
             break
-        if seen[j ^ 1]:                        # the edge's other stretch is measured
-            seen[j] = False
-            off[j] = np.nan
-            lost += 1
-    return lost
+        if seen[j ^ 1] and not drop[j ^ 1]:    # the edge's other stretch is measured
+            drop[j] = True
+            spare -= 1
+    return drop
 
 
 _SQRT_HALF = math.sqrt(0.5)

@@ -127,6 +127,9 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node._detector.config.outline_evidence
     assert node.set_parameters([Parameter('outline_evidence', value=False)])[0].successful
     assert not node._detector.config.outline_evidence
+    assert node._detector.config.rect_needs_edges
+    assert node.set_parameters([Parameter('rect_needs_edges', value=False)])[0].successful
+    assert not node._detector.config.rect_needs_edges
 
 
 def test_image_waits_for_late_rois(ros, model_path):

@@ -1030,7 +1030,7 @@ def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
 def test_orange_patch_without_border_edges_is_dropped_sign_with_them_kept(detector):
     """A rectangular orange blob that is neither a two-colour sign nor shows a face-to-
     border step on its sides (``rect_needs_edges``) is a patch of something orange (dirt,
-    a cone, a vest, a brick wall: on the real clips 90 % of the false detections), not a
+    a cone, a vest, a brick wall: on the real clips 70 % of the false detections), not a
     sign: a dirt patch that the surround test lets through is dropped; an orange END ROAD
     WORK rectangle with its black border line is kept."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)

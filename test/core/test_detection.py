@@ -1821,6 +1821,26 @@ def test_wide_blob_grows_by_its_blur_rings_in_pixels():
     assert old.box.y2 <= gt.y2 - 6.0
 
 
+
+def test_speed_limit_numerals_judged_on_the_white_part_columns():
+    """A work-zone speed limit at dusk (a simulator frame, seed 6004 frame 220, as the
+    camera's JPEG: ``test/data/dusk_speed_numerals.jpg``; label (473, 200, 17, 30)): its
+    orange blob takes in 9 px of the reddish dusk background beside the plaque, so the strip
+    below is wider than the sign and its numeral rows look coloured; the numerals' dim
+    strokes are noisy, and against the orange's level they passed for bright.  Judged on the
+    white part's columns against the sheeting's level (``ext_gap_cols``), the numerals are
+    bridged and the 2-row white strip under them ends the sign; without, the box ends at the
+    numerals, 9 px short."""
+    img = _data_frame('dusk_speed_numerals.jpg')
+    gt = Box(473.0, 200.0, 17.0, 30.0)
+    det = _default_detector()
+    d = _one(det.detect(img), (473, 200, 17, 30), 0.85)
+    assert d.kind == 'regulatory' and abs(d.box.y2 - gt.y2) <= 2.0, d.box
+    det = det.with_config(ext_gap_cols=False)
+    det.reset()
+    old = _one(det.detect(img), (473, 200, 17, 30), 0.5)
+    assert old.box.y2 <= gt.y2 - 6.0, old.box
+
 def _whole_then_pieces(name, gt, **off):
     """The default detector on frame ``name`` (``test/data``) finds one warning sign at
     ``gt`` (IoU >= 0.9) and nothing else near it; returns what it finds near ``gt`` with

@@ -456,6 +456,13 @@ class DetectorConfig:
         ext_gap_w, ext_gap_s: rows of a large black legend inside the white part (median
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
+        ext_gap_cols: rows that look coloured across the strip are judged again on the white
+            part's own columns (the columns white in its white rows so far), bright against
+            the sheeting's level rather than the orange's: a dusk blob may be wider than the
+            sign (the background beside it is of its colour) and the dim numerals' noisy
+            pixels passed for bright; after such a gap a single white row (the strip under
+            the numerals, too short for the running window) continues the white part
+            (stop 23: curve_dusk speed limits ended at their numerals, 7-9 px short).
         roi_prior, roi_threshold, roi_margin: LiDAR ROIs: prior and posterior threshold
             inside them, and the fraction of their size added around them.
         roi_relax: inside an ROI the hull-fill and solidity minima are multiplied (and the
@@ -607,6 +614,7 @@ class DetectorConfig:
     ext_max_wratio: float = 1.8
     ext_gap_w: float = 0.6
     ext_gap_s: int = 60
+    ext_gap_cols: bool = True
     ext_frame: bool = True
     ext_border_share: float = 0.9
     ext_border_rel: float = 0.7
@@ -3966,23 +3974,35 @@ class ColorDetector:
         # to ``ext_gap_w`` x the width (background rows, foliage or sky, are coloured)
         # (judged on the row's bright pixels: a dark legend stroke's saturation is noise, a
         # row of large numerals would otherwise look coloured)
-        bright = strip[..., 2] >= 0.5 * v_ref
-        sat_b = np.where(bright, sat, np.nan).astype(np.float32)
-        with np.errstate(all='ignore'):
-            med_b = np.nanmedian(np.where(bright.sum(axis=1, keepdims=True) >= 3, sat_b,
-                                          np.float32(255)), axis=1)
-        achrom = med_b <= cfg.ext_gap_s
-        # a bold legend row of a small sign ("BEGINS") is ink nearly across: too few bright
-        # pixels to judge by, but black (below ``dark_rel`` of the face's brightness)
-        achrom |= (np.count_nonzero(bright, axis=1) < 3) & (
-            _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref)
+        achrom = self._achromatic_rows(strip, sat, v_ref)
         gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
-        run = 0
+        run, cols_run, achrom_cols = 0, -1, None
         for j, f in enumerate(smooth):
             if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
                 run = j + 1
-            elif j - run > (gap if achrom[run:j + 1].all() else k):
-                break
+            elif j - run > k and (j - run > gap or not achrom[run:j + 1].all()):
+                if j - run > gap or not cfg.ext_gap_cols or run == 0:
+                    break
+                # the blob (and so the strip) may be wider than the sign (a dusk
+                # background of its colour beside it): judge the gap's rows again on the
+                # white part's own columns
+                if cols_run != run:
+                    cols_run = run
+                    rows = white[:run][frac[:run] >= 0.45]
+                    cols = rows.mean(axis=0) >= 0.5 if len(rows) else None
+                    if cols is not None and cols.sum() >= 3:
+                        # bright: against the white sheeting's own level (at dusk it is
+                        # far brighter than the orange; noise makes dim pixels coloured)
+                        v_w = float(_median(strip[:run, cols, 2][white[:run, cols]]))
+                        achrom_cols = self._achromatic_rows(strip[:, cols], sat[:, cols],
+                                                            v_ref, max(v_ref, v_w))
+                    else:
+                        achrom_cols = None
+                if achrom_cols is None or not achrom_cols[run:j + 1].all():
+                    break
+                if frac[j] >= 0.45:
+                    run = j + 1     # white again after the numerals (too short a strip for
+                    #                 the running window)
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
@@ -4009,6 +4029,24 @@ class ColorDetector:
         cand.h = float(run + cand.h)
         cand.extended = True
         return (y_top, cuts) if cuts else None
+
+    def _achromatic_rows(self, strip: np.ndarray, sat: np.ndarray, v_ref: float,
+                         v_bright: Optional[float] = None) -> np.ndarray:
+        """Per row of an HSV ``strip`` (``sat``: its saturation as judged for white): an
+        achromatic row, like a large black legend's inside the white part; background rows
+        (foliage, sky) are coloured.  Judged on the row's bright pixels (a dark legend
+        stroke's saturation is noise: a row of large numerals would otherwise look
+        coloured): their median saturation at most ``ext_gap_s``; or a bold legend row of a
+        small sign ("BEGINS"), ink nearly across: too few bright pixels to judge by, but
+        black (below ``dark_rel`` of the face's brightness ``v_ref``)."""
+        cfg = self.config
+        bright = strip[..., 2] >= 0.5 * (v_ref if v_bright is None else v_bright)
+        sat_b = np.where(bright, sat, np.nan).astype(np.float32)
+        with np.errstate(all='ignore'):
+            med_b = np.nanmedian(np.where(bright.sum(axis=1, keepdims=True) >= 3, sat_b,
+                                          np.float32(255)), axis=1)
+        return (med_b <= cfg.ext_gap_s) | ((np.count_nonzero(bright, axis=1) < 3) & (
+            _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref))
 
     def _rechoose_bottom(self, bands: tuple[int, list], cand: Candidate, bottom: float,
                          entry: Optional[dict]) -> float:

@@ -277,6 +277,12 @@ class DetectorConfig:
             at stop 19): tuning regulatory P / R 0.976 / 0.963 at 0.15, 0.979 / 0.959 at
             0.2, 0.982 / 0.955 at 0.25; 105xx / 106xx 0.966 / 0.969, 0.970 / 0.974 at 0.15,
             0.968 / 0.965, 0.973 / 0.971 at 0.2 (precision is the target these miss).
+            ``rect_white_span``: when the fit fails on a two-colour sign whose white part
+            (its columns white in at least half its white rows) is narrower than the
+            orange blob by 2 px and 10 %, it is made again on the white part's columns:
+            the blob took in a surface of its colour beside the plaque (a dusk sky) and
+            the plaque's edges lay past the search (stop 23: such signs kept the blob's
+            grown box, up to 9 px too wide).
             ``rect_max_change``: the measured face's width may differ from the hull's by
             this share (0.2 before: small dusk signs whose hull took in 1.5-3 px of a sky
             of their colour were left at the hull's grown box, precision ~0.8; 105xx /
@@ -567,6 +573,7 @@ class DetectorConfig:
     rect_edge_bias: float = 0.2
     blur_px_growth: bool = True
     rect_max_change: float = 0.3
+    rect_white_span: bool = True
     rect_lean: bool = True
     rect_lean_min: float = 0.025
     rect_lean_agree: float = 0.05
@@ -720,6 +727,7 @@ class Candidate:
     extended: bool = False
     refined: bool = False
     chroma_fit: bool = False
+    white_span: Optional[tuple[float, float]] = None
     sources: list[str] = field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
 
@@ -1834,6 +1842,21 @@ def _white_sides(img: np.ndarray, x: float, w: float, y0: float, y1: float, prof
     segs, nvecs = _side_stretches(x, w, y0, y1 - y0)
     off = _edge_offsets(img, segs, nvecs, prof, min_contrast, missing=True)
     return None if off is None else off.reshape(2, 2)
+
+
+def _white_span(rows: np.ndarray, x0: int) -> Optional[tuple[float, float]]:
+    """The columns (image coordinates: ``x0`` is the mask's first column) of a two-colour
+    sign's white part: the longest run of columns white in at least 0.3 of its white rows
+    ``rows`` (a boolean mask: a column through a bold legend's strokes is white above and
+    below them, one beside the sign hardly ever); None without any."""
+    if not len(rows):
+        return None
+    cols = np.flatnonzero(np.diff(np.r_[0, (rows.mean(axis=0) >= 0.3).astype(np.int8), 0]))
+    if not cols.size:
+        return None
+    starts, ends = cols[0::2], cols[1::2]
+    k = int(np.argmax(ends - starts))
+    return float(x0 + starts[k]), float(x0 + ends[k])
 
 
 def _side_stretches(x: float, w: float, y: float, h: float,
@@ -3246,10 +3269,30 @@ class ColorDetector:
             value, ox, oy = self._value(bgr, x0 - pad, y0 - pad, x1 + pad, y_end + pad)
             dx, dy = x0 - ox, y0 - oy
             low = cand.y + cand.h - oy if cand.extended else None
-            sub = refine_rectangle(value, (bx0 + dx, by0 + dy, bw, bh), size,
+            hx, hw = bx0 + dx, bw                   # the orange part's columns (window)
+            sub = refine_rectangle(value, (hx, by0 + dy, hw, bh), size,
                                    cfg.rect_border_rel, cfg.rect_margin_rel,
                                    cfg.rect_max_change, bottom=low,
                                    free_top=cand.extended)
+            span = cand.white_span
+            wide = sub is not None and sub[0] is not None and sub[1] is not None \
+                and span is not None and sub[1] - sub[0] > span[1] - span[0] + max(
+                    2.0, 0.1 * (span[1] - span[0]))
+            if (sub is None or wide) and cfg.rect_white_span and span is not None \
+                    and span[1] - span[0] <= bw - max(2.0, 0.1 * bw) \
+                    and span[1] - span[0] >= max(6.0, 0.6 * bw):
+                # the orange blob took in a surface of its colour beside the sign (a dusk
+                # sky): its edges lie past the search; the white part below shows the
+                # sign's columns
+                sub2 = refine_rectangle(value, (span[0] - ox, by0 + dy, span[1] - span[0], bh),
+                                        (span[1] - span[0]) / face_frac, cfg.rect_border_rel,
+                                        cfg.rect_margin_rel, cfg.rect_max_change, bottom=low,
+                                        free_top=True)
+                if entry is not None:
+                    entry['white_span'] = (span, wide, sub2 is not None)
+                if sub2 is not None:
+                    sub, hx, hw = sub2, span[0] - ox, span[1] - span[0]
+                    size = hw / face_frac
             if entry is not None:
                 entry['rect_refined'] = sub is not None
             rect_failed = sub is None
@@ -3257,8 +3300,8 @@ class ColorDetector:
                 left, right, top, low = sub            # in the brightness window
                 q = cfg.rect_edge_bias
                 # a side off the image: the hull's (the box is clipped to the image below)
-                left = bx0 + dx if left is None else left + q
-                right = bx0 + dx + bw if right is None else right - q
+                left = hx if left is None else left + q
+                right = hx + hw if right is None else right - q
                 out = (cfg.rect_border_rel + cfg.rect_margin_rel) * (
                     (right - left) / face_frac if cand.extended else size)
                 bottom = cand.y + cand.h if low is None else oy + low - q + out
@@ -4028,6 +4071,10 @@ class ColorDetector:
             return None
         cand.h = float(run + cand.h)
         cand.extended = True
+        # (its upper half: an extension that ran on past the sign's bottom took in
+        # background rows there)
+        top_half = slice(0, max(2, (run + 1) // 2))
+        cand.white_span = _white_span(white[top_half][frac[top_half] >= 0.45], max(0, x0))
         return (y_top, cuts) if cuts else None
 
     def _achromatic_rows(self, strip: np.ndarray, sat: np.ndarray, v_ref: float,

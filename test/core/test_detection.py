@@ -1865,6 +1865,19 @@ def test_plaque_merged_with_a_dusk_sky_measured_on_the_white_part_columns(frame,
     assert old.box.w >= old_w - 0.5, old.box
 
 
+def _whole_then_pieces(name, gt, **off):
+    """The default detector on frame ``name`` (``test/data``) finds one warning sign at
+    ``gt`` (IoU >= 0.9) and nothing else near it; returns what it finds near ``gt`` with
+    the configuration changes ``off`` (the pieces)."""
+    img = _data_frame(name)
+    det = _default_detector()
+    d = _one(det.detect(img), gt, 0.9)
+    assert d.kind == 'warning' and len(_near(det.detect(img), gt, 0.05)) == 1
+    det = det.with_config(**off)
+    det.reset()
+    return _near(det.detect(img), gt, 0.05)
+
+
 def test_sign_cut_into_three_pieces_is_measured_whole():
     """A "ROAD WORK AHEAD" diamond in rain light (a simulator frame, seed 10607 frame 21,
     as the camera's JPEG: ``test/data/rain_split_sign.jpg``; label (453, 180, 42, 43)): its

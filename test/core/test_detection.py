@@ -1865,6 +1865,26 @@ def test_plaque_merged_with_a_dusk_sky_measured_on_the_white_part_columns(frame,
     assert old.box.w >= old_w - 0.5, old.box
 
 
+def test_plaque_side_taken_at_its_legend_measured_on_the_white_part_columns():
+    """A WORK ZONE BEGINS sign at dusk (a simulator frame, seed 11405 frame 339, as the
+    camera's JPEG: ``test/data/dusk_plaque_legend_side.jpg``; label (566, 200, 23, 28)):
+    the rectangle fit on its 11-row orange part puts the left side 7 px in (at the legend's
+    strokes), a face 9 px narrower than the white part below it.  Measured again on the
+    white part's columns (``rect_white_span``) the box is within a pixel of the label;
+    before, 15 px wide (IoU 0.63)."""
+    img = _data_frame('dusk_plaque_legend_side.jpg')
+    gt = Box(566.0, 200.0, 23.0, 28.0)
+    det = _default_detector()
+    d = _one(det.detect(img), (566, 200, 23, 28), 0.85)
+    assert d.kind == 'regulatory'
+    assert max(abs(d.box.x - gt.x), abs(d.box.x2 - gt.x2), abs(d.box.y - gt.y),
+               abs(d.box.y2 - gt.y2)) <= 1.0, d.box
+    det = det.with_config(rect_white_span=False)
+    det.reset()
+    old = _one(det.detect(img), (566, 200, 23, 28), 0.5)
+    assert old.box.x >= gt.x + 6, old.box
+
+
 def _whole_then_pieces(name, gt, **off):
     """The default detector on frame ``name`` (``test/data``) finds one warning sign at
     ``gt`` (IoU >= 0.9) and nothing else near it; returns what it finds near ``gt`` with

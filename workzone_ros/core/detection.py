@@ -277,12 +277,15 @@ class DetectorConfig:
             at stop 19): tuning regulatory P / R 0.976 / 0.963 at 0.15, 0.979 / 0.959 at
             0.2, 0.982 / 0.955 at 0.25; 105xx / 106xx 0.966 / 0.969, 0.970 / 0.974 at 0.15,
             0.968 / 0.965, 0.973 / 0.971 at 0.2 (precision is the target these miss).
-            ``rect_white_span``: when the fit fails on a two-colour sign whose white part
-            (its columns white in at least half its white rows) is narrower than the
-            orange blob by 2 px and 10 %, it is made again on the white part's columns:
-            the blob took in a surface of its colour beside the plaque (a dusk sky) and
-            the plaque's edges lay past the search (stop 23: such signs kept the blob's
-            grown box, up to 9 px too wide).
+            ``rect_white_span``: the fit is made again on a two-colour sign's white part's
+            columns (the longest run of columns white in 0.3 of the upper half's white
+            rows, at least 0.6 of the blob's width) when it fails or measures a face wider
+            than them by 2 px and 10 % while the blob is that much wider too (the blob took
+            in a surface of its colour beside the plaque, a dusk sky: the plaque's edges lay
+            past the search, or the blob's were measured), or measures a face that much
+            narrower (a side taken at the plaque's legend strokes; kept only when the new
+            face's width is nearer the white part's).  Stop 23: such signs kept the blob's
+            grown box, up to 9 px too wide, or were cut 6-8 px at one side.
             ``rect_max_change``: the measured face's width may differ from the hull's by
             this share (0.2 before: small dusk signs whose hull took in 1.5-3 px of a sky
             of their colour were left at the hull's grown box, precision ~0.8; 105xx /
@@ -3275,23 +3278,32 @@ class ColorDetector:
                                    cfg.rect_max_change, bottom=low,
                                    free_top=cand.extended)
             span = cand.white_span
-            wide = sub is not None and sub[0] is not None and sub[1] is not None \
-                and span is not None and sub[1] - sub[0] > span[1] - span[0] + max(
-                    2.0, 0.1 * (span[1] - span[0]))
-            if (sub is None or wide) and cfg.rect_white_span and span is not None \
-                    and span[1] - span[0] <= bw - max(2.0, 0.1 * bw) \
-                    and span[1] - span[0] >= max(6.0, 0.6 * bw):
+            sw = span[1] - span[0] if span is not None else 0.0
+            tol_w = max(2.0, 0.1 * sw)
+            face_w = sub[1] - sub[0] if sub is not None and sub[0] is not None \
+                and sub[1] is not None else None
+            wide = face_w is not None and face_w > sw + tol_w
+            # one side far inside the white part's and the other not (the face is inside
+            # the white columns by its line and margin on both sides alike)
+            narrow = face_w is not None and face_w < sw and abs(
+                (sub[0] - (span[0] - ox)) - ((span[1] - ox) - sub[1])) > max(3.0, 0.2 * sw)
+            if cfg.rect_white_span and span is not None and sw >= max(6.0, 0.6 * bw) and (
+                    (sub is None or wide) and sw <= bw - max(2.0, 0.1 * bw) or narrow):
                 # the orange blob took in a surface of its colour beside the sign (a dusk
-                # sky): its edges lie past the search; the white part below shows the
-                # sign's columns
-                sub2 = refine_rectangle(value, (span[0] - ox, by0 + dy, span[1] - span[0], bh),
-                                        (span[1] - span[0]) / face_frac, cfg.rect_border_rel,
+                # sky): its edges lie past the search, or were measured on the blob's; or
+                # the plaque's fit took a legend stroke for a side: the white part below
+                # shows the sign's columns
+                sub2 = refine_rectangle(value, (span[0] - ox, by0 + dy, sw, bh),
+                                        sw / face_frac, cfg.rect_border_rel,
                                         cfg.rect_margin_rel, cfg.rect_max_change, bottom=low,
                                         free_top=True)
                 if entry is not None:
-                    entry['white_span'] = (span, wide, sub2 is not None)
-                if sub2 is not None:
-                    sub, hx, hw = sub2, span[0] - ox, span[1] - span[0]
+                    entry['white_span'] = (span, wide, narrow, sub2 is not None)
+                if sub2 is not None and (not narrow or (
+                        sub2[0] is not None and sub2[1] is not None
+                        and sub2[1] - sub2[0] <= sw + tol_w
+                        and abs(sub2[1] - sub2[0] - sw) < abs(face_w - sw))):
+                    sub, hx, hw = sub2, span[0] - ox, sw
                     size = hw / face_frac
             if entry is not None:
                 entry['rect_refined'] = sub is not None

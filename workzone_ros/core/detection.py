@@ -174,6 +174,13 @@ class DetectorConfig:
             ``diamond_hull_fill``, aspect within ``low_max_aspect``).  Applies to
             colour-only blobs; lifted inside LiDAR ROIs.
         smooth_px: box filter on the likelihood at the mask's resolution before thresholding.
+        v_hysteresis: a second brightness gate at this share of the model's ``v_min``: the
+            pixels of the colour between the two join a blob within its bright pixels' box
+            (:func:`_hysteresis`), never make one (0: off).  An under-exposed small plaque
+            (sunny exposure dips to 0.5-0.7) lost half its pixels to the gate where its
+            legend darkens them and vanished in the mask's opening (stop 23: 116xx
+            regulatory signs found 0.625 -> 0.833 of their frames, warning 0.870 ->
+            0.915; false detections not more).
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it
@@ -530,6 +537,7 @@ class DetectorConfig:
     refine: bool = True
     border_scale: tuple[float, float] = (1.0, 1.0)
     smooth_px: int = 3
+    v_hysteresis: float = 0.65
     use_geometry: bool = True
     low_min_solidity: float = 0.85
     low_max_aspect: float = 1.4
@@ -699,6 +707,9 @@ class DetectorConfig:
             raise ValueError('diamond_hold must be in (0, 1] (a share of the orange pixels)')
         if not all(0.0 < float(v) < 1.0 for v in self.peel_levels):
             raise ValueError('peel_levels must be likelihoods in (0, 1)')
+        if not 0.0 <= self.v_hysteresis <= 1.0:
+            raise ValueError('v_hysteresis must be in [0, 1] (a share of the model v_min; '
+                             '0: off)')
         if int(self.peel_max) < 0 or self.peel_gap < 0 or self.peel_clamp < 0:
             raise ValueError('peel_max, peel_gap and peel_clamp must be >= 0')
         if int(self.merge_max) < 0:
@@ -1847,6 +1858,40 @@ def _white_sides(img: np.ndarray, x: float, w: float, y0: float, y1: float, prof
     return None if off is None else off.reshape(2, 2)
 
 
+def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_px: int
+                ) -> np.ndarray:
+    """``mask`` filled in from the mask of ``prob_lo`` (the likelihood with a lower
+    brightness gate, smoothed and thresholded like it): each blob of the latter that holds
+    pixels of ``mask`` is added within those pixels' box.  A small dim plaque whose legend
+    darkens half its pixels below the gate is left in fragments, which its dim pixels join
+    again; dim pixels never make a blob, nor grow one past its bright pixels' box (a dusk
+    sign's dim white part, a sky of its colour)."""
+    if smooth_px > 1:
+        prob_lo = cv2.blur(prob_lo, (smooth_px, smooth_px))
+    lo = cv2.compare(prob_lo, thr, cv2.CMP_GE)
+    n, labels = cv2.connectedComponents(lo, connectivity=8)
+    ys, xs = np.nonzero(mask)
+    lab = labels[ys, xs]
+    if n <= 1 or not lab.size:
+        return mask
+    # the bright pixels' box per dim blob
+    y0 = np.full(n, mask.shape[0], np.int64)
+    x0 = np.full(n, mask.shape[1], np.int64)
+    y1 = np.full(n, -1, np.int64)
+    x1 = np.full(n, -1, np.int64)
+    np.minimum.at(y0, lab, ys)
+    np.minimum.at(x0, lab, xs)
+    np.maximum.at(y1, lab, ys)
+    np.maximum.at(x1, lab, xs)
+    out = mask.copy()
+    for k in np.unique(lab):
+        if k == 0 or (y1[k] - y0[k] < 1 and x1[k] - x0[k] < 1):
+            continue
+        sl = (slice(y0[k], y1[k] + 1), slice(x0[k], x1[k] + 1))
+        out[sl][labels[sl] == k] = 255
+    return out
+
+
 def _white_span(rows: np.ndarray, x0: int) -> Optional[tuple[float, float]]:
     """The columns (image coordinates: ``x0`` is the mask's first column) of a two-colour
     sign's white part: the longest run of columns white in at least 0.3 of its white rows
@@ -2585,7 +2630,12 @@ class ColorDetector:
                 else:
                     idx_c = idx
                 prob = np.take(self._lut_u8[color], idx_c)
+                prob_lo = None
                 if self._vmin[color] > 0:
+                    if cfg.v_hysteresis > 0:
+                        prob_lo = prob & cv2.threshold(
+                            v, int(cfg.v_hysteresis * self._vmin[color]) - 1, 255,
+                            cv2.THRESH_BINARY)[1]
                     # brightness gate outside the table: too dark for a reliable hue
                     prob &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
                 raw = prob
@@ -2594,6 +2644,8 @@ class ColorDetector:
                     # orange-hued pixels (dusk sky, sensor noise) are averaged away
                     prob = cv2.blur(prob, (cfg.smooth_px, cfg.smooth_px))
                 mask = cv2.compare(prob, thr, cv2.CMP_GE)
+                if prob_lo is not None and cv2.countNonZero(mask):
+                    mask = _hysteresis(mask, prob_lo, thr, cfg.smooth_px)
                 if keep is not None:
                     mask &= keep
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes,

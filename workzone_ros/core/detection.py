@@ -1869,26 +1869,26 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     if smooth_px > 1:
         prob_lo = cv2.blur(prob_lo, (smooth_px, smooth_px))
     lo = cv2.compare(prob_lo, thr, cv2.CMP_GE)
-    n, labels = cv2.connectedComponents(lo, connectivity=8)
-    ys, xs = np.nonzero(mask)
-    lab = labels[ys, xs]
-    if n <= 1 or not lab.size:
+    # the lower gate passes a superset and the blur keeps the order: lo holds mask
+    if cv2.countNonZero(lo) == cv2.countNonZero(mask):
         return mask
-    # the bright pixels' box per dim blob
-    y0 = np.full(n, mask.shape[0], np.int64)
-    x0 = np.full(n, mask.shape[1], np.int64)
-    y1 = np.full(n, -1, np.int64)
-    x1 = np.full(n, -1, np.int64)
-    np.minimum.at(y0, lab, ys)
-    np.minimum.at(x0, lab, xs)
-    np.maximum.at(y1, lab, ys)
-    np.maximum.at(x1, lab, xs)
+    n_hi, lab_hi, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    _, lab_lo = cv2.connectedComponents(lo, connectivity=8)
+    boxes: dict = {}                 # dim blob -> its bright pixels' box (x0, y0, x1, y1)
+    for k in range(1, n_hi):
+        x, y, w, h, _ = (int(v) for v in stats[k])
+        sub = lab_hi[y:y + h, x:x + w] == k
+        r, c = np.unravel_index(int(np.argmax(sub)), sub.shape)
+        key = int(lab_lo[y + r, x + c])
+        b = boxes.get(key)
+        boxes[key] = (x, y, x + w, y + h) if b is None else (
+            min(b[0], x), min(b[1], y), max(b[2], x + w), max(b[3], y + h))
     out = mask.copy()
-    for k in np.unique(lab):
-        if k == 0 or (y1[k] - y0[k] < 1 and x1[k] - x0[k] < 1):
+    for key, (x0, y0, x1, y1) in boxes.items():
+        if x1 - x0 < 2 and y1 - y0 < 2:
             continue
-        sl = (slice(y0[k], y1[k] + 1), slice(x0[k], x1[k] + 1))
-        out[sl][labels[sl] == k] = 255
+        sl = (slice(y0, y1), slice(x0, x1))
+        out[sl][lab_lo[sl] == key] = 255
     return out
 
 
@@ -4093,7 +4093,8 @@ class ColorDetector:
                 # the blob (and so the strip) may be wider than the sign (a dusk
                 # background of its colour beside it): judge the gap's rows again on the
                 # white part's own columns
-                if cols_run != run:
+                if cols_run < 0:
+                    # (judged once, on the white rows before the first such gap)
                     cols_run = run
                     rows = white[:run][frac[:run] >= 0.45]
                     cols = rows.mean(axis=0) >= 0.5 if len(rows) else None
@@ -4152,11 +4153,12 @@ class ColorDetector:
         black (below ``dark_rel`` of the face's brightness ``v_ref``)."""
         cfg = self.config
         bright = strip[..., 2] >= 0.5 * (v_ref if v_bright is None else v_bright)
-        sat_b = np.where(bright, sat, np.nan).astype(np.float32)
-        with np.errstate(all='ignore'):
-            med_b = np.nanmedian(np.where(bright.sum(axis=1, keepdims=True) >= 3, sat_b,
-                                          np.float32(255)), axis=1)
-        return (med_b <= cfg.ext_gap_s) | ((np.count_nonzero(bright, axis=1) < 3) & (
+        n = np.count_nonzero(bright, axis=1)
+        # the median of each row's bright pixels' saturation (numpy's nanmedian, sorted)
+        srt = np.sort(np.where(bright, sat.astype(np.int32), 256), axis=1)
+        rows = np.arange(len(n))
+        med_b = 0.5 * (srt[rows, np.maximum(n - 1, 0) // 2] + srt[rows, n // 2])
+        return ((n >= 3) & (med_b <= cfg.ext_gap_s)) | ((n < 3) & (
             _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref))
 
     def _rechoose_bottom(self, bands: tuple[int, list], cand: Candidate, bottom: float,

@@ -1866,13 +1866,22 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     darkens half its pixels below the gate is left in fragments, which its dim pixels join
     again; dim pixels never make a blob, nor grow one past its bright pixels' box (a dusk
     sign's dim white part, a sky of its colour)."""
+    # only around the bright pixels (the box of them all, and the blur's reach)
+    bx, by, bw, bh = cv2.boundingRect(mask)
+    pad = max(1, smooth_px)
+    H, W = mask.shape
+    wx0, wy0 = max(0, bx - 2 * pad), max(0, by - 2 * pad)
+    wx1, wy1 = min(W, bx + bw + 2 * pad), min(H, by + bh + 2 * pad)
+    win = (slice(wy0, wy1), slice(wx0, wx1))
+    part = prob_lo[win]
     if smooth_px > 1:
-        prob_lo = cv2.blur(prob_lo, (smooth_px, smooth_px))
-    lo = cv2.compare(prob_lo, thr, cv2.CMP_GE)
-    # the lower gate passes a superset and the blur keeps the order: lo holds mask
-    if cv2.countNonZero(lo) == cv2.countNonZero(mask):
+        part = cv2.blur(part, (smooth_px, smooth_px))
+    lo = cv2.compare(part, thr[win], cv2.CMP_GE)
+    hi = mask[win]
+    # the lower gate passes a superset and the blur keeps the order: lo holds hi
+    if cv2.countNonZero(lo) == cv2.countNonZero(hi):
         return mask
-    n_hi, lab_hi, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    n_hi, lab_hi, stats, _ = cv2.connectedComponentsWithStats(hi, connectivity=8)
     _, lab_lo = cv2.connectedComponents(lo, connectivity=8)
     boxes: dict = {}                 # dim blob -> its bright pixels' box (x0, y0, x1, y1)
     for k in range(1, n_hi):
@@ -1884,11 +1893,12 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
         boxes[key] = (x, y, x + w, y + h) if b is None else (
             min(b[0], x), min(b[1], y), max(b[2], x + w), max(b[3], y + h))
     out = mask.copy()
+    sub_out = out[win]
     for key, (x0, y0, x1, y1) in boxes.items():
         if x1 - x0 < 2 and y1 - y0 < 2:
             continue
         sl = (slice(y0, y1), slice(x0, x1))
-        out[sl][lab_lo[sl] == key] = 255
+        sub_out[sl][lab_lo[sl] == key] = 255
     return out
 
 

@@ -180,7 +180,7 @@ class DetectorConfig:
             (sunny exposure dips to 0.5-0.7) lost half its pixels to the gate where its
             legend darkens them and vanished in the mask's opening (stop 23: 116xx
             regulatory signs found 0.625 -> 0.797 of their frames, warning 0.870 ->
-            0.902; false detections per frame 0.236 -> 0.217).
+            0.902; false detections per frame 0.236 -> 0.214).
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it

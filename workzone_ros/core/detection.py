@@ -473,7 +473,7 @@ class DetectorConfig:
             saturation at most ``ext_gap_s``: achromatic like the sheeting) may separate
             white rows by up to ``ext_gap_w`` x the width.
         ext_gap_cols: rows that look coloured across the strip are judged again on the white
-            part's own columns (the columns white in its white rows so far), bright against
+            part's own columns (those white in its white rows before the gap), bright against
             the sheeting's level rather than the orange's: a dusk blob may be wider than the
             sign (the background beside it is of its colour) and the dim numerals' noisy
             pixels passed for bright; after such a gap a single white row (the strip under
@@ -1895,7 +1895,7 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     out = mask.copy()
     sub_out = out[win]
     for key, (x0, y0, x1, y1) in boxes.items():
-        if x1 - x0 < 2 and y1 - y0 < 2:
+        if key == 0 or (x1 - x0 < 2 and y1 - y0 < 2):
             continue
         sl = (slice(y0, y1), slice(x0, x1))
         sub_out[sl][lab_lo[sl] == key] = 255

@@ -175,12 +175,13 @@ class DetectorConfig:
             colour-only blobs; lifted inside LiDAR ROIs.
         smooth_px: box filter on the likelihood at the mask's resolution before thresholding.
         v_hysteresis: a second brightness gate at this share of the model's ``v_min``: the
-            pixels of the colour between the two join a blob within its bright pixels' box
-            (:func:`_hysteresis`), never make one (0: off).  An under-exposed small plaque
-            (sunny exposure dips to 0.5-0.7) lost half its pixels to the gate where its
-            legend darkens them and vanished in the mask's opening (stop 23: 116xx
-            regulatory signs found 0.625 -> 0.797 of their frames, warning 0.870 ->
-            0.902; false detections per frame 0.236 -> 0.214).
+            pixels of the colour between the two join blobs they connect, within those
+            blobs' box (:func:`_hysteresis`); they never make a blob nor grow a single one
+            (0: off).  An under-exposed small plaque (sunny exposure dips to 0.5-0.7) lost
+            half its pixels to the gate where its legend darkens them, and its fragments
+            vanished in the mask's opening (stop 23: 116xx regulatory signs found 0.625 ->
+            0.789 of their frames, warning 0.870 -> 0.897; false detections per frame
+            0.236 -> 0.213).
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it
@@ -1862,9 +1863,10 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
                 ) -> np.ndarray:
     """``mask`` filled in from the mask of ``prob_lo`` (the likelihood with a lower
     brightness gate, smoothed and thresholded like it): each blob of the latter that holds
-    pixels of ``mask`` is added within those pixels' box.  A small dim plaque whose legend
-    darkens half its pixels below the gate is left in fragments, which its dim pixels join
-    again; dim pixels never make a blob, nor grow one past its bright pixels' box (a dusk
+    two or more blobs of ``mask`` is added within their box.  A small dim plaque whose
+    legend darkens half its pixels below the gate is left in fragments, which its dim
+    pixels join again; dim pixels never make a blob, nor grow a single one (real cones and
+    brick came out as more false detections), nor grow past the bright pixels' box (a dusk
     sign's dim white part, a sky of its colour)."""
     # only around the bright pixels (the box of them all, and the blur's reach)
     bx, by, bw, bh = cv2.boundingRect(mask)
@@ -1884,18 +1886,20 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     n_hi, lab_hi, stats, _ = cv2.connectedComponentsWithStats(hi, connectivity=8)
     _, lab_lo = cv2.connectedComponents(lo, connectivity=8)
     boxes: dict = {}                 # dim blob -> its bright pixels' box (x0, y0, x1, y1)
+    count: dict = {}
     for k in range(1, n_hi):
         x, y, w, h, _ = (int(v) for v in stats[k])
         sub = lab_hi[y:y + h, x:x + w] == k
         r, c = np.unravel_index(int(np.argmax(sub)), sub.shape)
         key = int(lab_lo[y + r, x + c])
         b = boxes.get(key)
+        count[key] = count.get(key, 0) + 1
         boxes[key] = (x, y, x + w, y + h) if b is None else (
             min(b[0], x), min(b[1], y), max(b[2], x + w), max(b[3], y + h))
     out = mask.copy()
     sub_out = out[win]
     for key, (x0, y0, x1, y1) in boxes.items():
-        if key == 0 or (x1 - x0 < 2 and y1 - y0 < 2):
+        if key == 0 or count[key] < 2 or (x1 - x0 < 2 and y1 - y0 < 2):
             continue
         sl = (slice(y0, y1), slice(x0, x1))
         sub_out[sl][lab_lo[sl] == key] = 255

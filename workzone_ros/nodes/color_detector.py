@@ -94,8 +94,8 @@ class ColorDetectorNode(WorkzoneNode):
               'edges, nor a white part, nor a diamond found in it is dropped (dirt, a cone, '
               'a vest, a brick wall; LiDAR-supported blobs are kept)'),
         Param('v_hysteresis', 0.65, "pixels of the colour between this share of the model's "
-              'brightness gate and the gate join a blob within the box of its bright pixels (an '
-              'under-exposed plaque split by its legend); 0 = off', min=0.0, max=1.0),
+              'brightness gate and the gate join the bright blobs they connect, within their '
+              'box (an under-exposed plaque split by its legend); 0 = off', min=0.0, max=1.0),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

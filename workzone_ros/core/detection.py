@@ -1899,7 +1899,7 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     out = mask.copy()
     sub_out = out[win]
     for key, (x0, y0, x1, y1) in boxes.items():
-        if key == 0 or count[key] < 2 or (x1 - x0 < 2 and y1 - y0 < 2):
+        if key == 0 or count[key] < 2:
             continue
         sl = (slice(y0, y1), slice(x0, x1))
         sub_out[sl][lab_lo[sl] == key] = 255
@@ -2643,22 +2643,22 @@ class ColorDetector:
                     idx_c = cv2.merge([cv2.LUT(sat, self._sat_tab), h]).view(np.uint16)[..., 0]
                 else:
                     idx_c = idx
-                prob = np.take(self._lut_u8[color], idx_c)
-                prob_lo = None
+                prob = full = np.take(self._lut_u8[color], idx_c)
                 if self._vmin[color] > 0:
-                    if cfg.v_hysteresis > 0:
-                        prob_lo = prob & cv2.threshold(
-                            v, int(cfg.v_hysteresis * self._vmin[color]) - 1, 255,
-                            cv2.THRESH_BINARY)[1]
                     # brightness gate outside the table: too dark for a reliable hue
-                    prob &= cv2.threshold(v, self._vmin[color] - 1, 255, cv2.THRESH_BINARY)[1]
+                    prob = full & cv2.threshold(v, self._vmin[color] - 1, 255,
+                                                cv2.THRESH_BINARY)[1]
                 raw = prob
                 if cfg.smooth_px > 1:
                     # denoise at the mask's resolution before thresholding: isolated
                     # orange-hued pixels (dusk sky, sensor noise) are averaged away
                     prob = cv2.blur(prob, (cfg.smooth_px, cfg.smooth_px))
                 mask = cv2.compare(prob, thr, cv2.CMP_GE)
-                if prob_lo is not None and cv2.countNonZero(mask):
+                if self._vmin[color] > 0 and cfg.v_hysteresis > 0 and cv2.countNonZero(mask):
+                    # (the lower gate only when there is a blob to rejoin)
+                    prob_lo = full & cv2.threshold(
+                        v, int(cfg.v_hysteresis * self._vmin[color]) - 1, 255,
+                        cv2.THRESH_BINARY)[1]
                     mask = _hysteresis(mask, prob_lo, thr, cfg.smooth_px)
                 if keep is not None:
                     mask &= keep
@@ -4097,7 +4097,7 @@ class ColorDetector:
         # row of large numerals would otherwise look coloured)
         achrom = self._achromatic_rows(strip, sat, v_ref)
         gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
-        run, cols_run, achrom_cols = 0, -1, None
+        run, cols_judged, achrom_cols = 0, False, None
         for j, f in enumerate(smooth):
             if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
                 run = j + 1
@@ -4107,9 +4107,9 @@ class ColorDetector:
                 # the blob (and so the strip) may be wider than the sign (a dusk
                 # background of its colour beside it): judge the gap's rows again on the
                 # white part's own columns
-                if cols_run < 0:
+                if not cols_judged:
                     # (judged once, on the white rows before the first such gap)
-                    cols_run = run
+                    cols_judged = True
                     rows = white[:run][frac[:run] >= 0.45]
                     cols = rows.mean(axis=0) >= 0.5 if len(rows) else None
                     if cols is not None and cols.sum() >= 3:

@@ -134,6 +134,10 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node.set_parameters([Parameter('v_hysteresis', value=0.0)])[0].successful
     assert node._detector.config.v_hysteresis == 0.0
     assert not node.set_parameters([Parameter('v_hysteresis', value=1.5)])[0].successful
+    assert node._detector.config.grow_level == 0.85
+    assert node.set_parameters([Parameter('grow_level', value=0.0)])[0].successful
+    assert node._detector.config.grow_level == 0.0
+    assert not node.set_parameters([Parameter('grow_level', value=-0.1)])[0].successful
 
 
 def test_image_waits_for_late_rois(ros, model_path):

@@ -182,6 +182,21 @@ class DetectorConfig:
             vanished in the mask's opening (stop 23: 116xx regulatory signs found 0.625 ->
             0.789 of their frames, warning 0.870 -> 0.897; false detections per frame
             0.236 -> 0.213).
+        grow_level, grow_reach, grow_min_px: an orange blob that passes no test is measured once more
+            grown into the pixels connected to it whose (smoothed) likelihood is at least
+            ``grow_level`` x the posterior threshold, no further than ``grow_reach`` x its
+            larger side beyond its box (:meth:`ColorDetector._grown`); the grown blob is
+            kept only as a warning diamond whose edges the brightness confirms (a refined
+            one, not the chroma fit's).  On another camera's frames the threshold is 0.97
+            (``foreign_prior``): part of a real diamond's face (paler under the sky, or
+            darker) lies at 0.85-0.95, the rest is a pentagon or a cut square that no test
+            takes (stop 24: charlotte's sign found on 0.588 -> 0.711 of its frames, its
+            false detections unchanged; denver's 9 new ones are a flagger's SLOW paddle, an
+            orange diamond; the seven synthetic sets' Table I unchanged).  ``grow_min_px``:
+            the grown blob's shorter side (full resolution) at least this (distant orange
+            truck rears in haze, 13-20 px, came out as diamonds).  The growth must make the
+            box 1.4 x larger (a rim is no missing part of the face; measuring rims cost 0.8
+            ms on a bench frame).  ``grow_level`` 0: off.
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it
@@ -539,6 +554,9 @@ class DetectorConfig:
     border_scale: tuple[float, float] = (1.0, 1.0)
     smooth_px: int = 3
     v_hysteresis: float = 0.65
+    grow_level: float = 0.85
+    grow_reach: float = 0.4
+    grow_min_px: float = 20.0
     use_geometry: bool = True
     low_min_solidity: float = 0.85
     low_max_aspect: float = 1.4
@@ -711,6 +729,11 @@ class DetectorConfig:
         if not 0.0 <= self.v_hysteresis <= 1.0:
             raise ValueError('v_hysteresis must be in [0, 1] (a share of the model v_min; '
                              '0: off)')
+        if not (0.0 <= self.grow_level <= 1.0 and self.grow_reach >= 0.0
+                and self.grow_min_px >= 0.0):
+            raise ValueError('grow_level must be in [0, 1] (a share of the posterior '
+                             'threshold; 0: off), grow_reach >= 0 (a share of the blob) '
+                             'and grow_min_px >= 0')
         if int(self.peel_max) < 0 or self.peel_gap < 0 or self.peel_clamp < 0:
             raise ValueError('peel_max, peel_gap and peel_clamp must be >= 0')
         if int(self.merge_max) < 0:
@@ -2662,8 +2685,15 @@ class ColorDetector:
                     mask = _hysteresis(mask, prob_lo, thr, cfg.smooth_px)
                 if keep is not None:
                     mask &= keep
+                weak = None
+                if color == 'orange' and cfg.grow_level > 0:
+                    # the lower threshold a blob that passes no test is grown to
+                    weak = cv2.compare(prob, cv2.convertScaleAbs(thr, alpha=cfg.grow_level),
+                                       cv2.CMP_GE)
+                    if keep is not None:
+                        weak &= keep
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes,
-                                     raw)
+                                     raw, weak=weak)
         elif cfg.method == 'hsv':
             for color in self.colors:
                 mask = np.zeros(hsv.shape[:2], np.uint8)
@@ -2682,11 +2712,12 @@ class ColorDetector:
     # -- seed 000 / 004 blob path --
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
                s: int, thr_base: np.ndarray, lboxes: list,
-               prob: Optional[np.ndarray] = None, peel_t: Optional[float] = None
-               ) -> list[Candidate]:
+               prob: Optional[np.ndarray] = None, peel_t: Optional[float] = None,
+               weak: Optional[np.ndarray] = None) -> list[Candidate]:
         """Candidates from the blobs of a mask-resolution ``mask``.  ``prob``: the raw
         likelihood behind it (blobs that pass no test are peeled, :meth:`_peel`);
-        ``peel_t``: the blobs are cores peeled at this likelihood level."""
+        ``peel_t``: the blobs are cores peeled at this likelihood level; ``weak``: the mask
+        at the lower threshold that a blob passing no test is grown to (:meth:`_grown`)."""
         cfg = self.config
         if not cv2.countNonZero(mask):
             return []               # nothing to open, close or label (most red / yellow masks)
@@ -2722,6 +2753,8 @@ class ColorDetector:
                               area / float(w * h), peel_t)
             if thin and (c is None or not c.extended):
                 continue            # kept only with its white part below it
+            if c is None and weak is not None:
+                c = self._grown(i, labels, mask, weak, stats, bgr, off, s, thr_base, lboxes)
             parts[i] = c
             if c is not None:
                 out.append(c)
@@ -2742,6 +2775,51 @@ class ColorDetector:
             out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
                               bgr, s, thr_base, lboxes)
         return out
+
+    def _grown(self, i: int, labels: np.ndarray, mask: np.ndarray, weak: np.ndarray,
+               stats: np.ndarray, bgr: np.ndarray, off: tuple[int, int], s: int,
+               thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
+        """Blob ``i`` (of ``labels``, mask resolution) that passed no test, grown into the
+        pixels of ``weak`` (the mask at ``grow_level`` x the threshold, opened as ``mask``
+        is) connected to it within ``grow_reach`` x its larger side beyond its box, and
+        measured again: the candidate when that gives a refined warning diamond (not the
+        chroma fit's), else None."""
+        cfg = self.config
+        x, y, w, h, _ = (int(v) for v in stats[i])
+        g = int(math.ceil(cfg.grow_reach * max(w, h)))
+        H, W = labels.shape
+        ya, yb, xa, xb = max(0, y - g), min(H, y + h + g), max(0, x - g), min(W, x + w + g)
+        blob = labels[ya:yb, xa:xb] == i
+        part = weak[ya:yb, xa:xb]
+        if cfg.open_px > 1:
+            # specks of a warm surface join nothing
+            part = cv2.morphologyEx(part, cv2.MORPH_OPEN,
+                                    np.ones((cfg.open_px, cfg.open_px), np.uint8))
+        part = part | mask[ya:yb, xa:xb]
+        lab = cv2.connectedComponents(part, connectivity=8)[1]
+        r, c = np.unravel_index(int(np.argmax(blob)), blob.shape)
+        comp = ((lab == lab[r, c]) | blob).astype(np.uint8)
+        bx, by, bw, bh = cv2.boundingRect(comp)
+        if bw * bh < 1.4 * w * h or max(bw, bh) * s / 2.0 > cfg.max_radius_px \
+                or min(bw, bh) * s < cfg.grow_min_px:
+            return None     # a rim (not a part of the face), past any sign's size, or small
+        comp = comp[by:by + bh, bx:bx + bw]
+        # only a diamond is kept: about square, its hull about half its box (checked again
+        # at full resolution by the measure)
+        hull = cv2.convexHull(cv2.findNonZero(comp))
+        if max(bw / bh, bh / bw) >= cfg.ext_min_aspect or \
+                cv2.contourArea(hull) >= cfg.diamond_hull_fill * bw * bh:
+            return None
+        box = ((xa + bx + off[0]) * s, (ya + by + off[1]) * s, bw * s, bh * s)
+        # its face at full resolution to the same lower level
+        cy = min((box[1] + box[3] // 2) // s, thr_base.shape[0] - 1)
+        cx = min((box[0] + box[2] // 2) // s, thr_base.shape[1] - 1)
+        cand = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, t_override=(
+            cfg.grow_level * thr_base[cy, cx] / _P_SCALE))
+        if cand is not None and cand.kind == 'warning' and cand.refined \
+                and not cand.chroma_fit:
+            return cand
+        return None
 
     def _merge_fragments(self, parts: dict, out: list[Candidate], labels: np.ndarray,
                          stats: np.ndarray, bgr: np.ndarray, off: tuple[int, int], s: int,

@@ -43,7 +43,8 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
          'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
          'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
-         'diamond_search', 'blur_fit', 'outline_evidence', 'rect_needs_edges', 'v_hysteresis')
+         'diamond_search', 'blur_fit', 'outline_evidence', 'rect_needs_edges', 'v_hysteresis',
+         'grow_level')
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -96,6 +97,10 @@ class ColorDetectorNode(WorkzoneNode):
         Param('v_hysteresis', 0.65, "pixels of the colour between this share of the model's "
               'brightness gate and the gate join the bright blobs they connect, within their '
               'box (an under-exposed plaque split by its legend); 0 = off', min=0.0, max=1.0),
+        Param('grow_level', 0.85, 'an orange blob that passes no test is measured again '
+              'grown into its neighbours above this share of the posterior threshold, and '
+              'kept as a diamond whose edges measure (a real face paler in part); 0 = off',
+              min=0.0, max=1.0),
         Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
               min=0.5, max=10.0),
         Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),

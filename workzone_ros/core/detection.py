@@ -182,21 +182,21 @@ class DetectorConfig:
             vanished in the mask's opening (stop 23: 116xx regulatory signs found 0.625 ->
             0.789 of their frames, warning 0.870 -> 0.897; false detections per frame
             0.236 -> 0.213).
-        grow_level, grow_reach, grow_min_px: an orange blob that passes no test is measured once more
-            grown into the pixels connected to it whose (smoothed) likelihood is at least
-            ``grow_level`` x the posterior threshold, no further than ``grow_reach`` x its
-            larger side beyond its box (:meth:`ColorDetector._grown`); the grown blob is
-            kept only as a warning diamond whose edges the brightness confirms (a refined
-            one, not the chroma fit's).  On another camera's frames the threshold is 0.97
-            (``foreign_prior``): part of a real diamond's face (paler under the sky, or
-            darker) lies at 0.85-0.95, the rest is a pentagon or a cut square that no test
-            takes (stop 24: charlotte's sign found on 0.588 -> 0.711 of its frames, its
-            false detections unchanged; denver's 9 new ones are a flagger's SLOW paddle, an
-            orange diamond; the seven synthetic sets' Table I unchanged).  ``grow_min_px``:
-            the grown blob's shorter side (full resolution) at least this (distant orange
-            truck rears in haze, 13-20 px, came out as diamonds).  The growth must make the
-            box 1.4 x larger (a rim is no missing part of the face; measuring rims cost 0.8
-            ms on a bench frame).  ``grow_level`` 0: off.
+        grow_level, grow_reach, grow_min_px: an orange blob that passes no test is measured
+            once more grown into the pixels connected to it whose (smoothed) likelihood is
+            at least ``grow_level`` x the posterior threshold, no further than
+            ``grow_reach`` x its larger side beyond its box (:meth:`ColorDetector._grown`);
+            the grown blob is kept only as a warning diamond whose edges the brightness
+            confirms (a refined one, not the chroma fit's). On another camera's frames the
+            threshold is 0.97 (``foreign_prior``): part of a real diamond's face (paler
+            under the sky, or darker) lies at 0.85-0.95, the rest is a pentagon or a cut
+            square that no test takes (stop 24: charlotte's sign found on 0.588 -> 0.711 of
+            its frames, its false detections unchanged; denver's 9 new ones are a flagger's
+            SLOW paddle, an orange diamond; the seven synthetic sets' Table I unchanged).
+            ``grow_min_px``: the grown blob's shorter side (full resolution) at least this
+            (distant orange truck rears in haze, 13-20 px, came out as diamonds). The
+            growth must make the box 1.4 x larger (a rim is no missing part of the face;
+            measuring rims cost 0.8 ms on a bench frame). ``grow_level`` 0: off.
         close_frac: closing kernel at full resolution as a fraction of the blob's size
             (bridges the black border line and legend strokes that split a face).
         weak_threshold: hysteresis: pixels of at least this likelihood next to a blob join it

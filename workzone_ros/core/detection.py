@@ -2685,15 +2685,10 @@ class ColorDetector:
                     mask = _hysteresis(mask, prob_lo, thr, cfg.smooth_px)
                 if keep is not None:
                     mask &= keep
-                weak = None
-                if color == 'orange' and cfg.grow_level > 0:
-                    # the lower threshold a blob that passes no test is grown to
-                    weak = cv2.compare(prob, cv2.convertScaleAbs(thr, alpha=cfg.grow_level),
-                                       cv2.CMP_GE)
-                    if keep is not None:
-                        weak &= keep
+                grow = (prob, thr, keep) if color == 'orange' and cfg.grow_level > 0 \
+                    else None
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes,
-                                     raw, weak=weak)
+                                     raw, grow=grow)
         elif cfg.method == 'hsv':
             for color in self.colors:
                 mask = np.zeros(hsv.shape[:2], np.uint8)
@@ -2713,11 +2708,12 @@ class ColorDetector:
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
                s: int, thr_base: np.ndarray, lboxes: list,
                prob: Optional[np.ndarray] = None, peel_t: Optional[float] = None,
-               weak: Optional[np.ndarray] = None) -> list[Candidate]:
+               grow: Optional[tuple] = None) -> list[Candidate]:
         """Candidates from the blobs of a mask-resolution ``mask``.  ``prob``: the raw
         likelihood behind it (blobs that pass no test are peeled, :meth:`_peel`);
-        ``peel_t``: the blobs are cores peeled at this likelihood level; ``weak``: the mask
-        at the lower threshold that a blob passing no test is grown to (:meth:`_grown`)."""
+        ``peel_t``: the blobs are cores peeled at this likelihood level; ``grow``: the
+        smoothed likelihood, the thresholds and the pass's limit mask (or None) that a blob
+        passing no test is grown with (:meth:`_grown`)."""
         cfg = self.config
         if not cv2.countNonZero(mask):
             return []               # nothing to open, close or label (most red / yellow masks)
@@ -2753,8 +2749,8 @@ class ColorDetector:
                               area / float(w * h), peel_t)
             if thin and (c is None or not c.extended):
                 continue            # kept only with its white part below it
-            if c is None and weak is not None:
-                c = self._grown(i, labels, mask, weak, stats, bgr, off, s, thr_base, lboxes)
+            if c is None and grow is not None:
+                c = self._grown(i, labels, mask, grow, stats, bgr, off, s, thr_base, lboxes)
             parts[i] = c
             if c is not None:
                 out.append(c)
@@ -2776,21 +2772,25 @@ class ColorDetector:
                               bgr, s, thr_base, lboxes)
         return out
 
-    def _grown(self, i: int, labels: np.ndarray, mask: np.ndarray, weak: np.ndarray,
+    def _grown(self, i: int, labels: np.ndarray, mask: np.ndarray, grow: tuple,
                stats: np.ndarray, bgr: np.ndarray, off: tuple[int, int], s: int,
                thr_base: np.ndarray, lboxes: list) -> Optional[Candidate]:
         """Blob ``i`` (of ``labels``, mask resolution) that passed no test, grown into the
-        pixels of ``weak`` (the mask at ``grow_level`` x the threshold, opened as ``mask``
-        is) connected to it within ``grow_reach`` x its larger side beyond its box, and
-        measured again: the candidate when that gives a refined warning diamond (not the
-        chroma fit's), else None."""
+        pixels whose likelihood is at least ``grow_level`` x the threshold (``grow``: the
+        smoothed likelihood, thresholds and limit mask of the pass; opened as ``mask`` is)
+        connected to it within ``grow_reach`` x its larger side beyond its box, and
+        measured again at that level: the candidate when that gives a refined warning
+        diamond (not the chroma fit's), else None."""
         cfg = self.config
         x, y, w, h, _ = (int(v) for v in stats[i])
         g = int(math.ceil(cfg.grow_reach * max(w, h)))
         H, W = labels.shape
         ya, yb, xa, xb = max(0, y - g), min(H, y + h + g), max(0, x - g), min(W, x + w + g)
         blob = labels[ya:yb, xa:xb] == i
-        part = weak[ya:yb, xa:xb]
+        prob, thr, keep = (a[ya:yb, xa:xb] if a is not None else None for a in grow)
+        part = cv2.compare(prob, cv2.convertScaleAbs(thr, alpha=cfg.grow_level), cv2.CMP_GE)
+        if keep is not None:
+            part &= keep
         if cfg.open_px > 1:
             # specks of a warm surface join nothing
             part = cv2.morphologyEx(part, cv2.MORPH_OPEN,
@@ -2812,10 +2812,8 @@ class ColorDetector:
             return None
         box = ((xa + bx + off[0]) * s, (ya + by + off[1]) * s, bw * s, bh * s)
         # its face at full resolution to the same lower level
-        cy = min((box[1] + box[3] // 2) // s, thr_base.shape[0] - 1)
-        cx = min((box[0] + box[2] // 2) // s, thr_base.shape[1] - 1)
-        cand = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, t_override=(
-            cfg.grow_level * thr_base[cy, cx] / _P_SCALE))
+        cand = self._measure_orange(bgr, comp, box, s, thr_base, lboxes,
+                                    t_scale=cfg.grow_level)
         if cand is not None and cand.kind == 'warning' and cand.refined \
                 and not cand.chroma_fit:
             return cand
@@ -3077,8 +3075,8 @@ class ColorDetector:
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                         thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
                         t_override: Optional[float] = None,
-                        peel_t: Optional[float] = None, whole: bool = False
-                        ) -> Optional[Candidate]:
+                        peel_t: Optional[float] = None, whole: bool = False,
+                        t_scale: float = 1.0) -> Optional[Candidate]:
         """The learned orange path: hysteresis region, sign structure, shape-derived box.
 
         1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
@@ -3090,6 +3088,9 @@ class ColorDetector:
         3. Box: the orange hull's bounding box; if the ring just outside it is dark (the
            sign's black border, with the thin outer orange margin lost to blending), the
            box grows by ``border_frac`` of the hull's size on every side.
+
+        ``t_scale``: tau at this share of the location's (a blob grown to a lower level,
+        :meth:`_grown`).
         """
         cfg = self.config
         H, W = bgr.shape[:2]
@@ -3105,7 +3106,7 @@ class ColorDetector:
         vch = hsv[..., 2]
         cy, cx = (fy + fh // 2) // s, (fx + fw // 2) // s
         cy, cx = min(cy, thr_base.shape[0] - 1), min(cx, thr_base.shape[1] - 1)
-        t = thr_base[cy, cx] / _P_SCALE
+        t = t_scale * thr_base[cy, cx] / _P_SCALE
         if relaxed:
             t = min(t, cfg.roi_threshold / cfg.roi_prior)
         if t_override is not None:

@@ -338,6 +338,7 @@ def test_config_validation():
                       ({'rect_lean_min': -0.1}, 'rect_lean_min'),
                       ({'rect_lean_agree': 1.0}, 'rect_lean_agree'),
                       ({'grow_level': 1.5}, 'grow_level'), ({'grow_reach': -1.0}, 'grow_reach'),
+                      ({'shift_min_px': -1.0}, 'shift_min_px'),
                       ({'grow_min_px': -1.0}, 'grow_min_px')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
@@ -1140,6 +1141,34 @@ def test_refine_diamond_finds_the_face_edges_to_a_fraction_of_a_pixel(a_face, ga
     assert got is not None
     assert abs(got[0] - cx) < 0.25 and abs(got[1] - cy) < 0.25
     assert abs(got[2] / a_face - 1) < 0.02 and abs(got[3] / a_face - 1) < 0.02
+
+
+@pytest.mark.parametrize('dx, dy', [(4.0, 2.5), (-3.5, -3.0)])
+def test_refine_from_shifted_starts_finds_a_large_face(dx, dy):
+    """A large face (46 px half-diagonal: a sign of ~100 px, real frames) from a start whose
+    centre is 4.6-4.7 px off (a mask that took in a surface of the sign's colour beside it):
+    the edges lie past the few-pixel search and the refinement fails.  From the start moved
+    by 2.25 px in the eight directions, the smallest fit is the face, within 0.3 px and 2 %
+    (other moves fit the sign's outer edge, 2-5 px larger).  A flat patch gives none.  Not
+    claimed: starts 6 px off, from which every moved start may fit an outer edge."""
+    cx, cy, a_face = 75.4, 74.7, 46.0
+    img = _sign_value(cx, cy, a_face, shape=(150, 150), blur=0.8)
+    start = (cx + dx, cy + dy, a_face / 0.8876, a_face / 0.8876)
+    assert dt.refine_diamond(img, start) is None
+    fits = []
+
+    def refine(st):
+        fit = dt.refine_diamond(img, st)
+        if fit is not None:
+            fits.append(fit)
+        return fit
+    got, verdict = dt.refine_shifted([start], refine, lambda f: (f, 'holds'))
+    assert verdict == 'holds'
+    assert abs(got[0] - cx) < 0.3 and abs(got[1] - cy) < 0.3
+    assert abs(got[2] / a_face - 1) < 0.02 and abs(got[3] / a_face - 1) < 0.02
+    assert max(f[2] for f in fits) > a_face + 1.5        # an outer edge fitted too
+    flat = np.full((150, 150), 120, np.float32)
+    assert dt.refine_shifted([start], lambda st: dt.refine_diamond(flat, st)) is None
 
 
 def test_refine_diamond_gives_up_without_an_edge():

@@ -97,7 +97,7 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any, Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import cv2
 import numpy as np
@@ -386,6 +386,14 @@ class DetectorConfig:
             the union);
             its edges must show a clear line (``search_min_contrast`` of the face, 0.5: the
             sign's outer edge against dark asphalt, 0.37 in a test, is no face's edge).
+        shift_min_px: when nothing above (nor the chroma fit, ``blur_fit``) measures a
+            warning blob at least this large (its shorter side, full resolution), its
+            mask's starts are refined again moved by 2.25 px in the eight directions
+            (:func:`refine_shifted`; the smallest fit the face holds is kept): the edges'
+            search reaches only a few pixels, and a large real diamond whose mask took in a
+            surface of its colour beside it (a lawn, a house front) starts 3-5 px off.  Not
+            for a blob at the frame's edge (a smaller whole diamond fitted a cut sign's
+            part).  Stop 25: see the README.  0: off.
         blur_fit, blur_fit_ratio, blur_fit_bias, blur_fit_max_sigma: when neither a start
             nor the search refines (a faded, rain-washed or blurred sign: no border line
             shows in the brightness, the mask stops short of the tips), the sign's diamond
@@ -590,6 +598,7 @@ class DetectorConfig:
     diamond_hold: float = 0.97
     hold_sat: float = 0.85
     diamond_search: bool = True
+    shift_min_px: float = 40.0
     search_min_px: float = 12.0
     search_min_share: float = 0.6
     search_min_contrast: float = 0.5
@@ -722,6 +731,8 @@ class DetectorConfig:
             raise ValueError('search_min_contrast must be in (0, 1) (a share of the face)')
         if self.search_min_px < 0 or not 0.0 <= self.search_min_share <= 1.5:
             raise ValueError('search_min_px must be >= 0 and search_min_share in [0, 1.5]')
+        if self.shift_min_px < 0.0:
+            raise ValueError(f'shift_min_px must be >= 0 (px; 0: off), got {self.shift_min_px}')
         if not 0.0 < self.diamond_hold <= 1.0:
             raise ValueError('diamond_hold must be in (0, 1] (a share of the orange pixels)')
         if not all(0.0 < float(v) < 1.0 for v in self.peel_levels):
@@ -1400,6 +1411,35 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
 
 # the smallest face-to-line contrast (a share of the face's brightness) an edge must show
 EDGE_MIN_CONTRAST = 0.25
+#: how far (px, along x and y) :func:`refine_shifted` moves a start: half the edge search's
+#: width on a large face (offsets -1.5 to 3 px)
+START_SHIFT_PX = 2.25
+
+
+def refine_shifted(starts: Sequence[Sequence[float]],
+                   refine: Callable[[tuple], Optional[tuple]],
+                   accept: Optional[Callable[[tuple], tuple]] = None,
+                   step: float = START_SHIFT_PX) -> Optional[tuple]:
+    """``refine`` (e.g. :func:`refine_diamond` on a brightness window) from each of
+    ``starts`` ``(cx, cy, a, b)`` moved by ``step`` px in the eight directions: the edges'
+    search reaches only a few pixels, so a large face's start a few pixels off (a mask that
+    took in a surface of the sign's colour beside it) fails however clear the face.  Of the
+    fits ``accept`` keeps (it returns ``(fit or None, verdict)``), the smallest: a start too
+    large also fits the sign's outer edge (its margin against the background) or its
+    line's, both outside the face's edge, never one inside it.  Returns ``(fit, verdict)``
+    (verdict None without ``accept``) or None when no moved start fits."""
+    best, best_area = None, math.inf
+    for st in starts:
+        for ddx, ddy in itertools.product((-1, 0, 1), repeat=2):
+            if ddx == 0 and ddy == 0:
+                continue                        # (the caller tried it as it is)
+            fit = refine((st[0] + ddx * step, st[1] + ddy * step, st[2], st[3]))
+            if fit is None or fit[2] * fit[3] >= best_area:
+                continue
+            got = (fit, None) if accept is None else accept(fit)
+            if got[0] is not None:
+                best, best_area = (got[0], got[1]), got[0][2] * got[0][3]
+    return best
 
 
 def start_shrink(border_rel: float, margin_rel: float) -> float:
@@ -3337,6 +3377,19 @@ class ColorDetector:
                 # no line to measure: the sign's blurred colour
                 blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
                                          fd if fd is not None and fd[4] >= 0.5 else None)
+            if sub is None and blurred is None and refine and \
+                    0 < cfg.shift_min_px <= min(bw, bh) and x0 + bx0 > 0 and \
+                    y0 + by0 > 0 and x0 + bx0 + bw < W and y0 + by0 + bh < H:
+                # nothing measured: a large face whose mask's starts are a few pixels off
+                # (the mask took in a surface of its colour beside it); not a face the
+                # frame's edge cuts (a whole diamond inside it would fit part of it)
+                got = refine_shifted(
+                    [(st[0] + dx, st[1] + dy, st[2], st[3]) for st in starts[:n_mask]],
+                    lambda st: self._refine(value, st),
+                    lambda f: self._held(bgr, hsv, face_px, f, dx, dy, (x0, y0, x1, y1),
+                                         bw, bh))
+                if got is not None:
+                    sub, larger = got[0], got[1] == 'blended'
             if self.debug is not None:
                 self.debug[-1].update(refined=sub is not None, searched=searched,
                                       blur_fit=blurred is not None,

@@ -1426,8 +1426,9 @@ def refine_shifted(starts: Sequence[Sequence[float]],
     took in a surface of the sign's colour beside it) fails however clear the face.  Of the
     fits ``accept`` keeps (it returns ``(fit or None, verdict)``), the smallest: a start too
     large also fits the sign's outer edge (its margin against the background) or its
-    line's, both outside the face's edge, never one inside it.  Returns ``(fit, verdict)``
-    (verdict None without ``accept``) or None when no moved start fits."""
+    line's, both outside the face's edge.  (A fit inside the face is rarer: one synthetic
+    frame, when this ran before the chroma fit; the detector runs it after.)  Returns
+    ``(fit, verdict)`` (verdict None without ``accept``) or None when no moved start fits."""
     best, best_area = None, math.inf
     for st in starts:
         for ddx, ddy in itertools.product((-1, 0, 1), repeat=2):

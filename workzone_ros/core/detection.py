@@ -391,9 +391,10 @@ class DetectorConfig:
             mask's starts are refined again moved by 2.25 px in the eight directions
             (:func:`refine_shifted`; the smallest fit the face holds is kept): the edges'
             search reaches only a few pixels, and a large real diamond whose mask took in a
-            surface of its colour beside it (a lawn, a house front) starts 3-5 px off.  Not
-            for a blob at the frame's edge (a smaller whole diamond fitted a cut sign's
-            part).  Stop 25: see the README.  0: off.
+            surface of its colour beside it (a lawn, a house front) starts 3-5 px off.  A
+            blob the frame's edge cuts keeps a fit only if the sign's diamond reaches past
+            that edge (a smaller whole diamond inside the frame fitted a cut sign's part).
+            Stop 25: see the README.  0: off.
         blur_fit, blur_fit_ratio, blur_fit_bias, blur_fit_max_sigma: when neither a start
             nor the search refines (a faded, rain-washed or blurred sign: no border line
             shows in the brightness, the mask stops short of the tips), the sign's diamond
@@ -3379,16 +3380,27 @@ class ColorDetector:
                 blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
                                          fd if fd is not None and fd[4] >= 0.5 else None)
             if sub is None and blurred is None and refine and \
-                    0 < cfg.shift_min_px <= min(bw, bh) and x0 + bx0 > 0 and \
-                    y0 + by0 > 0 and x0 + bx0 + bw < W and y0 + by0 + bh < H:
+                    0 < cfg.shift_min_px <= min(bw, bh):
                 # nothing measured: a large face whose mask's starts are a few pixels off
-                # (the mask took in a surface of its colour beside it); not a face the
-                # frame's edge cuts (a whole diamond inside it would fit part of it)
+                # (the mask took in a surface of its colour beside it)
+                cut_by = (x0 + bx0 <= 0, y0 + by0 <= 0, x0 + bx0 + bw >= W,
+                          y0 + by0 + bh >= H)
+
+                def accept(f: tuple) -> tuple:
+                    got_ = self._held(bgr, hsv, face_px, f, dx, dy, (x0, y0, x1, y1), bw, bh)
+                    if got_[0] is None or not any(cut_by):
+                        return got_
+                    # a blob the frame's edge cuts: the sign's diamond reaches past that
+                    # edge (a smaller whole diamond inside the frame fits part of the sign)
+                    cx_, cy_, a_, b_ = got_[0]
+                    k_ = cfg.diamond_face_ratio
+                    ends = (x0 + cx_ - k_ * a_ <= 1.0, y0 + cy_ - k_ * b_ <= 1.0,
+                            x0 + cx_ + k_ * a_ >= W - 1.0, y0 + cy_ + k_ * b_ >= H - 1.0)
+                    ok_ = all(e for c, e in zip(cut_by, ends) if c)
+                    return got_ if ok_ else (None, None)
                 got = refine_shifted(
                     [(st[0] + dx, st[1] + dy, st[2], st[3]) for st in starts[:n_mask]],
-                    lambda st: self._refine(value, st),
-                    lambda f: self._held(bgr, hsv, face_px, f, dx, dy, (x0, y0, x1, y1),
-                                         bw, bh))
+                    lambda st: self._refine(value, st), accept)
                 if got is not None:
                     sub, larger = got[0], got[1] == 'blended'
             if self.debug is not None:

@@ -1427,9 +1427,8 @@ def refine_shifted(starts: Sequence[Sequence[float]],
     took in a surface of the sign's colour beside it) fails however clear the face.  Of the
     fits ``accept`` keeps (it returns ``(fit or None, verdict)``), the smallest: a start too
     large also fits the sign's outer edge (its margin against the background) or its
-    line's, both outside the face's edge.  (A fit inside the face is rarer: one synthetic
-    frame, when this ran before the chroma fit; the detector runs it after.)  Returns
-    ``(fit, verdict)`` (verdict None without ``accept``) or None when no moved start fits."""
+    line's, both outside the face's edge (a fit inside it is rarer).  Returns ``(fit,
+    verdict)`` (verdict None without ``accept``) or None when no moved start fits."""
     best, best_area = None, math.inf
     for st in starts:
         for ddx, ddy in itertools.product((-1, 0, 1), repeat=2):
@@ -1442,6 +1441,13 @@ def refine_shifted(starts: Sequence[Sequence[float]],
             if got[0] is not None:
                 best, best_area = (got[0], got[1]), got[0][2] * got[0][3]
     return best
+
+
+def frame_edges(x: float, y: float, w: float, h: float, width: int, height: int,
+                tol: float = 0.0) -> tuple[bool, bool, bool, bool]:
+    """Which edges of a ``width`` x ``height`` frame the box ``(x, y, w, h)`` reaches
+    (within ``tol`` px): ``(left, top, right, bottom)``."""
+    return (x <= tol, y <= tol, x + w >= width - tol, y + h >= height - tol)
 
 
 def start_shrink(border_rel: float, margin_rel: float) -> float:
@@ -3383,24 +3389,11 @@ class ColorDetector:
                     0 < cfg.shift_min_px <= min(bw, bh):
                 # nothing measured: a large face whose mask's starts are a few pixels off
                 # (the mask took in a surface of its colour beside it)
-                cut_by = (x0 + bx0 <= 0, y0 + by0 <= 0, x0 + bx0 + bw >= W,
-                          y0 + by0 + bh >= H)
-
-                def accept(f: tuple) -> tuple:
-                    got_ = self._held(bgr, hsv, face_px, f, dx, dy, (x0, y0, x1, y1), bw, bh)
-                    if got_[0] is None or not any(cut_by):
-                        return got_
-                    # a blob the frame's edge cuts: the sign's diamond reaches past that
-                    # edge (a smaller whole diamond inside the frame fits part of the sign)
-                    cx_, cy_, a_, b_ = got_[0]
-                    k_ = cfg.diamond_face_ratio
-                    ends = (x0 + cx_ - k_ * a_ <= 1.0, y0 + cy_ - k_ * b_ <= 1.0,
-                            x0 + cx_ + k_ * a_ >= W - 1.0, y0 + cy_ + k_ * b_ >= H - 1.0)
-                    ok_ = all(e for c, e in zip(cut_by, ends) if c)
-                    return got_ if ok_ else (None, None)
+                held_args = (bgr, hsv, face_px, dx, dy, (x0, y0, x1, y1), bw, bh)
                 got = refine_shifted(
                     [(st[0] + dx, st[1] + dy, st[2], st[3]) for st in starts[:n_mask]],
-                    lambda st: self._refine(value, st), accept)
+                    lambda st: self._refine(value, st),
+                    lambda f: self._held_reaching(f, held_args, (x0 + bx0, y0 + by0)))
                 if got is not None:
                     sub, larger = got[0], got[1] == 'blended'
             if self.debug is not None:
@@ -3675,6 +3668,26 @@ class ColorDetector:
             return l_, t_, r_ - l_, u_ - t_
         return None
 
+    def _held_reaching(self, sub: Sequence[float], held_args: tuple, blob_xy: tuple
+                       ) -> tuple[Optional[tuple], Optional[str]]:
+        """:meth:`_held` (``held_args``: its arguments but ``sub``) of a fit from a moved
+        start (:func:`refine_shifted`); of a blob (its box's corner ``blob_xy`` in the frame)
+        the frame's edge cuts, only when the sign's diamond reaches past each edge the blob
+        touches (a smaller whole diamond inside the frame fits part of the sign)."""
+        bgr, hsv, face_px, dx, dy, window, bw, bh = held_args
+        got = self._held(bgr, hsv, face_px, sub, dx, dy, window, bw, bh)
+        if got[0] is None:
+            return got
+        x0, y0 = window[0], window[1]
+        H, W = bgr.shape[:2]
+        cut = frame_edges(blob_xy[0], blob_xy[1], bw, bh, W, H)
+        if not any(cut):
+            return got
+        cx, cy, a, b = got[0]
+        k = self.config.diamond_face_ratio
+        reach = frame_edges(x0 + cx - k * a, y0 + cy - k * b, 2 * k * a, 2 * k * b, W, H, 1.0)
+        return got if all(r for c, r in zip(cut, reach) if c) else (None, None)
+
     def _held(self, bgr: np.ndarray, hsv: np.ndarray, face_px: np.ndarray,
               sub: Sequence[float], dx: float, dy: float, window: tuple, bw: int, bh: int
               ) -> tuple[Optional[tuple], Optional[str]]:
@@ -3891,8 +3904,7 @@ class ColorDetector:
         bx, by, bw, bh = blob
         pad = 3 + int(0.3 * max(bw, bh))
         H, W = bgr.shape[:2]
-        if (x0 + bx <= 1 or y0 + by <= 1 or x0 + bx + bw >= W - 1
-                or y0 + by + bh >= H - 1):
+        if any(frame_edges(x0 + bx, y0 + by, bw, bh, W, H, 1.0)):
             return None             # cut off by the frame's edge: no whole diamond to fit
         chroma, wx0, wy0 = self._chroma(bgr, x0 + bx - pad, y0 + by - pad,
                                         x0 + bx + bw + pad, y0 + by + bh + pad)

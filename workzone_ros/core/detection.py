@@ -260,6 +260,9 @@ class DetectorConfig:
             sill) counts as reaching past the bottom too when nothing inside the outline
             below its first rows has the sign's colour (stop 20: 108xx paper_c_10808
             frames 27-29; 105xx sunny warning precision 0.972 -> 0.974, tuning unchanged);
+            ``cut_blend_rows``: the occluder may begin this many rows after the cut when
+            the cut's row is a blend of face and occluder (blur, chroma bleed): the box
+            ends at the first row that is across (stop 26; 0: at the cut, as before);
             ``diamond_stroke_steps``: an edge stretch fitted with a blur this many steps
             of the edge model's grid wider than the sign's other stretches is a legend
             stroke running into the edge and is left out (:func:`refine_diamond`'s
@@ -581,6 +584,7 @@ class DetectorConfig:
     cut_min_width: float = 0.5
     tip_check: bool = True
     tip_colour: bool = True
+    cut_blend_rows: int = 1
     diamond_grown_starts: tuple = (1.2, 1.4)
     diamond_ring_test: bool = True
     diamond_refine: bool = True
@@ -717,6 +721,9 @@ class DetectorConfig:
                              'of the half-diagonals)')
         if not 0.0 <= self.cut_min_width <= 1.0:
             raise ValueError('cut_min_width must be in [0, 1] (0: off)')
+        if self.cut_blend_rows not in range(0, 4):
+            raise ValueError(f'cut_blend_rows must be an integer in 0..3, got '
+                             f'{self.cut_blend_rows!r}')
         if not 0.0 <= self.refined_clamp <= 2.0:
             raise ValueError('refined_clamp must be in [0, 2] (half-diagonals)')
         if not 0.0 <= self.hold_sat <= 1.5:
@@ -3426,15 +3433,19 @@ class ColorDetector:
             if diamond is not None:
                 cut = cut_row is not None and sub is not None
                 # (the frame below the blob's window: the occluder reaches past it)
-                hidden_tip = cut and cfg.tip_check and self._tip_hidden(
+                hidden_at = self._tip_hidden(
                     bgr[y0:, x0:x1], (diamond[0], diamond[1], diamond[4] * diamond[2],
-                          diamond[4] * diamond[3]), cut_row, t)
+                                      diamond[4] * diamond[3]), cut_row, t) \
+                    if cut and cfg.tip_check else None
+                if self.debug is not None and cut:
+                    self.debug[-1]['hidden'] = None if hidden_at is None else y0 + hidden_at
                 box_ = self._diamond_box(diamond, sub is not None or blurred is not None,
                                          (bx0, by0, bw, bh), peel_t, searched or larger,
-                                         cut and not hidden_tip)
-                if box_ is not None and hidden_tip and box_[1] + box_[3] > cut_row:
+                                         cut and hidden_at is None)
+                if box_ is not None and hidden_at is not None and \
+                        box_[1] + box_[3] > hidden_at:
                     # the occluder hides the tip: the sign's visible part ends at it
-                    box_ = (box_[0], box_[1], box_[2], cut_row - box_[1])
+                    box_ = (box_[0], box_[1], box_[2], hidden_at - box_[1])
                 if box_ is not None:
                     outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
         if outer is not None:
@@ -3750,9 +3761,11 @@ class ColorDetector:
                     return None
         return 'blended'
 
-    def _tip_hidden(self, win: np.ndarray, sign: tuple, cut: int, level: float) -> bool:
-        """Whether an occluder across a warning sign's lower part (see :meth:`_cut_row`)
-        hides its tip: it lies across the face and reaches past the sign's bottom.
+    def _tip_hidden(self, win: np.ndarray, sign: tuple, cut: int, level: float
+                    ) -> Optional[int]:
+        """The row where an occluder across a warning sign's lower part (see
+        :meth:`_cut_row`) begins when it hides the sign's tip, else None: it lies across
+        the face and reaches past the sign's bottom.
 
         ``sign = (cx, cy, a, b)``: the sign's whole outline in the window ``win`` (reaching
         down past the sign); ``cut``: the first row hidden.  Across: on the two rows below
@@ -3764,12 +3777,15 @@ class ColorDetector:
         showing below it), or (``tip_colour``; an occluder of two tones, a vehicle's pale
         side over its dark sill) no pixel inside the outline below those two rows has the
         sign's colour (orange likelihood >= ``level``, the blob's threshold: a tip
-        showing below a rail is the face's colour)."""
+        showing below a rail is the face's colour).  The occluder begins at ``cut`` or,
+        when that row is a blend of the face and the occluder (blur, the camera's chroma;
+        ``cut_blend_rows``), at the first of the rows after it that are across: the
+        labels end where the face covers less than half of a row's pixels."""
         cx, cy, a, b = sign
         h, w = win.shape[:2]
         end = int(math.ceil(cy + b)) + 1
         if cy + b - cut < 0.25 * b or end >= h or cut < 3:
-            return False
+            return None
         img = win[:end + 1].astype(np.float32)          # (the rows looked at)
         xs = np.abs(np.arange(w) + 0.5 - cx)
 
@@ -3784,23 +3800,30 @@ class ColorDetector:
         faces = [split(r) for r in range(cut - 3, cut)]
         face = [float(np.abs(i - f).max()) for i, f in faces if i is not None]
         if not face or not np.median(face) > 0:
-            return False
+            return None
         tol = 0.3 * float(np.median(face))
-        first = [split(r) for r in (cut, cut + 1)]
-        if any(i is None or np.abs(i - f).max() >= tol for i, f in first):
-            return False
+
+        def across(r: int) -> bool:
+            i, f = split(r)
+            return i is not None and float(np.abs(i - f).max()) < tol
+
+        start = next((r for r in range(cut, cut + 1 + self.config.cut_blend_rows)
+                      if r + 1 <= end and across(r) and across(r + 1)), None)
+        if start is None:
+            return None
+        first = [split(r) for r in (start, start + 1)]
         occ = np.mean([0.5 * (i + f) for i, f in first], axis=0)
-        span = img[cut:end + 1, np.abs(np.arange(w) + 0.5 - cx) <= a].mean(axis=1)
+        span = img[start:end + 1, np.abs(np.arange(w) + 0.5 - cx) <= a].mean(axis=1)
         if (np.abs(span - occ).max(axis=1) < tol).all():
-            return True
-        if not self.config.tip_colour or end < cut + 2:
-            return False
-        rows = win[cut + 2:end + 1]
+            return start
+        if not self.config.tip_colour or end < start + 2:
+            return None
+        rows = win[start + 2:end + 1]
         like = self._orange_like(cv2.cvtColor(
             rows if self._gains is None else apply_gains(rows, self._gains), cv2.COLOR_BGR2HSV))
-        ry = np.arange(cut + 2, end + 1)[:, None] + 0.5
+        ry = np.arange(start + 2, end + 1)[:, None] + 0.5
         outline = xs[None, :] <= a * (1.0 - np.abs(ry - cy) / b)
-        return not (outline & (like >= level)).any()
+        return None if (outline & (like >= level)).any() else start
 
     def _cut_row(self, face: np.ndarray, row_fit: Optional[tuple]) -> Optional[int]:
         """The row where an occluder across a warning face's lower part begins, or None.

@@ -266,9 +266,10 @@ def _lens_maps(cam: CameraModel):
     map1, map2 = cv2.convertMaps(fx_, fy_, cv2.CV_16SC2)
     # Labels: nearest canvas pixel (rounded, not floored as the fixed-point map would be).
     nn = np.stack([np.round(fx_), np.round(fy_)], -1).astype(np.int16)
-    for a in (map1, map2, nn):
+    fxy = np.stack([fx_, fy_])          # sign edges: their coverage, sampled as the image is
+    for a in (map1, map2, nn, fxy):
         a.flags.writeable = False
-    return (mx, my), map1, map2, nn
+    return (mx, my), map1, map2, nn, fxy
 
 
 class CameraRenderer:
@@ -299,7 +300,7 @@ class CameraRenderer:
     # ------------------------------------------------------------------ static set-up
     def _init_lens(self) -> None:
         cam = self.camera
-        self.margin, self._map1, self._map2, self._nn_map = _lens_maps(cam)
+        self.margin, self._map1, self._map2, self._nn_map, self._fmap = _lens_maps(cam)
         mx, my = self.margin
         self.canvas_size = (cam.width + 2 * mx, cam.height + 2 * my)
         self.Kc = cam.K.copy()
@@ -664,7 +665,10 @@ class CameraRenderer:
                 self._fill(canvas, label, (pts - cam_pos) @ R_cw.T,
                            self._haze(np.array(MATERIALS[mat].bgr, float), dist), lab)
 
-    def _draw_sign(self, canvas, label, sp: SignPanel, cam_pos, R_cw, dist, lab: int) -> None:
+    def _draw_sign(self, canvas, label, sp: SignPanel, cam_pos, R_cw, dist,
+                   lab: int) -> 'tuple | None':
+        """Paint one sign face; returns ``(lab, x0, y0, alpha, label ROI after painting)``
+        for :meth:`_sign_edges`, or None when nothing of its face was painted."""
         corners = sp.corners()
         pc = (corners - cam_pos) @ R_cw.T
         c = catalogue.get(sp.class_key)
@@ -676,10 +680,10 @@ class CameraRenderer:
                 ol[:, 1:] * (corners[3] - corners[0])
             col = self._haze(np.array(MATERIALS['sign_back'].bgr, float), dist)
             self._fill(canvas, label, (pw - cam_pos) @ R_cw.T, col, 0)
-            return
+            return None
         q = _clip_near(pc)
         if len(q) < 3:
-            return
+            return None
         uv = self._proj(q)
         Wc, Hc = self.canvas_size
         x0 = max(int(math.floor(uv[:, 0].min())) - 1, 0)
@@ -687,7 +691,7 @@ class CameraRenderer:
         x1 = min(int(math.ceil(uv[:, 0].max())) + 2, Wc)
         y1 = min(int(math.ceil(uv[:, 1].max())) + 2, Hc)
         if x1 <= x0 or y1 <= y0:
-            return
+            return None
         # Art resolution ~1.5x the projected size (limits aliasing of the warp).
         extent = max(uv[:, 0].max() - uv[:, 0].min(), uv[:, 1].max() - uv[:, 1].min())
         size = next((a for a in _ART_SIZES if a >= 1.5 * extent), _ART_SIZES[-1])
@@ -732,6 +736,63 @@ class CameraRenderer:
         roi[:] = np.clip(roi * (1 - a3) + rgb * a3, 0, 255).astype(np.uint8)
         lroi = label[y0:y1, x0:x1]
         lroi[alpha > 0.5] = lab
+        return lab, x0, y0, alpha, lroi.copy()
+
+    def _sign_edges(self, lab_img: np.ndarray, label: np.ndarray, faces: list) -> None:
+        """Label each sign's edge pixels as the image samples them, in place.
+
+        The label canvas holds, per canvas pixel, whether the sign covers more than half of
+        it; the lens then takes each image pixel's label from the *nearest* canvas pixel, a
+        second rounding: on about a quarter of a straight edge's rows the label is a pixel
+        off where the image's edge (bilinearly resampled) is right to 0.1 px.  Here a sign's
+        pixel is one whose centre, mapped into the canvas, has the sign's coverage (its
+        alpha, bilinearly sampled as the image is) above one half, so the label marks the
+        pixels the image shows more than half covered by the face.  Canvas pixels that a
+        nearer object painted over after the sign (their label changed since) count as not
+        covered, and an image pixel whose nearest canvas pixel was painted over keeps that
+        object's label.
+
+        Args:
+            lab_img: the distorted label image (nearest canvas pixel), changed in place.
+            label: the canvas label after every object is painted.
+            faces: :meth:`_draw_sign`'s records, in painting order.
+        """
+        H, W = lab_img.shape
+        for lab, x0, y0, alpha, after in faces:
+            h, w = alpha.shape
+            now = label[y0:y0 + h, x0:x0 + w]
+            kept = now == after                  # not painted over by a nearer object
+            ys, xs = np.nonzero(lab_img == lab)
+            if ys.size == 0:
+                continue
+            r0, r1 = max(int(ys.min()) - 2, 0), min(int(ys.max()) + 3, H)
+            c0, c1 = max(int(xs.min()) - 2, 0), min(int(xs.max()) + 3, W)
+            mx = self._fmap[0, r0:r1, c0:c1] - np.float32(x0)
+            my = self._fmap[1, r0:r1, c0:c1] - np.float32(y0)
+            cover = cv2.remap(np.where(kept, alpha, 0.0).astype(np.float32), mx, my,
+                              cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            ix, iy = np.round(mx).astype(np.int64), np.round(my).astype(np.int64)
+            inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+            nn_kept = np.zeros(ix.shape, bool)
+            nn_kept[inside] = kept[iy[inside], ix[inside]]
+            roi = lab_img[r0:r1, c0:c1]
+            on = roi == lab
+            gain = (cover > 0.5) & ~on & nn_kept
+            roi[gain] = lab
+            for r, c in zip(*np.nonzero(on & (cover <= 0.5))):
+                # what the pixel shows instead: the nearest of its four canvas neighbours
+                # that is not this sign's
+                fx, fy = float(mx[r, c]) + x0, float(my[r, c]) + y0
+                best = None
+                for cy in (math.floor(fy), math.floor(fy) + 1):
+                    for cx in (math.floor(fx), math.floor(fx) + 1):
+                        if 0 <= cy < label.shape[0] and 0 <= cx < label.shape[1] and \
+                                label[cy, cx] != lab:
+                            d = (cx - fx) ** 2 + (cy - fy) ** 2
+                            if best is None or d < best[0]:
+                                best = (d, label[cy, cx])
+                if best is not None:
+                    roi[r, c] = best[1]
 
     # ------------------------------------------------------------------ effects
     def _block_value(self, frame: int, block: int, salt: int, fn) -> float:
@@ -880,9 +941,12 @@ class CameraRenderer:
                     str(getattr(o, 'kind', '')).startswith('stand')
                 items.append((dist + (0.5 if post else 0.0), dist, 'obj', o, lab))
         items.sort(key=lambda it: -it[0])
+        faces = []
         for _, dist, what, o, lab in items:
             if what == 'sign':
-                self._draw_sign(canvas, label, o, cam_pos, R_cw, dist, lab)
+                face = self._draw_sign(canvas, label, o, cam_pos, R_cw, dist, lab)
+                if face is not None:
+                    faces.append(face)
             elif isinstance(o, Quad):
                 self._draw_quad(canvas, label, o, cam_pos, R_cw, dist, lab)
             elif isinstance(o, Box):
@@ -895,6 +959,7 @@ class CameraRenderer:
                         borderMode=cv2.BORDER_REPLICATE)
         lab_img = cv2.remap(label, self._nn_map, None, cv2.INTER_NEAREST,
                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        self._sign_edges(lab_img, label, faces)
         sign_hits, obj_hits, lut = self._ground_truth(entries, lab_img, cam_pos, R_cw)
         out_label = lut[lab_img]
 

@@ -346,3 +346,52 @@ def test_sign_art_composites_without_a_dark_fringe():
     face = signart.sign_face('road_work_ahead', 48)
     outer = (face[..., 3] > 30) & (face[..., 3] < 225)
     assert np.all(face[..., :3][outer].max(axis=1).astype(int) <= face[..., 3][outer] + 2)
+
+
+def _coverage(sign, pose, box, ss=8):
+    """Each pixel's share covered by the sign's face outline (``ss`` x ``ss`` samples), the
+    outline projected with cv2.projectPoints (densified, so the lens bends its edges), in a
+    window 3 px around ``box``: (columns, rows, coverage)."""
+    from workzone_ros.core import signs as catalogue
+    x, y, w, h = (int(v) for v in box)
+    us, vs = np.arange(x - 3, x + w + 3), np.arange(y - 3, y + h + 3)
+    c = sign.corners()
+    ol = signart.outline(catalogue.get(sign.class_key).shape, 1.0, 1.0)
+    pts = c[0] + ol[:, :1] * (c[1] - c[0]) + ol[:, 1:] * (c[3] - c[0])
+    t = np.linspace(0.0, 1.0, 200, endpoint=False)[:, None]
+    dense = np.concatenate([a + t * (b - a) for a, b in zip(pts, np.roll(pts, -1, axis=0))])
+    uv = _project(dense, pose)
+    poly = ((uv - [us[0] - 0.5, vs[0] - 0.5]) * ss * 16).round().astype(np.int32)
+    mask = np.zeros((len(vs) * ss, len(us) * ss), np.uint8)
+    cv2.fillPoly(mask, [poly], 1, cv2.LINE_8, 4)
+    return us, vs, mask.reshape(len(vs), ss, len(us), ss).mean(axis=(1, 3))
+
+
+def test_sign_labels_are_the_pixels_the_face_covers_more_than_half():
+    """A sign's label pixels are those its face covers more than half, as the image shows
+    them through the lens (:meth:`CameraRenderer._sign_edges`): against the outline's
+    coverage computed independently (projectPoints, 8x8 samples a pixel), over 24 signs of
+    four classes at 25-90 m, at most 0.75 % of the pixels covered clearly more or less than
+    half (by 0.1) are labelled otherwise, and the label agrees on at least 88 % of the
+    edge pixels.  The labels taken from the nearest canvas pixel (two roundings) got
+    1.1 % and 84 %."""
+    road = Road([(600.0, 0.0)])
+    rng = np.random.default_rng(0)
+    clear = wrong = edge = agree = 0
+    for trial in range(24):
+        key = ('road_work_ahead', 'speed_limit', 'end_road_work',
+               'right_lane_closed_ahead')[trial % 4]
+        sign = make_sign(7, key, road, float(rng.uniform(25, 90)))
+        pose = ego_pose(road, float(rng.uniform(0, 10)))
+        res = CameraRenderer(_scene([sign], road=road), seed=1).render(0.0, pose, 0)
+        hit = next(h for h in res.signs if h.sign_id == 7)
+        us, vs, cov = _coverage(sign, pose, hit.box)
+        lab = res.label[vs[0]:vs[-1] + 1, us[0]:us[-1] + 1] == 7
+        sure = np.abs(cov - 0.5) > 0.1
+        clear += int(sure.sum())
+        wrong += int((sure & (lab != (cov > 0.5))).sum())
+        rim = (cov > 0.02) & (cov < 0.98)
+        edge += int(rim.sum())
+        agree += int((rim & (lab == (cov > 0.5))).sum())
+    assert wrong <= 0.0075 * clear, (wrong, clear)
+    assert agree >= 0.88 * edge, (agree, edge)

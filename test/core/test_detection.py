@@ -1459,9 +1459,10 @@ def test_refined_warning_boxes_match_whole_pixel_labels(detector):
     signs of 9-30 px half-diagonal at random sub-pixel places, no box edge is more than a
     pixel from the label's and at least half the boxes equal it."""
     rng = np.random.default_rng(5)
-    # exact, area-sampled catalogue geometry, no blur: the catalogue's face ratio and no
-    # blurred line's bias
-    detector = detector.with_config(diamond_face_ratio=1 / 0.8876, diamond_edge_bias=0.0)
+    # exact, area-sampled catalogue geometry, no blur: the catalogue's face ratio, no
+    # blurred line's bias and no operating point (``diamond_box_bias``)
+    detector = detector.with_config(diamond_face_ratio=1 / 0.8876, diamond_edge_bias=0.0,
+                                    diamond_box_bias=0.0)
     exact = 0
     for k in range(16):
         img = _background(k % 8)
@@ -1841,6 +1842,37 @@ def test_two_tone_occluder_past_the_sign_bottom_hides_its_tip(detector, size):
     assert d.kind == 'warning' and abs(d.box.y2 - edge) <= 1.0
     full = _one(detector.with_config(tip_colour=False).detect(img), g, 0.5)
     assert full.box.y2 >= edge + 0.2 * size
+
+
+def test_small_refined_diamond_taken_as_square(detector):
+    """A refined outline of a far sign (``diamond_square_max``) whose width and height
+    differ by no more than ``diamond_square_px`` is boxed as a square of their mean size:
+    one measurement of the sign's size instead of two noisy ones.  A larger sign, one whose
+    sides differ by more (turned, a tip hidden) or one measured above an occluder's cut
+    keeps its own width and height; bad settings are refused."""
+    cfg = detector.config
+    k = cfg.diamond_face_ratio
+
+    def box(a, b, cut=False, det=detector):
+        c = 2 + a * k                              # the blob's box is the sign's
+        got = det._diamond_box((c + 0.3, c + 0.1, a, b, k, cfg.diamond_clamp_px), True,
+                               (2, 2, round(2 * a * k), round(2 * b * k)), None, True, cut)
+        return got[2], got[3]
+
+    a = 10.0 / k                                   # a 20 px sign
+    w, h = box(a, a + 1.0 / k)                     # 20 x 22 measured
+    assert w == h and w in (20, 21, 22)
+    assert box(a, a + 3.0 / k) == box(a, a + 3.0 / k, det=detector.with_config(
+        diamond_square_px=0.0))                    # 20 x 26: not a square
+    w, h = box(a, a + 1.0 / k, cut=True)           # measured above a cut: its own height
+    assert h - w >= 1
+    big = 17.0 / k                                 # a 34 px sign
+    w, h = box(big, big + 1.0 / k)
+    assert h - w >= 1
+    for bad in (dict(diamond_square_px=-1.0), dict(diamond_square_max=-2.0),
+                dict(diamond_box_bias=3.0)):
+        with pytest.raises(ValueError, match='diamond_square|diamond_box_bias'):
+            dt.DetectorConfig(**bad)
 
 
 @pytest.mark.parametrize('size, face_share', [(s, f) for s in (30, 36, 48, 56)

@@ -241,13 +241,17 @@ class DetectorConfig:
             0.95), and every box comes out 0.1 px smaller for it (tuning warning P / R 0.966 /
             0.970 -> 0.974 / 0.963; 0.2 and 0.5, the values before the art was centred, where they
             also made up for the labels' cut right and bottom tips: 0.978 / 0.953).  Hence 0.1 and
-            0.4 until stop 26.  Stop 26: the labels are now the pixels the face covers more
-            than half as the image shows them (``CameraRenderer._sign_edges``; before, the
-            nearest canvas pixel's, a pixel off on about a quarter of an edge's rows), and
-            with them boxes 0.1 px in had recall to spare and precision at the target's edge
-            (120xx-122xx, 30 bags, warning P / R 0.973 / 0.968, sunny 0.969 / 0.973): 0.2
-            gives 0.979 / 0.963 and every weather at least 0.974 / 0.959 (0.15: 0.977 /
-            0.966, sunny precision 0.974; 0.25: 0.981 / 0.959, winter recall 0.955).  No side
+            0.4.  ``diamond_box_bias``: the box's half-diagonals less this much more (px),
+            for the box only, after the checks that judge the measured face (stop 26): the
+            labels are now the pixels the face covers more than half as the image shows
+            them (``CameraRenderer._sign_edges``; before, the nearest canvas pixel's, a pixel
+            off on about a quarter of an edge's rows), and with them boxes 0.1 px in had
+            recall to spare and precision at the target's edge (120xx-122xx, 30 bags, warning
+            P / R 0.973 / 0.968, sunny 0.969 / 0.973); 0.1 more gave 0.979 / 0.963 and every
+            weather at least 0.974 / 0.959, 0.15 more 0.981 / 0.959 (winter recall 0.955),
+            and with ``diamond_square_px`` 0.15 more keeps every weather at least 0.976 /
+            0.960 on 120xx-123xx.  (Taken off the face itself, 0.25 px in all, a drawn sign
+            whose line lies 4 px in failed :meth:`ColorDetector._holds` and was lost.)  No side
             more than ``refined_clamp`` x the half-diagonal + ``diamond_clamp_px``
             beyond the face's own pixels (blur eats about a pixel of a small face's mask; the
             labels are the whole sign's, and a refined outline extrapolates a tip a guardrail
@@ -267,6 +271,16 @@ class DetectorConfig:
             sill) counts as reaching past the bottom too when nothing inside the outline
             below its first rows has the sign's colour (stop 20: 108xx paper_c_10808
             frames 27-29; 105xx sunny warning precision 0.972 -> 0.974, tuning unchanged);
+            ``diamond_square_px``, ``diamond_square_max``: a refined outline smaller than
+            ``diamond_square_max`` (box px) whose width and height differ by at most
+            ``diamond_square_px`` is taken as square, both half-diagonals their mean (stop
+            26).  A far sign is seen about face on (its width foreshortened by under 1-2 %
+            at 30 m and more), while each half-diagonal is measured with its own noise
+            (on 40 held-out bags a small sign's box width and height errors correlate by
+            0.1-0.4, each about 1 px sd): on 120xx-123xx warning P / R 0.9806 / 0.9592 ->
+            0.9828 / 0.9621 (120xx-122xx), every weather both up; on signs of 32 px and
+            more, seen at wider angles, it cost 0.002 of both, hence the size limit
+            (0 = off);
             ``cut_blend_rows``: the occluder may begin this many rows after the cut when
             the cut's row is a blend of face and occluder (blur, chroma bleed): the box
             ends at the first row that is across (stop 26; 0: at the cut, as before);
@@ -592,11 +606,14 @@ class DetectorConfig:
     tip_check: bool = True
     tip_colour: bool = True
     cut_blend_rows: int = 1
+    diamond_square_px: float = 2.5
+    diamond_square_max: float = 32.0
     diamond_grown_starts: tuple = (1.2, 1.4)
     diamond_ring_test: bool = True
     diamond_refine: bool = True
     diamond_face_ratio: float = 1.1266
-    diamond_edge_bias: float = 0.2
+    diamond_edge_bias: float = 0.1
+    diamond_box_bias: float = 0.15
     diamond_blur_bias: float = 0.4
     diamond_blur_sigma: float = 1.0
     diamond_tall_max: float = 1.08
@@ -728,6 +745,12 @@ class DetectorConfig:
                              'of the half-diagonals)')
         if not 0.0 <= self.cut_min_width <= 1.0:
             raise ValueError('cut_min_width must be in [0, 1] (0: off)')
+        if not -1.0 <= self.diamond_box_bias <= 2.0:
+            raise ValueError(f'diamond_box_bias must be in [-1, 2] px, got '
+                             f'{self.diamond_box_bias}')
+        if self.diamond_square_px < 0 or self.diamond_square_max < 0:
+            raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
+                             '0: off)')
         if self.cut_blend_rows not in range(0, 4):
             raise ValueError(f'cut_blend_rows must be an integer in 0..3, got '
                              f'{self.cut_blend_rows!r}')
@@ -2517,6 +2540,9 @@ class ColorDetector:
         self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
         self._peels_left = 0                               # peels this frame may still do
+        # half-diagonals (a, b) of this frame's faces measured on sharp edges: their box
+        # takes ``diamond_box_bias`` (a face keeps them when moved to its blob's window)
+        self._sharp_faces: set[tuple[float, float]] = set()
         self._relative = relative_measure(model.metadata)
         self._intrinsics: Optional[tuple[float, float, float, float]] = None
 
@@ -2629,6 +2655,7 @@ class ColorDetector:
         cfg = self.config
         self._ref_row = None
         self._peels_left = cfg.peel_max
+        self._sharp_faces = set()
         if self._geometry is not None and cfg.use_geometry:
             if cfg.geometry_reference == 'horizon':
                 self._update_horizon(bgr)
@@ -3448,7 +3475,8 @@ class ColorDetector:
                     self.debug[-1]['hidden'] = None if hidden_at is None else y0 + hidden_at
                 box_ = self._diamond_box(diamond, sub is not None or blurred is not None,
                                          (bx0, by0, bw, bh), peel_t, searched or larger,
-                                         cut and hidden_at is None)
+                                         cut and hidden_at is None,
+                                         self._box_bias(sub))
                 if box_ is not None and hidden_at is not None and \
                         box_[1] + box_[3] > hidden_at:
                     # the occluder hides the tip: the sign's visible part ends at it
@@ -3571,7 +3599,7 @@ class ColorDetector:
                                        hsv)
             box_ = None if sub is None else self._diamond_box(
                 (*sub, cfg.diamond_face_ratio, cfg.diamond_clamp_px), True,
-                (bx0, by0, bw, bh), peel_t, True)
+                (bx0, by0, bw, bh), peel_t, True, bias=self._box_bias(sub))
             if entry is not None:
                 entry['searched'] = box_ is not None
             if box_ is not None:
@@ -3646,8 +3674,8 @@ class ColorDetector:
         cand.y, cand.h = cand.y - dv, cand.h + 2 * dv
 
     def _diamond_box(self, diamond: tuple, refined: bool, blob: tuple,
-                     peel_t: Optional[float], larger: bool, cut: bool = False
-                     ) -> Optional[tuple]:
+                     peel_t: Optional[float], larger: bool, cut: bool = False,
+                     bias: float = 0.0) -> Optional[tuple]:
         """The sign's box ``(x, y, w, h)`` in the blob's window from ``diamond = (cx, cy, a,
         b, scale, pad)`` (the face and the sign / face ratio): no side further out than the
         clamp (``diamond_clamp``, ``peel_clamp`` for a peeled core, ``refined_clamp`` for a
@@ -3657,10 +3685,18 @@ class ColorDetector:
         rim beyond it: a searched face, or one :meth:`_holds` calls blended).  ``cut``: the
         outline was measured above an occluder across the face's lower part; its bottom
         is not clamped (a guardrail in front of a sign on a stand hides a band of the face,
-        and the labels, which are the visible pixels' box, take in the tip below it)."""
+        and the labels, which are the visible pixels' box, take in the tip below it).
+        ``bias``: the face's half-diagonals less this (px) for the box only
+        (``diamond_box_bias``, the operating point; the checks before took the face as
+        measured)."""
         cfg = self.config
         bx0, by0, bw, bh = blob
         cx_, cy_, a_, b_, k_, pad = diamond
+        a_, b_ = a_ - bias, b_ - bias
+        if refined and not cut and abs(a_ - b_) * 2 * k_ <= cfg.diamond_square_px and \
+                (a_ + b_) * k_ < cfg.diamond_square_max:
+            # a far sign seen about face on: its width and height are one measurement
+            a_ = b_ = 0.5 * (a_ + b_)
         # a peeled core lost the face's parts nearest the surface's colour: its own box
         # bounds the sign more loosely
         cl_ = cfg.diamond_clamp if peel_t is None else max(cfg.diamond_clamp, cfg.peel_clamp)
@@ -3685,6 +3721,15 @@ class ColorDetector:
         if lo_ * bw <= r_ - l_ <= 1.5 * bw + 2 and lo_ * bh <= u_ - t_ <= 1.5 * bh + 2:
             return l_, t_, r_ - l_, u_ - t_
         return None
+
+    def _box_bias(self, face: Optional[Sequence[float]]) -> float:
+        """``diamond_box_bias`` for a face :meth:`_refine` measured on sharp edges this
+        frame, else 0: heavily blurred faces have their own bias (``diamond_blur_bias``),
+        and there 0.15 px more cost winter signs 0.01 of recall for 0.003 of precision on
+        120xx-123xx (sunny gained 0.006 of precision)."""
+        if face is None or (float(face[2]), float(face[3])) not in self._sharp_faces:
+            return 0.0
+        return self.config.diamond_box_bias
 
     def _held_reaching(self, sub: Sequence[float], held_args: tuple, blob_xy: tuple
                        ) -> tuple[Optional[tuple], Optional[str]]:
@@ -3874,9 +3919,13 @@ class ColorDetector:
         if sub is None:
             return None
         bias = cfg.diamond_edge_bias
-        if info.get('blur', 0.0) >= cfg.diamond_blur_sigma:
+        sharp = info.get('blur', 0.0) < cfg.diamond_blur_sigma
+        if not sharp:
             bias = cfg.diamond_blur_bias          # heavily blurred edges (defocus, motion)
-        return (sub[0], sub[1], *self._plausible(sub[2] - bias, sub[3] - bias))
+        a, b = self._plausible(sub[2] - bias, sub[3] - bias)
+        if sharp:
+            self._sharp_faces.add((a, b))
+        return sub[0], sub[1], a, b
 
     def _plausible(self, a: float, b: float) -> tuple[float, float]:
         """Half-diagonals ``a, b`` of a measured face cut back to a plausible shape: a square

@@ -249,9 +249,10 @@ class DetectorConfig:
             recall to spare and precision at the target's edge (120xx-122xx, 30 bags, warning
             P / R 0.973 / 0.968, sunny 0.969 / 0.973); 0.1 more gave 0.979 / 0.963 and every
             weather at least 0.974 / 0.959, 0.15 more 0.981 / 0.959 (winter recall 0.955),
-            and with ``diamond_square_px`` 0.15 more keeps every weather at least 0.976 /
-            0.960 on 120xx-123xx.  (Taken off the face itself, 0.25 px in all, a drawn sign
-            whose line lies 4 px in failed :meth:`ColorDetector._holds` and was lost.)  No side
+            and with ``diamond_square_px`` 0.15 more keeps every weather at least 0.977 /
+            0.960 on 120xx-123xx (fresh 124xx + 125xx: 0.979 / 0.958).  (Taken off the
+            face itself, 0.25 px in all, a drawn sign whose line lies 4 px in failed
+            :meth:`ColorDetector._holds` and was lost.)  No side
             more than ``refined_clamp`` x the half-diagonal + ``diamond_clamp_px``
             beyond the face's own pixels (blur eats about a pixel of a small face's mask; the
             labels are the whole sign's, and a refined outline extrapolates a tip a guardrail
@@ -277,8 +278,8 @@ class DetectorConfig:
             26).  A far sign is seen about face on (its width foreshortened by under 1-2 %
             at 30 m and more), while each half-diagonal is measured with its own noise
             (on 40 held-out bags a small sign's box width and height errors correlate by
-            0.1-0.4, each about 1 px sd): on 120xx-123xx warning P / R 0.9806 / 0.9592 ->
-            0.9828 / 0.9621 (120xx-122xx), every weather both up; on signs of 32 px and
+            0.1-0.4, each about 1 px sd): on 120xx-122xx, boxes 0.25 px in, warning P / R
+            0.9806 / 0.9592 -> 0.9828 / 0.9621, every weather both up; on signs of 32 px and
             more, seen at wider angles, it cost 0.002 of both, hence the size limit
             (0 = off);
             ``cut_blend_rows``: the occluder may begin this many rows after the cut when

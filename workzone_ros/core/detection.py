@@ -3856,16 +3856,20 @@ class ColorDetector:
             return None
         tol = 0.3 * float(np.median(face))
 
+        rows_seen: dict = {}
+
         def across(r: int) -> bool:
-            i, f = split(r)
+            if r not in rows_seen:
+                rows_seen[r] = split(r)
+            i, f = rows_seen[r]
             return i is not None and float(np.abs(i - f).max()) < tol
 
         start = next((r for r in range(cut, cut + 1 + self.config.cut_blend_rows)
                       if r + 1 <= end and across(r) and across(r + 1)), None)
         if start is None:
             return None
-        first = [split(r) for r in (start, start + 1)]
-        occ = np.mean([0.5 * (i + f) for i, f in first], axis=0)
+        occ = np.mean([0.5 * (i + f) for i, f in (rows_seen[start], rows_seen[start + 1])],
+                      axis=0)
         span = img[start:end + 1, np.abs(np.arange(w) + 0.5 - cx) <= a].mean(axis=1)
         if (np.abs(span - occ).max(axis=1) < tol).all():
             return start

@@ -99,14 +99,15 @@ def _one(dets, gt, iou=0.8):
 
 def _label_frame_box(name, label, kind):
     """The default detector's one ``kind`` detection on ``test/data/name`` whose box is
-    within a pixel of ``label`` on every side (asserted), and the detector."""
+    within a pixel of ``label`` on every side (asserted), the detector and the frame."""
     gt = Box(*map(float, label))
     det = _default_detector()
-    d = _one(det.detect(_data_frame(name)), label, 0.85)
+    img = _data_frame(name)
+    d = _one(det.detect(img), label, 0.85)
     assert d.kind == kind
     assert max(abs(d.box.x - gt.x), abs(d.box.x2 - gt.x2), abs(d.box.y - gt.y),
                abs(d.box.y2 - gt.y2)) <= 1.0, d.box
-    return d, det
+    return d, det, img
 
 
 @pytest.mark.parametrize('r', [10, 25, 70])
@@ -1918,10 +1919,10 @@ def test_guardrail_hiding_the_tip_with_a_blended_first_row(name, label):
     rail, so it was not taken as across the face, and the box ran on to the whole
     diamond's bottom (6-8 px below the label, precision 0.8).  With ``cut_blend_rows`` the
     box ends at the rail: within a pixel of the label."""
-    _, det = _label_frame_box(name, label, 'warning')
+    _, det, img = _label_frame_box(name, label, 'warning')
     det = det.with_config(cut_blend_rows=0)
     det.reset()
-    old = _one(det.detect(_data_frame(name)), label, 0.5)
+    old = _one(det.detect(img), label, 0.5)
     assert old.box.y2 >= label[1] + label[3] + 5, old.box
 
 
@@ -1998,8 +1999,7 @@ def test_plaque_merged_with_a_dusk_sky_measured_on_the_white_part_columns(frame,
     blob's own edges, a face wider than the white part below.  The white part shows the
     sign's columns (``rect_white_span``): measured there the sign is boxed within a pixel;
     before, the box was 26-28 px wide (precision 0.65-0.77)."""
-    img = _data_frame(f'dusk_plaque_sky_{frame}.jpg')
-    _, det = _label_frame_box(f'dusk_plaque_sky_{frame}.jpg', label, 'regulatory')
+    _, det, img = _label_frame_box(f'dusk_plaque_sky_{frame}.jpg', label, 'regulatory')
     det = det.with_config(rect_white_span=False, v_hysteresis=0.0)
     det.reset()
     old = _one(det.detect(img), label, 0.5)

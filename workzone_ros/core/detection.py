@@ -503,6 +503,12 @@ class DetectorConfig:
         ext_max_ratio: the extension adds at most this many times the orange height.
         white_s_max, white_v_rel: a pixel is white if S <= white_s_max and V >= white_v_rel x
             the orange blob's median V.
+        white_own_rel: and, once the white part's own level is known (the median V of the
+            white pixels in its first rows, under the orange part), V >= white_own_rel x that
+            level: under a grey sky a dull orange's V is little above a grey background's
+            (road, verge, snow), which then passed for the white part and ran the
+            extension on past the sign; retroreflective white sheeting is far brighter.
+            0 turns it off.
         ext_min_dark: smallest share of dark (legend, border) pixels in the white part; the
             white part must also end (a bottom edge) within its reach.
         ext_max_wratio: the extension may also reach this many times the orange width
@@ -686,6 +692,7 @@ class DetectorConfig:
     ext_max_ratio: float = 3.5
     white_s_max: int = 45
     white_v_rel: float = 0.8
+    white_own_rel: float = 0.7
     ext_min_dark: float = 0.03
     ext_max_wratio: float = 1.8
     ext_gap_w: float = 0.6
@@ -4330,6 +4337,54 @@ class ColorDetector:
         # black legend rows inside the white part: judge rows on a short running window
         frac = white.mean(axis=1)
         k = max(1, int(round(cand.h * 0.25)))
+        gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
+        run = self._white_run(white, frac, strip, sat, v_ref, k, gap)
+        if cfg.white_own_rel > 0 and y_top + run >= y_max - 1:
+            # white to the end of the reach: the sign's own white part (bright sheeting)
+            # may be followed by a duller grey background that passed for white by the
+            # orange's level (under a grey sky a dull orange is little brighter than the
+            # road, verge or snow): judged again against the white part's own level, the
+            # part ends at the sign's bottom
+            white2, frac2 = self._own_white(white, frac, strip[..., 2], k)
+            run2 = self._white_run(white2, frac2, strip, sat, v_ref, k, gap)
+            if run2 >= 0.3 * cand.h and y_top + run2 < y_max - 1:
+                white, frac, run = white2, frac2, run2
+        cuts: list = []
+        if cfg.ext_frame and y_top + run >= y_max - 1:
+            # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
+            # pale sky or wall behind the sign.  The white part ends with its black bottom
+            # border
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w, cuts)
+            if end:
+                run = end
+        if self.debug is not None:
+            self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
+                                   ext_frac=np.round(frac, 2).tolist()))
+        if run < 0.3 * cand.h or y_top + run >= y_max - 1:
+            return None         # too short, or no bottom edge found (sky, a white wall)
+        # a sign's white part carries a black legend and border; sky and walls do not
+        # (dark relative to the white part itself: under overcast light the legend is grey)
+        part = strip[:run]
+        v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
+        dark = part[..., 2] < cfg.dark_rel * v_white
+        if dark.mean() < cfg.ext_min_dark:
+            return None
+        cand.h = float(run + cand.h)
+        cand.extended = True
+        # (its upper half: an extension that ran on past the sign's bottom took in
+        # background rows there)
+        top_half = slice(0, max(2, (run + 1) // 2))
+        cand.white_span = _white_span(white[top_half][frac[top_half] >= 0.45], max(0, x0))
+        return (y_top, cuts) if cuts else None
+
+    def _white_run(self, white: np.ndarray, frac: np.ndarray, strip: np.ndarray,
+                   sat: np.ndarray, v_ref: float, k: int, gap: int) -> int:
+        """How many rows of the HSV ``strip`` under the orange part the white part runs
+        (:meth:`_extend`): rows at least 45 % ``white`` (``frac``) on a running window of
+        ``k`` rows, across rows of a black legend up to ``gap`` rows when they are
+        achromatic (:meth:`_achromatic_rows`; ``sat``: the saturation as judged for white,
+        ``v_ref``: the orange's brightness), less the rows at its end that are not white."""
+        cfg = self.config
         smooth = np.convolve(frac, np.ones(k) / k, mode='full')[:len(frac)]
         # rows of a large black legend (speed-limit numerals) are not white, but they are
         # achromatic like the sheeting around them: such rows may separate white rows by up
@@ -4337,7 +4392,6 @@ class ColorDetector:
         # (judged on the row's bright pixels: a dark legend stroke's saturation is noise, a
         # row of large numerals would otherwise look coloured)
         achrom = self._achromatic_rows(strip, sat, v_ref)
-        gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
         run, cols_judged, achrom_cols = 0, False, None
         for j, f in enumerate(smooth):
             if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
@@ -4369,33 +4423,26 @@ class ColorDetector:
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
-        cuts: list = []
-        if cfg.ext_frame and y_top + run >= y_max - 1:
-            # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
-            # pale sky or wall behind the sign.  The white part ends with its black bottom
-            # border
-            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w, cuts)
-            if end:
-                run = end
-        if self.debug is not None:
-            self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
-                                   ext_frac=np.round(frac, 2).tolist()))
-        if run < 0.3 * cand.h or y_top + run >= y_max - 1:
-            return None         # too short, or no bottom edge found (sky, a white wall)
-        # a sign's white part carries a black legend and border; sky and walls do not
-        # (dark relative to the white part itself: under overcast light the legend is grey)
-        part = strip[:run]
-        v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
-        dark = part[..., 2] < cfg.dark_rel * v_white
-        if dark.mean() < cfg.ext_min_dark:
-            return None
-        cand.h = float(run + cand.h)
-        cand.extended = True
-        # (its upper half: an extension that ran on past the sign's bottom took in
-        # background rows there)
-        top_half = slice(0, max(2, (run + 1) // 2))
-        cand.white_span = _white_span(white[top_half][frac[top_half] >= 0.45], max(0, x0))
-        return (y_top, cuts) if cuts else None
+        return run
+
+    def _own_white(self, white: np.ndarray, frac: np.ndarray, value: np.ndarray, k: int
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """``white`` and its row shares ``frac`` with the pixels darker than
+        ``white_own_rel`` x the white part's own level removed.  The level: the median
+        brightness ``value`` of the white pixels in the strip's first white rows (from the
+        first row at least 45 % white to the first after it that is not, at most ``k`` + 2
+        rows: the part right under the orange one).  Unchanged when no row is white."""
+        rows = np.flatnonzero(frac >= 0.45)
+        if rows.size == 0:
+            return white, frac
+        r0 = int(rows[0])
+        r1 = r0 + 1
+        while r1 < len(frac) and r1 - r0 < k + 2 and frac[r1] >= 0.45:
+            r1 += 1
+        top = value[r0:r1][white[r0:r1]]
+        level = float(_median(top)) if top.size else 0.0
+        white = white & (value >= self.config.white_own_rel * level)
+        return white, white.mean(axis=1)
 
     def _achromatic_rows(self, strip: np.ndarray, sat: np.ndarray, v_ref: float,
                          v_bright: Optional[float] = None) -> np.ndarray:

@@ -352,7 +352,8 @@ def test_config_validation():
                       ({'rect_lean_agree': 1.0}, 'rect_lean_agree'),
                       ({'grow_level': 1.5}, 'grow_level'), ({'grow_reach': -1.0}, 'grow_reach'),
                       ({'shift_min_px': -1.0}, 'shift_min_px'),
-                      ({'grow_min_px': -1.0}, 'grow_min_px')):
+                      ({'grow_min_px': -1.0}, 'grow_min_px'),
+                      ({'white_own_rel': 1.0}, 'white_own_rel')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -919,6 +920,42 @@ def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, si
     old = [c for c in detector.with_config(ext_band_long=100.0).detect(img)
            if c.box.iou(g) > 0.2]
     assert old and old[0].box.y2 < g.y2 - 4.0
+
+
+@pytest.mark.parametrize('bg', [130, 140])
+def test_white_part_judged_against_its_own_level_over_a_duller_grey(bg):
+    """A small dim "WORK ZONE BEGINS" (20 px; overcast haze: the orange at V 130, the white
+    sheeting at 172) before a grey background at V 106-111: above 0.8 x the orange's
+    brightness, so the background passes for white and the white part ran on to the end of
+    the reach; the bottom border merged with it and the box was the plaque alone (IoU 0.3).
+    Judged against the white part's own level (``white_own_rel``) the background is not
+    white, and the white part ends at the sign's bottom."""
+    img, gt = _render_art_sign(_plain((bg, bg, bg), 8, 20), 400.3, 190.4, 20,
+                               key='work_zone_begin', orange=(0, 60, 180))
+    img = cv2.addWeighted(img, 0.55, np.full_like(img, 70), 0.45, 0)
+    g = Box(*map(float, gt))
+    detector = _default_detector()
+    d = _one(detector.detect(img), gt, 0.85)
+    assert d.kind == 'regulatory' and abs(d.box.y2 - g.y2) <= 1.0, d.box
+    old = [c for c in detector.with_config(white_own_rel=0.0).detect(img)
+           if c.box.iou(g) > 0.2]
+    assert old and old[0].box.iou(g) < 0.5
+
+
+def test_winter_sign_white_part_ends_where_the_grey_ground_begins():
+    """A "WORK ZONE BEGINS" in winter light (a simulator frame, seed 12205 frame 356, the
+    camera's JPEG: ``test/data/winter_grey_ground_begins.jpg``; label (482, 204, 20, 26)):
+    the dull plaque (V 92-107) over white sheeting at V 140 and grey ground at V 80 below
+    the sign.  By the plaque's brightness the ground is white, so the white part ran to the
+    end of the reach and the sign was boxed as its plaque (20 x 9, unmatched); by the white
+    part's own level (``white_own_rel``) it ends at the sign's bottom: boxed within a
+    pixel."""
+    _, det, img = _label_frame_box('winter_grey_ground_begins.jpg', (482, 204, 20, 26),
+                                   'regulatory')
+    det = det.with_config(white_own_rel=0.0)
+    det.reset()
+    old = [c for c in det.detect(img) if c.box.iou(Box(482.0, 204.0, 20.0, 26.0)) > 0.2]
+    assert old and old[0].box.h <= 10, old
 
 
 def _cone(img, cx, base_y, h):

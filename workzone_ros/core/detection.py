@@ -759,6 +759,9 @@ class DetectorConfig:
         if self.diamond_square_px < 0 or self.diamond_square_max < 0:
             raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
                              '0: off)')
+        if not 0.0 <= self.white_own_rel < 1.0:
+            raise ValueError(f'white_own_rel must be in [0, 1) (a share of the white part\'s '
+                             f'own level; 0: off), got {self.white_own_rel}')
         if self.cut_blend_rows not in range(0, 4):
             raise ValueError(f'cut_blend_rows must be an integer in 0..3, got '
                              f'{self.cut_blend_rows!r}')
@@ -4344,10 +4347,13 @@ class ColorDetector:
             # may be followed by a duller grey background that passed for white by the
             # orange's level (under a grey sky a dull orange is little brighter than the
             # road, verge or snow): judged again against the white part's own level, the
-            # part ends at the sign's bottom
+            # part ends at the sign's bottom, and the rest of the reach (a few rows at
+            # least) is not white (a background as bright as the sheeting, snow, is left to
+            # the bottom border)
             white2, frac2 = self._own_white(white, frac, strip[..., 2], k)
             run2 = self._white_run(white2, frac2, strip, sat, v_ref, k, gap)
-            if run2 >= 0.3 * cand.h and y_top + run2 < y_max - 1:
+            if run2 >= 0.3 * cand.h and y_max - y_top - run2 >= max(3, 2 * k) \
+                    and frac2[run2:].mean() < 0.3:
                 white, frac, run = white2, frac2, run2
         cuts: list = []
         if cfg.ext_frame and y_top + run >= y_max - 1:

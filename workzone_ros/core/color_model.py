@@ -379,15 +379,19 @@ def low_chroma_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6, share: f
                                                    interpolation=cv2.INTER_AREA)
     px = small.reshape(-1, 3).astype(np.float32)
     mx0 = _channel_max(px)
-    px = px[(mx0 > 30) & (mx0 < 245)]            # neither dark noise nor clipped
+    # neither dark noise nor clipped (np.compress: the rows ``px[keep]`` selects, at a
+    # fraction of a boolean index's cost on (n, 3) rows)
+    keep = (mx0 > 30) & (mx0 < 245)
+    px, mx0 = np.compress(keep, px, axis=0), mx0[keep]
     if len(px) < 50:
         return (1.0, 1.0, 1.0)
     g = np.ones(3, np.float32)
-    for _ in range(max(1, iters)):
-        x = px * g
-        mx = _channel_max(x)
+    for i in range(max(1, iters)):
+        # (the first round's gains are ones: the pixels and their maxima as they are)
+        x = px * g if i else px
+        mx = _channel_max(x) if i else mx0
         c = (mx - _channel_min(x)) / np.maximum(mx, 1.0)
-        m = x[c <= _quantile(c, share)].mean(axis=0)
+        m = np.compress(c <= _quantile(c, share), x, axis=0).mean(axis=0)
         g = np.minimum(np.maximum(g * m.mean() / np.maximum(m, 1.0), lo), hi)
     return tuple(float(v) for v in g)
 

@@ -109,6 +109,7 @@ from workzone_ros.core.color_model import (
     ColorModel,
     ModelError,
     SpatialPrior,
+    _quantile,
     apply_gains,
     saturation_gain,
     saturation_table,
@@ -1022,7 +1023,9 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     a = _median(base, axis=2)                                          # (ncy, ns)
     res = np.abs(base - a[..., None])
     tol = np.maximum(1.0, 0.1 * a)[..., None]
-    score = np.count_nonzero(res <= tol, axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
+    # (the counts as a sum of booleans: np.count_nonzero's along an axis, without its
+    # generic path)
+    score = (res <= tol).sum(axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
     k = int(np.argmax(score))
     ic, js = divmod(k, ss.size)
     a0, s0 = float(a[ic, js]), float(ss[js])
@@ -1146,6 +1149,8 @@ def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: in
     is_w = white.sum(axis=1) / w >= min_white
     is_o = (orange.sum(axis=1) / w >= min_orange) & ~is_w
     is_d = dark.sum(axis=1) / w >= line
+    # the row tests as lists of bools: the loops below read them one row at a time
+    is_w, is_o, is_d = is_w.tolist(), is_o.tolist(), is_d.tolist()
     for start, step in ((top - 1, -1), (bottom, 1)):
         i, n_white, first = start, 0, None
         while 0 <= i < n and not is_d[i]:
@@ -1177,7 +1182,7 @@ def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: in
         j = i
         while j < min(bottom, n) and not is_o[j] and not is_d[j]:
             j += 1
-        if j < min(bottom, n) and is_o[j] and is_o[i - 1] and is_w[i:j].sum() >= min_run:
+        if j < min(bottom, n) and is_o[j] and is_o[i - 1] and sum(is_w[i:j]) >= min_run:
             return True
         i = j + 1
     return False
@@ -1230,8 +1235,10 @@ def _tip_pixel(c: float, r: float, c2: float, r2: float) -> Optional[int]:
     j0 = math.floor(c2)
     x = cols[:, None, None, None] + _SUBPIXEL[None, None, :, None]
     y = np.arange(j0 - 1, j0 + 2)[None, :, None, None] + _SUBPIXEL[None, None, None, :]
-    cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).mean(axis=(2, 3)).max(axis=1)
-    hit = np.flatnonzero(cover > 0.5)
+    # the sub-pixel samples inside, counted: more than half of them (the share's own test,
+    # exact in whole counts, without the mean's float division)
+    cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).sum(axis=(2, 3)).max(axis=1)
+    hit = np.flatnonzero(2 * cover > _SUBPIXEL.size ** 2)
     return int(cols[hit[0]]) if hit.size else None
 
 
@@ -1364,10 +1371,14 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
     ts = _unit_steps(max(3, int(length) + 1))
-    pts = (segs[:, None, None, 0, :] + ts[None, :, None, None] * (segs[:, 1] - segs[:, 0])[
-        :, None, None, :] + u[None, None, :, None] * nvecs[:, None, None, :])  # (n, t, u, 2)
-    mx = (pts[..., 0] - 0.5).astype(np.float32)
-    my = (pts[..., 1] - 0.5).astype(np.float32)
+    # the sample points ``s0 + t (s1 - s0) + u n`` (n, t, u): the part along the stretch
+    # (n, t) and the part along the normal (n, u) each once, then summed per point in that
+    # order (the same sums as over the broadcast (n, t, u, 2) points, at a fraction of the
+    # multiplications)
+    along = segs[:, None, 0, :] + ts[None, :, None] * (segs[:, 1] - segs[:, 0])[:, None, :]
+    across = u[None, :, None] * nvecs[:, None, :]
+    mx = (along[:, :, None, 0] + across[:, None, :, 0] - 0.5).astype(np.float32)
+    my = (along[:, :, None, 1] + across[:, None, :, 1] - 0.5).astype(np.float32)
     h, w = img.shape[:2]
     if mx.min() < 0 or my.min() < 0 or mx.max() > w - 1 or my.max() > h - 1:
         return None
@@ -1388,22 +1399,27 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     if not (seen.any() if missing else seen.all()):
         return None
     sse = np.where(ok, sse, np.inf)
-    k = np.argmin(sse, axis=0)                                                  # (n,)
-    ns = _PROFILE_SIG.size
-    i0, isg = np.divmod(k, ns)
-    off = _PROFILE_U0[i0].astype(np.float64)
-    inner = (i0 > 0) & (i0 < _PROFILE_U0.size - 1)
-    cols = np.arange(n)
-    s_m = sse[np.where(inner, k - ns, k), cols]
-    s_p = sse[np.where(inner, k + ns, k), cols]
-    with np.errstate(invalid='ignore'):          # inf - inf on stretches without a step
-        den = s_m - 2 * sse[k, cols] + s_p
-    good = inner & np.isfinite(den) & (den > 0)
-    off[good] += 0.05 * (s_m[good] - s_p[good]) / den[good]
-    off[~seen] = np.nan
+    ns, nu0 = _PROFILE_SIG.size, _PROFILE_U0.size
+    # per stretch (a handful: plain floats, the same double arithmetic as numpy's): the best
+    # offset, moved by the parabola through its neighbours' residuals when both are finite
+    # and it opens upwards; NaN without a step
+    off = np.full(n, np.nan)
+    seen_l = seen.tolist()
+    for c, k in enumerate(np.argmin(sse, axis=0).tolist()):
+        if not seen_l[c]:
+            continue
+        i0, isg = divmod(k, ns)
+        o = float(_PROFILE_U0[i0])
+        if 0 < i0 < nu0 - 1:
+            s_m, s_0, s_p = float(sse[k - ns, c]), float(sse[k, c]), float(sse[k + ns, c])
+            den = s_m - 2 * s_0 + s_p
+            if math.isfinite(den) and den > 0:
+                o += 0.05 * (s_m - s_p) / den
+        off[c] = o
+        if blur is not None:
+            blur[c] = _PROFILE_SIG[isg]        # the stretch's best blur width
     if blur is not None:
-        # each stretch's best blur width (NaN without a step)
-        blur[:] = np.where(seen, _PROFILE_SIG[isg], np.nan)
+        blur[~seen] = np.nan
     return off
 
 
@@ -1414,6 +1430,12 @@ _STRETCH_SIGNS = np.repeat(_RHOMBUS_SIGNS, 2, axis=0)      # two stretches per e
 # the two stretches of each edge, as fractions of its length from its first corner
 _STRETCH_FROM = np.array([0.15, 0.55])
 _STRETCH_TO = np.array([0.45, 0.85])
+# the same per edge (4, 2), and every stretch shown (read-only: each round uses them as
+# they are unless an occluder hides some, when :func:`_stretches_above` makes new ones)
+_EDGE_FROM = np.tile(_STRETCH_FROM, (4, 1))
+_EDGE_TO = np.tile(_STRETCH_TO, (4, 1))
+_ALL_SHOWN = np.ones(8, bool)
+_EDGE_FROM.flags.writeable = _EDGE_TO.flags.writeable = _ALL_SHOWN.flags.writeable = False
 
 
 def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
@@ -1601,9 +1623,7 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
         nvec = np.stack([-dvec[:, 1], dvec[:, 0]], axis=1)
         inward = (nvec * (np.array([cx, cy]) - 0.5 * (p0 + p1))).sum(axis=1)
         nvec[inward < 0] *= -1.0
-        f_from = np.tile(_STRETCH_FROM, (4, 1))
-        f_to = np.tile(_STRETCH_TO, (4, 1))
-        shown = np.ones(8, bool)
+        f_from, f_to, shown = _EDGE_FROM, _EDGE_TO, _ALL_SHOWN
         if hidden_below is not None:
             f_from, f_to, shown = _stretches_above(p0, e, nvec, f_from, f_to, prof[0],
                                                    hidden_below - 1.0)
@@ -1648,7 +1668,9 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
                 and aspect[0] <= a / b <= aspect[1]):
             return None
     if info is not None:
-        info['blur'] = float(np.nanmedian(blur))       # the last round's stretches
+        # the last round's stretches (np.nanmedian's value: the median of the measured
+        # ones; at least one is, or the round returned)
+        info['blur'] = float(_median(blur[~np.isnan(blur)]))
     return cx, cy, a, b
 
 
@@ -1661,7 +1683,7 @@ def _stroke_stretches(blur: np.ndarray, seen: np.ndarray, spare: int, steps: int
     if spare <= 0 or np.count_nonzero(seen) <= 4:
         return drop
     level = np.searchsorted(_PROFILE_SIG, np.where(seen, blur, 0.0) - 1e-6)
-    cut = np.median(level[seen]) + steps
+    cut = _median(level[seen]) + steps             # (np.median's value, float64)
     for j in np.argsort(-np.where(seen, level, -1), kind='stable'):
         if spare <= 0 or level[j] < cut:
             break
@@ -3800,7 +3822,7 @@ class ColorDetector:
             return None
         cx, cy, a, b = (float(v) for v in sub[:4])
         h, w = face_px.shape
-        ys, xs = np.mgrid[0:h, 0:w]
+        ys, xs = np.arange(h)[:, None], np.arange(w)[None, :]      # (broadcast: np.mgrid's)
         rel = np.abs(xs + 0.5 - cx) / a + np.abs(ys + 0.5 - cy) / b
         dist = (rel - k) * (a * b / math.hypot(a, b))      # px beyond the outline
         ring = (dist >= 0.5) & (dist <= 1.5)
@@ -3971,7 +3993,9 @@ class ColorDetector:
         a, b = float(sub[2]), float(sub[3])
         k = cfg.diamond_face_ratio
         h, w = chroma.shape
-        ys, xs = np.mgrid[0:h, 0:w]
+        # a column and a row of coordinates, broadcast (np.mgrid's full grids hold the same
+        # values on every row and column)
+        ys, xs = np.arange(h)[:, None], np.arange(w)[None, :]
         dx, dy = np.abs(xs + 0.5 - cx), np.abs(ys + 0.5 - cy)
         rel = dx / (k * a) + dy / (k * b)
         dist = (rel - 1.0) * (k * a * k * b / math.hypot(k * a, k * b))
@@ -3981,7 +4005,8 @@ class ColorDetector:
         if not (ring.any() and back.any() and middle.any()):
             return False
         bg = float(_median(chroma[back]))
-        face = float(np.percentile(chroma[middle], 75))
+        # (np.percentile(..., 75)'s value, without its generic machinery)
+        face = float(_quantile(chroma[middle], 0.75))
         if face <= bg:
             return False
         return float(chroma[ring].mean()) - bg > cfg.rim_chroma * (face - bg)

@@ -761,8 +761,8 @@ class DetectorConfig:
             raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
                              '0: off)')
         if not 0.0 <= self.white_own_rel < 1.0:
-            raise ValueError(f'white_own_rel must be in [0, 1) (a share of the white part\'s '
-                             f'own level; 0: off), got {self.white_own_rel}')
+            raise ValueError(f'white_own_rel must be in [0, 1) (a share of the level of the '
+                             f'white part itself; 0: off), got {self.white_own_rel}')
         if self.cut_blend_rows not in range(0, 4):
             raise ValueError(f'cut_blend_rows must be an integer in 0..3, got '
                              f'{self.cut_blend_rows!r}')

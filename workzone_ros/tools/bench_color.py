@@ -6,6 +6,9 @@ Figures (one core: ``cv2.setNumThreads(1)``; run it on a quiet machine):
   morphology, connected components, filters, refinement, NMS) for the orange model alone and
   for orange + red + yellow, p50 / p99 over ``--frames`` frames.  The frames are synthetic
   renders when the simulator is importable (a sign in view), else a drawn test frame.
+* ``cpu_ms``: the same frames' CPU time on the benchmark's thread (``time.thread_time``).
+  When it is as high as the wall clock, a slow p99 is the core's own speed (a virtual
+  machine's CPU time varies by half from run to run), not other processes preempting it.
 * ``per_pixel_ns``: P(x | sign) per pixel by the boosted model (scikit-learn
   ``predict_proba`` over (hue, saturation)) vs the lookup table, and their ratio; and the
   Gentle AdaBoost model (``--boost gentle``) evaluated directly, stump by stump in numpy
@@ -60,16 +63,19 @@ def _frames(n: int = 8) -> list[np.ndarray]:
         return [img]
 
 
-def _time(fn, frames, n) -> np.ndarray:
+def _time(fn, frames, n) -> tuple[np.ndarray, np.ndarray]:
+    """Wall-clock and this thread's CPU milliseconds of ``fn`` on each of ``n`` frames
+    (``frames`` in turn, after one untimed pass over them)."""
     for f in frames:
         fn(f)
-    ts = []
+    ts, cs = [], []
     for i in range(n):
         f = frames[i % len(frames)]
-        t0 = time.perf_counter()
+        c0, t0 = time.thread_time(), time.perf_counter()
         fn(f)
         ts.append(time.perf_counter() - t0)
-    return np.array(ts) * 1e3
+        cs.append(time.thread_time() - c0)
+    return np.array(ts) * 1e3, np.array(cs) * 1e3
 
 
 def run(args: argparse.Namespace) -> dict:
@@ -86,9 +92,11 @@ def run(args: argparse.Namespace) -> dict:
     for label, colors in (('orange', ('orange',)), ('orange+red+yellow',
                                                      ('orange', 'red', 'yellow'))):
         det = dt.ColorDetector(model, dt.DetectorConfig(colors=colors, scale=args.scale))
-        ms = _time(det.detect, frames, args.frames)
+        ms, cpu = _time(det.detect, frames, args.frames)
         out[f'frame_ms_{label}'] = {'p50': float(np.percentile(ms, 50)),
                                     'p99': float(np.percentile(ms, 99))}
+        out[f'cpu_ms_{label}'] = {'p50': float(np.percentile(cpu, 50)),
+                                  'p99': float(np.percentile(cpu, 99))}
     det = dt.ColorDetector(model, dt.DetectorConfig(colors=('orange',), scale=args.scale))
     out['detections_per_frame'] = float(np.mean([len(det.detect(f)) for f in frames]))
     # per-pixel cost: boosted model (predict_proba) vs the table

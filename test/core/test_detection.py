@@ -353,7 +353,8 @@ def test_config_validation():
                       ({'grow_level': 1.5}, 'grow_level'), ({'grow_reach': -1.0}, 'grow_reach'),
                       ({'shift_min_px': -1.0}, 'shift_min_px'),
                       ({'grow_min_px': -1.0}, 'grow_min_px'),
-                      ({'white_own_rel': 1.0}, 'white_own_rel')):
+                      ({'white_own_rel': 1.0}, 'white_own_rel'),
+                      ({'white_part_level': -1.0}, 'white_part_level')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -917,7 +918,8 @@ def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, si
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert abs(d.box.y2 - g.y2) <= 1.5 and dt.box_metrics(d.box, g)[1] > 0.9
-    old = [c for c in detector.with_config(ext_band_long=100.0).detect(img)
+    # (the white part judged against its own level, ``white_own_rel``, ends it too)
+    old = [c for c in detector.with_config(ext_band_long=100.0, white_own_rel=0.0).detect(img)
            if c.box.iou(g) > 0.2]
     assert old and old[0].box.y2 < g.y2 - 4.0
 
@@ -956,6 +958,20 @@ def test_winter_sign_white_part_ends_where_the_grey_ground_begins():
     det.reset()
     old = [c for c in det.detect(img) if c.box.iou(Box(482.0, 204.0, 20.0, 26.0)) > 0.2]
     assert old and old[0].box.h <= 10, old
+
+
+def test_plaque_with_a_grey_legend_kept_for_its_white_part():
+    """A "WORK ZONE BEGINS" in winter light (a simulator frame, seed 12106 frame 309, the
+    camera's JPEG: ``test/data/winter_grey_legend_plaque.jpg``; label (531, 157, 43, 57)):
+    its plaque's legend is grey, not dark (2 % of the plaque's pixels below ``dark_rel`` of
+    its brightness, under ``min_dark_inside``), so the plaque failed the legend test and the
+    sign was lost.  The white part below it (black legend, a bottom edge) is the evidence
+    (``white_part_evidence``): boxed within a pixel; without it, nothing there."""
+    label = (531, 157, 43, 57)
+    _, det, img = _label_frame_box('winter_grey_legend_plaque.jpg', label, 'regulatory')
+    det = det.with_config(white_part_evidence=False)
+    det.reset()
+    assert not [c for c in det.detect(img) if c.box.iou(Box(*map(float, label))) > 0.1]
 
 
 def _cone(img, cx, base_y, h):
@@ -2475,7 +2491,8 @@ def test_begins_legend_row_not_taken_for_the_bottom_border():
     det = _default_detector()
     d = _one(det.detect(img), (486, 205, 21, 26), 0.85)
     assert d.kind == 'regulatory'
-    det = det.with_config(ext_rechoose=False)
+    # (the white part judged against its own level, ``white_own_rel``, ends it there too)
+    det = det.with_config(ext_rechoose=False, white_own_rel=0.0)
     det.reset()
     old = _one(det.detect(img), (486, 205, 21, 26), 0.5)
     assert old.box.h <= 18

@@ -473,6 +473,14 @@ class DetectorConfig:
             vehicle's panel, a drum or a cone has no diamond's edges.  Without a measured
             outline (no refinement, or only the chroma fit) such a blob is rejected as
             before, and a sign merged with a surface is still peeled out of it.
+        white_part_evidence: a two-colour plaque that fails the legend test (its legend grey,
+            not dark, in dim winter light) is still kept when the extension finds its white
+            part below (black legend, a bottom edge: :meth:`ColorDetector._extend`); without
+            one it is dropped as before.  Not below the usual mounting height (a drum's
+            orange and white bands).  ``white_part_level``: and the white part at least this
+            many times as bright as the orange (retro-reflective white sheeting is brighter
+            than the fluorescent orange in every light; on the real clips a patch of orange
+            dirt over a car's grey hood passed for a plaque with its white part).
         dark_rel: dark = value below this fraction of the blob's median orange value.
         band_test: reject an orange blob of at least ``band_min_px`` (height) that a white
             band separates from more orange above or below it, or that holds one
@@ -675,6 +683,8 @@ class DetectorConfig:
     min_solidity: float = 0.45
     min_dark_inside: float = 0.02
     outline_evidence: bool = True
+    white_part_evidence: bool = True
+    white_part_level: float = 1.1
     band_test: bool = True
     band_min_px: float = 6.0
     band_white_luma: float = 1.25
@@ -760,6 +770,9 @@ class DetectorConfig:
         if self.diamond_square_px < 0 or self.diamond_square_max < 0:
             raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
                              '0: off)')
+        if self.white_part_level < 0.0:
+            raise ValueError(f'white_part_level must be >= 0 (white / orange brightness), got '
+                             f'{self.white_part_level}')
         if not 0.0 <= self.white_own_rel < 1.0:
             raise ValueError(f'white_own_rel must be in [0, 1) (a share of the level of the '
                              f'white part itself; 0: off), got {self.white_own_rel}')
@@ -827,6 +840,7 @@ class Candidate:
     refined: bool = False
     chroma_fit: bool = False
     white_span: Optional[tuple[float, float]] = None
+    white_level: float = 0.0        # the white part's brightness / the orange's (extended)
     sources: list[str] = field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
 
@@ -3299,6 +3313,7 @@ class ColorDetector:
         # no legend seen, or an unclear face below the usual mounting: kept only if its
         # diamond outline is measured in the brightness below (``outline_evidence``)
         needs_outline = False
+        needs_white = False         # no legend seen on a plaque: kept only with a white part
         if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
@@ -3336,9 +3351,13 @@ class ColorDetector:
             if self.debug is not None:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
-                if not (cfg.outline_evidence and cfg.diamond_refine):
+                if cfg.white_part_evidence and cfg.extension and not needs_outline \
+                        and aspect >= cfg.ext_min_aspect:
+                    needs_white = True      # a plaque: its white part below may tell
+                elif not (cfg.outline_evidence and cfg.diamond_refine):
                     return None
-                needs_outline = True
+                else:
+                    needs_outline = True
         if cfg.band_test and bh >= cfg.band_min_px and not relaxed:
             if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
                 if self.debug is not None:
@@ -3541,6 +3560,8 @@ class ColorDetector:
         bands = None
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             bands = self._extend(bgr, cand, hsv[pix > 0])
+        if needs_white and not (cand.extended and cand.white_level >= cfg.white_part_level):
+            return None
         rect_failed = False
         if kind == 'regulatory' and cfg.rect_refine and cfg.border_frac > 0:
             # the orange part's left, right and top edges from the brightness profile; the
@@ -4402,6 +4423,7 @@ class ColorDetector:
             return None
         cand.h = float(run + cand.h)
         cand.extended = True
+        cand.white_level = v_white / max(v_ref, 1.0)
         # (its upper half: an extension that ran on past the sign's bottom took in
         # background rows there)
         top_half = slice(0, max(2, (run + 1) // 2))

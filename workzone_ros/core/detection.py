@@ -4492,8 +4492,8 @@ class ColorDetector:
         r1 = r0 + 1
         while r1 < len(frac) and r1 - r0 < k + 2 and frac[r1] >= 0.45:
             r1 += 1
-        top = value[r0:r1][white[r0:r1]]
-        level = float(_median(top)) if top.size else 0.0
+        # (row r0 is at least 45 % white: the level has pixels to be taken from)
+        level = float(_median(value[r0:r1][white[r0:r1]]))
         white = white & (value >= self.config.white_own_rel * level)
         return white, white.mean(axis=1)
 

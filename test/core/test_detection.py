@@ -354,7 +354,10 @@ def test_config_validation():
                       ({'shift_min_px': -1.0}, 'shift_min_px'),
                       ({'grow_min_px': -1.0}, 'grow_min_px'),
                       ({'white_own_rel': 1.0}, 'white_own_rel'),
-                      ({'white_part_level': -1.0}, 'white_part_level')):
+                      ({'white_part_level': -1.0}, 'white_part_level'),
+                      ({'diamond_bright_bias': (3.0, 0.47, 0.95)}, 'diamond_bright_bias'),
+                      ({'diamond_bright_bias': (0.3, 0.95, 0.47)}, 'diamond_bright_bias'),
+                      ({'diamond_bright_bias': (0.3,)}, 'diamond_bright_bias')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -2561,3 +2564,70 @@ def test_neck_trim_flags_over_a_diamond_and_a_plain_diamond():
     bars[20:23, 24:27] = 1
     bars[23:50, 15:35] = 1                          # a tall block, no diamond
     assert dt.ColorDetector._neck_trim(bars) is None
+
+
+def test_bright_shift_tapers_with_the_border_line():
+    """The shift for a background brighter than the face: full on a border line up to
+    ``line0`` px wide, none from ``line1``, linear between; 0 px turns it off."""
+    bb = (0.3, 0.5, 1.0)
+    assert dt._bright_shift(bb, 0.3) == pytest.approx(0.3)
+    assert dt._bright_shift(bb, 0.75) == pytest.approx(0.15)
+    assert dt._bright_shift(bb, 1.0) == 0.0 and dt._bright_shift(bb, 2.0) == 0.0
+    assert dt._bright_shift((0.0, 0.5, 1.0), 0.3) == 0.0
+
+
+def _art_diamond(size, bg, rng, blur=0.6):
+    """The catalogue's "ROAD WORK AHEAD" art, ``size`` px, over a grey ``bg`` (8-bit),
+    blurred ``blur`` px, with noise: (luma image, true (cx, cy, a, b) of the sign)."""
+    from workzone_ros.sim import signart
+    art = signart.sign_face('road_work_ahead', 32)
+    k = size / art.shape[1]
+    ox, oy = rng.uniform(20.0, 21.0, 2)
+    m = np.array([[k, 0, 0.5 * k + ox - 0.5], [0, k, 0.5 * k + oy - 0.5]], np.float32)
+    n = int(size + 45)
+    wp = cv2.warpAffine(art, m, (n, n), flags=cv2.INTER_LINEAR).astype(np.float32)
+    alpha = wp[..., 3:] / 255.0
+    face = np.minimum(wp[..., :3] / np.maximum(alpha, 1 / 255), 255) * 0.8
+    img = cv2.GaussianBlur(np.full((n, n, 3), float(bg), np.float32) * (1 - alpha) + face * alpha,
+                           (0, 0), blur)
+    img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), (ox + size / 2, oy + size / 2, size / 2, size / 2)
+
+
+@pytest.mark.parametrize('bg', [60, 230])
+def test_small_diamond_against_a_brighter_background_taken_further_out(bg):
+    """A 14 px diamond (the catalogue art, blurred 0.6 px) over grey: against a
+    background brighter than its face (luma 230 vs about 100) each edge stretch is taken
+    ``diamond_bright_bias`` (0.3 px) further out along its normal, so the half-diagonals
+    come out 0.3 x sqrt(2) px larger (drawn so, they measured 0.34 px less than over a
+    dark background); against a darker one (luma 60) the measurement is the same with and
+    without it."""
+    rng = np.random.default_rng(3)
+    diffs = []
+    for _ in range(12):
+        luma, true = _art_diamond(14, bg, rng)
+        start = (true[0] + 0.3, true[1] - 0.3, true[2] / 1.1266 * 1.03, true[3] / 1.1266 * 1.03)
+        off = dt.refine_diamond(luma, start)
+        on = dt.refine_diamond(luma, start, bright_bias=(0.3, 0.47, 0.95))
+        if off is None or on is None:
+            continue
+        diffs.append(0.5 * (on[2] + on[3] - off[2] - off[3]))
+    assert len(diffs) >= 8
+    if bg < 100:
+        assert np.allclose(diffs, 0.0)
+    else:
+        assert 0.38 <= float(np.median(diffs)) <= 0.46, diffs
+
+
+def test_small_winter_sign_against_a_brighter_ground():
+    """An 18 px "ROAD WORK AHEAD" in winter light in front of pale grey-green ground
+    brighter than its face (a simulator frame, seed 12302 frame 148, the camera's JPEG:
+    ``test/data/winter_small_sign_bright_ground.jpg``; label (417, 214, 18, 18)): its
+    edges measured 1-2 px inside the label (box 16 x 15, IoU 0.74); taken further out
+    against the brighter ground (``diamond_bright_bias``) it is boxed within a pixel."""
+    label = (417, 214, 18, 18)
+    _, det, img = _label_frame_box('winter_small_sign_bright_ground.jpg', label, 'warning')
+    det = det.with_config(diamond_bright_bias=(0.0, 0.47, 0.95))
+    det.reset()
+    old = _one(det.detect(img), label, 0.5)
+    assert old.box.iou(Box(*map(float, label))) < 0.8, old.box

@@ -283,6 +283,21 @@ class DetectorConfig:
             0.9806 / 0.9592 -> 0.9828 / 0.9621, every weather both up; on signs of 32 px and
             more, seen at wider angles, it cost 0.002 of both, hence the size limit
             (0 = off);
+            ``diamond_bright_bias = (px, line0, line1)``: an edge stretch whose fitted
+            background is brighter than the face (a grey sky, snow, a pale wall behind a
+            dull sign) is taken ``px`` further out (along its normal: a square diamond's
+            half-diagonals grow by sqrt(2) x as much) on a face whose border line is
+            ``line0`` px wide or thinner (a sign of about 16 px), less on larger ones, not
+            from ``line1`` (about 32 px): :func:`_bright_shift` (stop 28).  Measured on the
+            80 bags 120xx-127xx (warning signs under 22 px, refined, whole-pixel boxes): the
+            sides were -0.06 to +0.05 px inside the labels where the background beside them
+            was darker than the face and 0.20-0.44 px inside where it was brighter, in every
+            weather (sunny too); signs of 35 px and more showed no such difference.  The
+            catalogue art drawn over grey and blurred shows it only for signs of 14-16 px
+            (0.2-0.35 px); what adds the rest in the renders is not known.  With 0.3: warning
+            P / R 0.9816 / 0.9659 -> 0.9798 / 0.9693 (winter 0.9834 / 0.9628 -> 0.9786 /
+            0.9726, rain 0.9837 / 0.9604 -> 0.9806 / 0.9665), signs found 0.864 -> 0.867;
+            0.5 gave 0.9779 / 0.9707 (rain P 0.9757).  (0, ...): off;
             ``cut_blend_rows``: the occluder may begin this many rows after the cut when
             the cut's row is a blend of face and occluder (blur, chroma bleed): the box
             ends at the first row that is across (stop 26; 0: at the cut, as before);
@@ -632,6 +647,7 @@ class DetectorConfig:
     diamond_box_bias: float = 0.15
     diamond_blur_bias: float = 0.4
     diamond_blur_sigma: float = 1.0
+    diamond_bright_bias: tuple = (0.3, 0.47, 0.95)
     diamond_tall_max: float = 1.08
     diamond_wide_max: float = 1.06
     diamond_luma: bool = True
@@ -767,6 +783,10 @@ class DetectorConfig:
         if not -1.0 <= self.diamond_box_bias <= 2.0:
             raise ValueError(f'diamond_box_bias must be in [-1, 2] px, got '
                              f'{self.diamond_box_bias}')
+        bb = tuple(self.diamond_bright_bias)
+        if len(bb) != 3 or not (0.0 <= bb[0] <= 2.0 and 0.0 <= bb[1] < bb[2]):
+            raise ValueError('diamond_bright_bias must be (px, line0, line1) with px in [0, 2] '
+                             f'and 0 <= line0 < line1 (border line px), got {bb!r}')
         if self.diamond_square_px < 0 or self.diamond_square_max < 0:
             raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
                              '0: off)')
@@ -1368,9 +1388,27 @@ def _unit_steps(n: int) -> np.ndarray:
     return ts
 
 
+def _bright_shift(bright_bias: Sequence[float], border: float) -> float:
+    """How much further out (px) an edge stretch whose fitted background is brighter than
+    the face is taken, for ``bright_bias = (px, line0, line1)`` and a border line ``border``
+    px wide: ``px`` for a line ``line0`` px wide or thinner, none from ``line1``, linear
+    between.  A line and margin under a pixel wide, blurred, leave only a shallow dip
+    between a background brighter than the face and the face, and the edge model places
+    the edge further in than it is there: the catalogue art drawn over grey (luma 60 ->
+    240, the face's about 100), blurred 0.6 px, measures a 14 px diamond's half-diagonal
+    0.34 px less and a 16 px one's 0.22 px less (18 px and more: no difference); on the
+    simulator's frames small signs come out 0.2-0.4 px short against bright backgrounds
+    up to about 30 px (``DetectorConfig.diamond_bright_bias``)."""
+    px, line0, line1 = (float(v) for v in bright_bias)
+    if px == 0.0:
+        return 0.0
+    return px * min(1.0, max(0.0, (line1 - border) / max(line1 - line0, 1e-9)))
+
+
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
                   min_contrast: float, missing: bool = False,
-                  blur: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
+                  blur: Optional[np.ndarray] = None,
+                  levels: Optional[np.ndarray] = None) -> Optional[np.ndarray]:
     """Offsets (px, along each inward normal) of the face edge on several edge stretches.
 
     ``segs`` (n, 2, 2): each stretch's end points; ``nvecs`` (n, 2): its inward unit
@@ -1380,7 +1418,8 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     stretch lies outside ``img`` or shows no face-to-border step (contrast below
     ``min_contrast`` of the face at every offset); with ``missing`` such a stretch's offset
     is NaN instead (None when no stretch shows one).  ``blur`` (n,), when given, receives
-    each stretch's fitted blur width (px, NaN without a step).
+    each stretch's fitted blur width (px, NaN without a step); ``levels`` (n, 2), when
+    given, its fitted face and background levels (NaN without a step).
     """
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
@@ -1432,8 +1471,12 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
         off[c] = o
         if blur is not None:
             blur[c] = _PROFILE_SIG[isg]        # the stretch's best blur width
+        if levels is not None:
+            levels[c] = coef[k, 0, c], coef[k, 2, c]
     if blur is not None:
         blur[~seen] = np.nan
+    if levels is not None:
+        levels[~seen] = np.nan
     return off
 
 
@@ -1545,7 +1588,8 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
                    min_contrast: float = EDGE_MIN_CONTRAST, iterations: int = 2,
                    aspect: tuple[float, float] = (0.75, 1.2), outlier_px: float = 1.0,
                    max_lost: int = 2, info: Optional[dict] = None,
-                   hidden_below: Optional[float] = None, stroke_steps: int = 0
+                   hidden_below: Optional[float] = None, stroke_steps: int = 0,
+                   bright_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
                    ) -> Optional[tuple[float, float, float, float]]:
     """Sub-pixel edges of a warning diamond's orange face from the brightness image.
 
@@ -1578,6 +1622,9 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     diamond, the round is fitted with them kept, and when the refinement fails after
     leaving any out, it is done again without the test (as with 0 = off).
 
+    ``bright_bias``: an edge stretch whose fitted background is brighter than the face is
+    taken further out on a small face (:func:`_bright_shift`).
+
     ``info``, when given, receives ``blur``: the median of the edge stretches' fitted blur
     widths (px) in the last round.
 
@@ -1598,11 +1645,11 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     used = [False]
     out = _refine_diamond_rounds(value, fit, border_rel, margin_rel, max_change, min_contrast,
                                  iterations, aspect, outlier_px, max_lost, info, hidden_below,
-                                 stroke_steps, used)
+                                 stroke_steps, used, bright_bias)
     if out is None and used[0]:
         out = _refine_diamond_rounds(value, fit, border_rel, margin_rel, max_change,
                                      min_contrast, iterations, aspect, outlier_px, max_lost,
-                                     info, hidden_below, 0, used)
+                                     info, hidden_below, 0, used, bright_bias)
     return out
 
 
@@ -1610,7 +1657,8 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
                            margin_rel: float, max_change: float, min_contrast: float,
                            iterations: int, aspect: tuple[float, float], outlier_px: float,
                            max_lost: int, info: Optional[dict], hidden_below: Optional[float],
-                           stroke_steps: int, used: list
+                           stroke_steps: int, used: list,
+                           bright_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
                            ) -> Optional[tuple[float, float, float, float]]:
     """:func:`refine_diamond`'s rounds; ``used[0]`` is set when a round's fit left out a
     stroke's stretches."""
@@ -1651,10 +1699,15 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
         blur = np.full(8, np.nan)
         off = np.full(8, np.nan)
         b_ = np.empty(int(shown.sum()))
+        bright = _bright_shift(bright_bias, border)
+        lv = np.empty((b_.size, 2)) if bright > 0 else None
         o_ = _edge_offsets(img, segs[shown], nv[shown], prof, min_contrast, missing=True,
-                           blur=b_)
+                           blur=b_, levels=lv)
         if o_ is None:
             return None
+        if lv is not None:
+            # (NaN levels compare False: a stretch without a step stays NaN)
+            o_ = o_ - bright * (lv[:, 1] > lv[:, 0])
         off[shown], blur[shown] = o_, b_
         # a stretch without a face-to-border step (a symbol or legend reaching the edge)
         # counts as one of the points the fit may drop
@@ -3973,7 +4026,8 @@ class ColorDetector:
         sub = refine_diamond(value, start, cfg.diamond_border_rel, cfg.diamond_margin_rel,
                              cfg.diamond_max_change, min_contrast, info=info,
                              hidden_below=hidden,
-                             stroke_steps=cfg.diamond_stroke_steps if strokes else 0)
+                             stroke_steps=cfg.diamond_stroke_steps if strokes else 0,
+                             bright_bias=cfg.diamond_bright_bias)
         if sub is None:
             return None
         bias = cfg.diamond_edge_bias

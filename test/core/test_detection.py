@@ -2590,10 +2590,11 @@ def _art_diamond(size, bg, rng, blur=0.6):
     wp = cv2.warpAffine(art, m, (n, n), flags=cv2.INTER_LINEAR).astype(np.float32)
     alpha = wp[..., 3:] / 255.0
     face = np.minimum(wp[..., :3] / np.maximum(alpha, 1 / 255), 255) * 0.8
-    img = cv2.GaussianBlur(np.full((n, n, 3), float(bg), np.float32) * (1 - alpha) + face * alpha,
-                           (0, 0), blur)
+    img = np.full((n, n, 3), float(bg), np.float32) * (1 - alpha) + face * alpha
+    img = cv2.GaussianBlur(img, (0, 0), blur)
     img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
-    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), (ox + size / 2, oy + size / 2, size / 2, size / 2)
+    half = size / 2
+    return cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), (ox + half, oy + half, half, half)
 
 
 @pytest.mark.parametrize('bg', [60, 230])

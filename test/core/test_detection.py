@@ -359,7 +359,8 @@ def test_config_validation():
                       ({'diamond_bright_bias': (0.3, 0.95, 0.47)}, 'diamond_bright_bias'),
                       ({'diamond_bright_bias': (0.3,)}, 'diamond_bright_bias'),
                       ({'rect_dim_bias': (-0.1, 80.0, 170.0)}, 'rect_dim_bias'),
-                      ({'rect_dim_bias': (0.3, 170.0, 80.0)}, 'rect_dim_bias')):
+                      ({'rect_dim_bias': (0.3, 170.0, 80.0)}, 'rect_dim_bias'),
+                      ({'tip_min_cut': 1.0}, 'tip_min_cut')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -2648,3 +2649,18 @@ def test_dim_plaque_sides_not_taken_inside():
     det.reset()
     old = _one(det.detect(img), label, 0.5)
     assert old.box.w <= label[2] - 2, old.box
+
+
+def test_guardrail_hiding_only_the_lowest_tip():
+    """A winter "RIGHT LANE CLOSED AHEAD" behind a snowy guardrail that hides only its
+    lowest 18 % (a simulator frame, seed 12901 frame 200, the camera's JPEG:
+    ``test/data/winter_rail_hides_tip_low.jpg``; label (477, 205, 62, 58), the visible
+    part): the occluder checks were skipped for a cut that low (``tip_min_cut`` 0.25) and
+    the box ran on to the hidden tip, 5 px below the label; with 0.1 the box ends at the
+    rail, within a pixel of the label."""
+    label = (477, 205, 62, 58)
+    _, det, img = _label_frame_box('winter_rail_hides_tip_low.jpg', label, 'warning')
+    det = det.with_config(tip_min_cut=0.25)
+    det.reset()
+    old = _one(det.detect(img), label, 0.5)
+    assert old.box.y2 >= label[1] + label[3] + 4, old.box

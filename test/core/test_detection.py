@@ -360,7 +360,8 @@ def test_config_validation():
                       ({'diamond_bright_bias': (0.3,)}, 'diamond_bright_bias'),
                       ({'rect_dim_bias': (-0.1, 80.0, 170.0)}, 'rect_dim_bias'),
                       ({'rect_dim_bias': (0.3, 170.0, 80.0)}, 'rect_dim_bias'),
-                      ({'tip_min_cut': 1.0}, 'tip_min_cut')):
+                      ({'tip_min_cut': 1.0}, 'tip_min_cut'),
+                      ({'ext_overlong': -0.1}, 'ext_overlong')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -2664,3 +2665,23 @@ def test_guardrail_hiding_only_the_lowest_tip():
     det.reset()
     old = _one(det.detect(img), label, 0.5)
     assert old.box.y2 >= label[1] + label[3] + 4, old.box
+
+
+def test_white_part_not_run_on_over_a_pale_wall():
+    """A "WORK ZONE SPEED LIMIT 45" in rain in front of a pale wall (a simulator frame, seed
+    13005 frame 301, the camera's JPEG: ``test/data/rain_pale_wall_speed_limit.jpg``; label
+    (505, 182, 26, 45)): by the orange's level the wall is white, the legend-gap rule
+    bridged the sign's black bottom border, and the white part ran on to the wall's end (the
+    box 81 px tall, 32 px below the label).  Taller than any two-colour sign, it now ends at
+    the bridged row that gives a catalogue shape (``ext_overlong``): the bottom within a
+    pixel."""
+    gt = (505, 182, 26, 45)
+    label = Box(*map(float, gt))
+    det = _default_detector()
+    img = _data_frame('rain_pale_wall_speed_limit.jpg')
+    d = _one(det.detect(img), gt, 0.8)
+    assert d.kind == 'regulatory' and abs(d.box.y2 - label.y2) <= 1.0, d.box
+    det = det.with_config(ext_overlong=0.0)
+    det.reset()
+    old = _one(det.detect(img), gt, 0.2)
+    assert old.box.y2 >= label.y2 + 20, old.box

@@ -575,8 +575,9 @@ class DetectorConfig:
             rule bridged), it ends after the bridged row (under 45 % white) that gives the
             height nearest a catalogue sign's, when that is within this share too (stop
             28; 0: off).  0.24, twice ``ext_ratio_tol``: the box is still grown by the blur
-            here, and turned signs (narrower) are taller than the catalogue by up to 0.12;
-            with that tolerance, 14 signs on 120xx-128xx were cut at a legend row.  On those
+            here, and turned signs (narrower) are taller than the catalogue by up to 0.12:
+            with 0.12, 14 records changed on 120xx-128xx, turned signs cut at a legend row
+            among them (net worse).  On those
             90 bags 7 records changed (6 better), regulatory 0.9761 / 0.9696 -> 0.9763 /
             0.9699, rain 0.9759 / 0.9572 -> 0.9776 / 0.9577 (found 0.832 -> 0.852); on 130xx,
             where two such speed limits were boxed 32 px too tall, rain precision 0.931 ->

@@ -2571,13 +2571,13 @@ def test_neck_trim_flags_over_a_diamond_and_a_plain_diamond():
 
 
 def test_bright_shift_tapers_with_the_border_line():
-    """The shift for a background brighter than the face: full on a border line up to
-    ``line0`` px wide, none from ``line1``, linear between; 0 px turns it off."""
+    """The shift for a background brighter than the face (:func:`_taper`): full on a border
+    line up to ``line0`` px wide, none from ``line1``, linear between; 0 px turns it off."""
     bb = (0.3, 0.5, 1.0)
-    assert dt._bright_shift(bb, 0.3) == pytest.approx(0.3)
-    assert dt._bright_shift(bb, 0.75) == pytest.approx(0.15)
-    assert dt._bright_shift(bb, 1.0) == 0.0 and dt._bright_shift(bb, 2.0) == 0.0
-    assert dt._bright_shift((0.0, 0.5, 1.0), 0.3) == 0.0
+    assert dt._taper(bb, 0.3) == pytest.approx(0.3)
+    assert dt._taper(bb, 0.75) == pytest.approx(0.15)
+    assert dt._taper(bb, 1.0) == 0.0 and dt._taper(bb, 2.0) == 0.0
+    assert dt._taper((0.0, 0.5, 1.0), 0.3) == 0.0
 
 
 def _art_diamond(size, bg, rng, blur=0.6):

@@ -293,7 +293,7 @@ class DetectorConfig:
             dull sign) is taken ``px`` further out (along its normal: a square diamond's
             half-diagonals grow by sqrt(2) x as much) on a face whose border line is
             ``line0`` px wide or thinner (a sign of about 16 px), less on larger ones, not
-            from ``line1`` (about 32 px): :func:`_bright_shift` (stop 28).  Measured on the
+            from ``line1`` (about 32 px): :func:`_taper` (stop 28).  Measured on the
             80 bags 120xx-127xx (warning signs under 22 px, refined, whole-pixel boxes): the
             sides were -0.06 to +0.05 px inside the labels where the background beside them
             was darker than the face and 0.20-0.44 px inside where it was brighter, in every
@@ -819,14 +819,12 @@ class DetectorConfig:
         if not -1.0 <= self.diamond_box_bias <= 2.0:
             raise ValueError(f'diamond_box_bias must be in [-1, 2] px, got '
                              f'{self.diamond_box_bias}')
-        rd = tuple(self.rect_dim_bias)
-        if len(rd) != 3 or not (0.0 <= rd[0] <= 2.0 and 0.0 <= rd[1] < rd[2]):
-            raise ValueError('rect_dim_bias must be (px, v0, v1) with px in [0, 2] and '
-                             f'0 <= v0 < v1 (plaque brightness, 8-bit), got {rd!r}')
-        bb = tuple(self.diamond_bright_bias)
-        if len(bb) != 3 or not (0.0 <= bb[0] <= 2.0 and 0.0 <= bb[1] < bb[2]):
-            raise ValueError('diamond_bright_bias must be (px, line0, line1) with px in [0, 2] '
-                             f'and 0 <= line0 < line1 (border line px), got {bb!r}')
+        for name, unit in (('rect_dim_bias', 'plaque brightness, 8-bit'),
+                           ('diamond_bright_bias', 'border line px')):
+            t = tuple(getattr(self, name))
+            if len(t) != 3 or not (0.0 <= t[0] <= 2.0 and 0.0 <= t[1] < t[2]):
+                raise ValueError(f'{name} must be (px, x0, x1) with px in [0, 2] and '
+                                 f'0 <= x0 < x1 ({unit}), got {t!r}')
         if self.diamond_square_px < 0 or self.diamond_square_max < 0:
             raise ValueError('diamond_square_px and diamond_square_max must be >= 0 (box px; '
                              '0: off)')
@@ -1434,21 +1432,23 @@ def _unit_steps(n: int) -> np.ndarray:
     return ts
 
 
-def _bright_shift(bright_bias: Sequence[float], border: float) -> float:
-    """How much further out (px) an edge stretch whose fitted background is brighter than
-    the face is taken, for ``bright_bias = (px, line0, line1)`` and a border line ``border``
-    px wide: ``px`` for a line ``line0`` px wide or thinner, none from ``line1``, linear
-    between.  A line and margin under a pixel wide, blurred, leave only a shallow dip
-    between a background brighter than the face and the face, and the edge model places
-    the edge further in than it is there: the catalogue art drawn over grey (luma 60 ->
-    240, the face's about 100), blurred 0.6 px, measures a 14 px diamond's half-diagonal
-    0.34 px less and a 16 px one's 0.22 px less (18 px and more: no difference); on the
-    simulator's frames small signs come out 0.2-0.4 px short against bright backgrounds
-    up to about 30 px (``DetectorConfig.diamond_bright_bias``)."""
-    px, line0, line1 = (float(v) for v in bright_bias)
+def _taper(spec: Sequence[float], x: float) -> float:
+    """``spec = (px, x0, x1)``: ``px`` at ``x <= x0``, none from ``x1``, linear between (0
+    when ``px`` is 0).  The shift of ``DetectorConfig.diamond_bright_bias`` by the border
+    line's width (px), and of ``rect_dim_bias`` by the plaque's brightness.
+
+    ``diamond_bright_bias``: an edge stretch whose fitted background is brighter than the
+    face is taken this much further out.  A line and margin under a pixel wide, blurred,
+    leave only a shallow dip between a background brighter than the face and the face,
+    and the edge model places the edge further in than it is there: the catalogue art
+    drawn over grey (luma 60 -> 240, the face's about 100), blurred 0.6 px, measures a
+    14 px diamond's half-diagonal 0.34 px less and a 16 px one's 0.22 px less (18 px and
+    more: no difference); on the simulator's frames small signs come out 0.2-0.4 px short
+    against bright backgrounds up to about 30 px."""
+    px, x0, x1 = (float(v) for v in spec)
     if px == 0.0:
         return 0.0
-    return px * min(1.0, max(0.0, (line1 - border) / max(line1 - line0, 1e-9)))
+    return px * min(1.0, max(0.0, (x1 - x) / max(x1 - x0, 1e-9)))
 
 
 def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
@@ -1669,7 +1669,7 @@ def refine_diamond(value: np.ndarray, fit: Sequence[float], border_rel: float = 
     leaving any out, it is done again without the test (as with 0 = off).
 
     ``bright_bias``: an edge stretch whose fitted background is brighter than the face is
-    taken further out on a small face (:func:`_bright_shift`).
+    taken further out on a small face (:func:`_taper`).
 
     ``info``, when given, receives ``blur``: the median of the edge stretches' fitted blur
     widths (px) in the last round.
@@ -1745,7 +1745,7 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
         blur = np.full(8, np.nan)
         off = np.full(8, np.nan)
         b_ = np.empty(int(shown.sum()))
-        bright = _bright_shift(bright_bias, border)
+        bright = _taper(bright_bias, border)
         lv = np.empty((b_.size, 2)) if bright > 0 else None
         o_ = _edge_offsets(img, segs[shown], nv[shown], prof, min_contrast, missing=True,
                            blur=b_, levels=lv)
@@ -3714,8 +3714,7 @@ class ColorDetector:
             if sub is not None:
                 left, right, top, low = sub            # in the brightness window
                 q = cfg.rect_edge_bias
-                rd, rv0, rv1 = cfg.rect_dim_bias
-                qs = q - rd * min(1.0, max(0.0, (rv1 - v_ref) / max(rv1 - rv0, 1e-9)))
+                qs = q - _taper(cfg.rect_dim_bias, v_ref)
                 # a side off the image: the hull's (the box is clipped to the image below)
                 left = hx if left is None else left + qs
                 right = hx + hw if right is None else right - qs

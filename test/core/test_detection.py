@@ -364,7 +364,8 @@ def test_config_validation():
                       ({'ext_overlong': -0.1}, 'ext_overlong'),
                       ({'ext_overlong_border': 1.5}, 'ext_overlong_border'),
                       ({'rect_inward': (1.5, -3.0)}, 'rect_inward'),
-                      ({'clip_grow': -0.5}, 'clip_grow')):
+                      ({'clip_grow': -0.5}, 'clip_grow'),
+                      ({'rect_clip_bias': -0.3}, 'rect_clip_bias')):
         with pytest.raises(ValueError, match=name):
             dt.DetectorConfig(**bad)
 
@@ -2770,3 +2771,21 @@ def test_clipped_growth_only_through_clipped_pixels():
     weak[5:35, 0:60] = 1
     bgr[5:35, 0:60, 2], bgr[5:35, 0:60, 1] = 255, 120   # a clipped surface around the core
     assert not dt._clipped_growth(bgr, weak, strong, 0.5).any()
+
+
+def test_clipped_plaque_edges_moved_in():
+    """A sunlit two-colour sign whose plaque and white part the camera clipped (a simulator
+    frame, seed 12103 frame 290, the camera's JPEG: ``test/data/sunny_clipped_sign.jpg``;
+    label (447, 208, 17, 23)): the clipped profiles put the left side and the bottom half a
+    pixel or more out, boxed 18 x 24.  Moved in by the clipped share (``rect_clip_bias``) the
+    box is the label's."""
+    label = Box(447.0, 208.0, 17.0, 23.0)
+    det = _default_detector()
+    img = _data_frame('sunny_clipped_sign.jpg')
+    d = _one(det.detect(img), (447, 208, 17, 23), 0.85)
+    assert max(abs(d.box.x - label.x), abs(d.box.x2 - label.x2), abs(d.box.y - label.y),
+               abs(d.box.y2 - label.y2)) <= 0.5, d.box
+    det = det.with_config(rect_clip_bias=0.0)
+    det.reset()
+    old = _one(det.detect(img), (447, 208, 17, 23), 0.7)
+    assert old.box.w >= label.w + 1 and old.box.h >= label.h + 1, old.box

@@ -1420,18 +1420,19 @@ def _lookup(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndarray:
     return np.take(table.reshape(-1), cv2.merge([sat, hue]).view(np.uint16)[..., 0])
 
 
-def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound: float
-                    ) -> np.ndarray:
+def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound: float,
+                    near: Optional[np.ndarray] = None) -> np.ndarray:
     """The pixels that join a blob's face (uint8 mask) because the camera clipped their red:
     pixels of ``weak`` likelihood whose red channel in ``bgr`` (as the camera gave it) is 250
     or more and above the green, connected to the ``strong`` core through such pixels.  A
     clipped red hides how red the pixel was: its true hue is lower (more orange) and its
     saturation higher than the image shows, so a sunlit plaque's face reads yellowish and
     the table rates it weak.  A connected part more than ``1 + bound`` times the core's
-    width or height (plus 2 px) is left out (a surface of that colour, not the face)."""
+    width or height (plus 2 px) is left out (a surface of that colour, not the face).
+    ``near``: pixels the face has already (nothing to do when they hold every clipped one)."""
     clip = (weak > 0) & (bgr[..., 2] >= 250) & (bgr[..., 1] < bgr[..., 2])
     out = np.zeros(weak.shape, np.uint8)
-    if not clip.any():
+    if not (clip.any() if near is None else (clip & (near == 0)).any()):
         return out
     n, lab, st, _ = _components((clip | (strong > 0)).astype(np.uint8))
     keep = np.zeros(n, bool)
@@ -3496,7 +3497,7 @@ class ColorDetector:
         # (the face as one region; its orange pixels are ``weak`` inside it)
         near = cv2.dilate(strong, kern) & weak
         if cfg.clip_grow > 0:
-            near |= _clipped_growth(raw, weak, strong, cfg.clip_grow)
+            near |= _clipped_growth(raw, weak, strong, cfg.clip_grow, near)
         face = cv2.morphologyEx(near, cv2.MORPH_CLOSE, kern)
         n, lab, st, _ = _components(face)
         if n <= 1:
@@ -3871,9 +3872,9 @@ class ColorDetector:
                 if cfg.rect_clip_bias > 0:
                     # clipped faces: the blurred edge's half level is above 255, so the
                     # clipped ramp puts the edge further out than it is
-                    vraw = raw.max(axis=2)
-                    qs += cfg.rect_clip_bias * float(np.count_nonzero(
-                        vraw[pix > 0] >= 250)) / max(float(np.count_nonzero(pix)), 1.0)
+                    face_v = raw[pix > 0].max(axis=1)
+                    qs += cfg.rect_clip_bias * float(np.count_nonzero(face_v >= 250)) / max(
+                        float(face_v.size), 1.0)
                     if low is not None:
                         wy0 = int(max(y0 + by0 + bh, oy + low - 0.4 * (low - (by0 + dy + bh))))
                         wy1 = int(oy + low - 1)

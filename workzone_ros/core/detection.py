@@ -1455,6 +1455,12 @@ def _dark_share(value: np.ndarray, rel: float) -> np.ndarray:
     return (value[:, m:w - m] < rel * ref).mean(axis=1)
 
 
+def _bands(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The first and last row of each run of consecutive rows in the sorted ``rows``."""
+    brk = np.diff(rows) > 1
+    return rows[np.insert(brk, 0, True)], rows[np.append(brk, True)]
+
+
 def _components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
     """``cv2.connectedComponentsWithStats(mask, connectivity=8)``, by the BBDT labelling when
     OpenCV runs on one thread.
@@ -3848,14 +3854,14 @@ class ColorDetector:
                 # the hull (and the white part) past the side, whose edge then lies inside
                 # the search: the lost side's stretches moved in.  Kept when the sign has a
                 # catalogue shape and its white part does not run on past a side
-                starts3 = [(hx, hw)]
+                starts3 = [(hx, hw, size)]
                 if cfg.rect_white_span and span is not None and sw >= max(6.0, 0.6 * bw):
-                    starts3.append((span[0] - ox, sw))
-                for sx3, sw3 in starts3:
-                    sub3 = refine_rectangle(value, (sx3, by0 + dy, sw3, bh), sw3 / face_frac
-                                            if sx3 != hx else size, cfg.rect_border_rel,
-                                            cfg.rect_margin_rel, cfg.rect_max_change,
-                                            bottom=low, free_top=True, inward=cfg.rect_inward)
+                    starts3.append((span[0] - ox, sw, sw / face_frac))
+                for sx3, sw3, size3 in starts3:
+                    sub3 = refine_rectangle(value, (sx3, by0 + dy, sw3, bh), size3,
+                                            cfg.rect_border_rel, cfg.rect_margin_rel,
+                                            cfg.rect_max_change, bottom=low, free_top=True,
+                                            inward=cfg.rect_inward)
                     if sub3 is None or sub3[0] is None or sub3[1] is None or sub3[3] is None:
                         continue
                     top3 = sub3[2] if sub3[2] is not None else by0 + dy
@@ -3868,9 +3874,7 @@ class ColorDetector:
                     if entry is not None:
                         entry.setdefault('inward', []).append((round(r_out, 3), ok))
                     if ok:
-                        if sx3 != hx:
-                            size = sw3 / face_frac
-                        sub, hx, hw = sub3, sx3, sw3
+                        sub, hx, hw, size = sub3, sx3, sw3, size3
                         break
             if entry is not None:
                 entry['rect_refined'] = sub is not None
@@ -4709,7 +4713,7 @@ class ColorDetector:
                 rows = np.flatnonzero(share >= cfg.ext_overlong_border)
                 rows = rows[rows + 1 >= 0.3 * cand.h]
                 if rows.size:
-                    cut = rows[np.append(np.diff(rows) > 1, True)] + 1
+                    cut = _bands(rows)[1] + 1            # the row after each dark band
                     err = _ratio_error(cand.h + cut, cand.w)
                     if err.min() <= cfg.ext_overlong:
                         run = int(cut[int(np.argmin(err))])
@@ -4874,8 +4878,7 @@ class ColorDetector:
             # the row after each dark band (a border or a legend row is several rows) and,
             # for a long band (a background darker than the sheeting continuing the
             # bottom border), the row after its first
-            brk = np.diff(rows) > 1
-            starts, ends = rows[np.insert(brk, 0, True)], rows[np.append(brk, True)]
+            starts, ends = _bands(rows)
             long = ends - starts + 1 >= max(3.0, cfg.ext_band_long * orange_h)
             cut = np.concatenate([ends + 1, starts[long] + 1])
             err = _ratio_error(orange_h + cut, width)

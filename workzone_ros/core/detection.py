@@ -1099,8 +1099,10 @@ def _median(values: np.ndarray, axis: Optional[int] = None) -> Any:
     # a short axis is sorted outright (quicker than the partial sort at these lengths)
     part = np.sort(values, axis=axis) if n <= 64 else np.partition(values, (k - 1, k),
                                                                     axis=axis)
-    hi = np.take(part, k, axis=axis)
-    lo = np.take(part, k - 1, axis=axis) if n % 2 == 0 else None
+    # (the middle entries by a basic index: np.take's values, without its call overhead)
+    lead = (slice(None),) * (axis % values.ndim)
+    hi = part[lead + (k,)]
+    lo = part[lead + (k - 1,)] if n % 2 == 0 else None
     if values.dtype.kind != 'f':
         hi = hi.astype(np.float64)
         lo = None if lo is None else lo.astype(np.float64)
@@ -1656,18 +1658,20 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     worst first (a legend stroke near an edge, a pole across it), at most ``max_drop``,
     while every edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
     inconsistent)."""
-    keep = np.ones(len(points), bool)
+    # rows (sx x, sy y, -sx, -sy), each point's edge, and the points kept (in order)
+    full = np.concatenate([signs * points, -signs], axis=1)
+    edge = (signs[:, 0] + 2.0 * signs[:, 1]).tolist()
+    keep = list(range(len(points)))
     for _ in range(max_drop + 1):
-        p, sg = points[keep], signs[keep]
-        if len({tuple(e) for e in sg.tolist()}) < 4:
+        if len({edge[i] for i in keep}) < 4:
             return None                 # an edge without a point
-        # rows (sx x, sy y, -sx, -sy)
-        mat = np.concatenate([sg * p, -sg], axis=1)
+        p, sg, mat = (points, signs, full) if len(keep) == len(points) else (
+            points[keep], signs[keep], full[keep])
         try:
             inv = np.linalg.inv(mat.T @ mat)
         except np.linalg.LinAlgError:
             return None
-        u, v, pu, rv = inv @ mat.sum(axis=0)
+        u, v, pu, rv = (inv @ mat.sum(axis=0)).tolist()
         if u <= 1e-6 or v <= 1e-6:
             return None
         a, b = 1.0 / u, 1.0 / v
@@ -1678,12 +1682,10 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
         lev = np.minimum(np.einsum('ij,jk,ik->i', mat, inv, mat), 0.95)
         dist = np.abs(sg[:, 0] * (p[:, 0] - cx) / a + sg[:, 1] * (p[:, 1] - cy) / b - 1.0) \
             * a * b / math.hypot(a, b) / (1.0 - lev)
-        worst = np.full(len(points), -1.0)
-        worst[keep] = dist
-        k = int(np.argmax(worst))
-        if worst[k] <= max(outlier_px, 0.07 * min(a, b)):
+        k = int(dist.argmax())          # the first of the worst (NaN counts as worst)
+        if dist[k] <= max(outlier_px, 0.07 * min(a, b)):
             return cx, cy, a, b
-        keep[k] = False
+        del keep[k]
     return None
 
 

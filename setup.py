@@ -35,6 +35,8 @@ setup(
         'setuptools',
         'numpy>=1.24',
         'scipy>=1.10',
+        # compiled inner loops of the sign measurement (workzone_ros/core/kernels.py)
+        'numba>=0.59',
         'scikit-learn>=1.3',
         'opencv-python-headless>=4.8',
         'msgspec>=0.18',

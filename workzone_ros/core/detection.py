@@ -114,6 +114,7 @@ from workzone_ros.core.color_model import (
     saturation_gain,
     saturation_table,
 )
+from workzone_ros.core.kernels import NO_PIXEL, diamond_tent, rhombus_fit, tip_pixel
 from workzone_ros.core.signs import CATALOGUE
 from workzone_ros.interfaces import Box, Detection, Roi
 
@@ -1150,54 +1151,10 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     coordinates (pixel ``i`` spans ``[i, i + 1)``).  None: fewer than ``min_rows`` rows
     or no tent.
     """
-    yc, left, right = _row_extents(mask)
-    n = yc.size
-    if n < min_rows:
-        return None
-    half = 0.5 * (right - left)
-    mid = 0.5 * (right + left)
-    # consensus on at most ~24 rows and ~20 apex rows (large blobs: the cost stays small)
-    sub = np.arange(0, n, max(1, n // 24))
-    step = max(0.5, (yc[-1] - yc[0]) / 20.0)
-    cys = np.arange(yc[0], yc[-1] + 0.01, step)
-    ss = _slope_grid(*slopes)
-    d = np.abs(yc[sub][None, :] - cys[:, None])                        # (ncy, n)
-    base = half[sub][None, None, :] + ss[None, :, None] * d[:, None, :]  # a estimates
-    a = _median(base, axis=2)                                          # (ncy, ns)
-    res = np.abs(base - a[..., None])
-    tol = np.maximum(1.0, 0.1 * a)[..., None]
-    # (the counts as a sum of booleans: np.count_nonzero's along an axis, without its
-    # generic path)
-    score = (res <= tol).sum(axis=2) - 1e-3 * np.minimum(res, tol).sum(axis=2)
-    k = int(np.argmax(score))
-    ic, js = divmod(k, ss.size)
-    a0, s0 = float(a[ic, js]), float(ss[js])
-    keep = np.abs(half + s0 * np.abs(yc - cys[ic]) - a0) <= max(1.0, 0.1 * a0)
-    n_keep = int(np.count_nonzero(keep))
-    if n_keep < min_rows:
-        return None
-    # least squares on the consensus rows, apex row refined on a quarter-pixel grid
-    # (closed form of the two-parameter line fit, every candidate apex row at once)
-    cyr = np.arange(cys[ic] - step - 0.25, cys[ic] + step + 0.26, 0.25)
-    hk = half[keep]
-    dd = np.abs(yc[keep][None, :] - cyr[:, None])
-    # means as sums over the count (what ndarray.mean computes, without its overhead)
-    dm, hm = dd.sum(axis=1) / n_keep, float(hk.sum() / n_keep)
-    var = (dd * dd).sum(axis=1) / n_keep - dm * dm
-    cov = (dd * hk[None, :]).sum(axis=1) / n_keep - dm * hm
-    slope_r = -cov / np.maximum(var, 1e-9)
-    a_r = hm + slope_r * dm
-    sse = ((hk[None, :] - (a_r[:, None] - slope_r[:, None] * dd)) ** 2).sum(axis=1)
-    okr = (var > 1e-9) & (slope_r >= slopes[0] * 0.8) & (slope_r <= slopes[1] * 1.25)
-    if okr.any():
-        i = int(np.argmin(np.where(okr, sse, np.inf)))
-        best = (float(sse[i]), float(cyr[i]), float(a_r[i]), float(slope_r[i]))
-    else:
-        best = (0.0, float(cys[ic]), a0, s0)
-    _, cy, aa, slope = best
-    if aa <= 0:
-        return None
-    return float(_median(mid[keep])), cy, aa, aa / slope, n_keep / n
+    m = mask if mask.dtype == np.uint8 else (mask > 0).view(np.uint8)
+    out = diamond_tent(np.ascontiguousarray(m), min_rows, _slope_grid(*slopes),
+                       float(slopes[0]), float(slopes[1]))
+    return None if math.isnan(out[0]) else tuple(out.tolist())
 
 
 def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = None
@@ -1373,16 +1330,8 @@ def _tip_pixel(c: float, r: float, c2: float, r2: float) -> Optional[int]:
     covered by the diamond ``|x - c| / r + |y - c2| / r2 <= 1`` (``x`` along the axis,
     ``y`` across it), from the pixels about its tip (three across; along, a few and more for
     a narrow tip), or None when none of them is."""
-    i0 = math.floor(c - r)
-    cols = np.arange(i0, min(i0 + 4 + math.ceil(2.0 * r / r2), math.floor(c) + 1))
-    j0 = math.floor(c2)
-    x = cols[:, None, None, None] + _SUBPIXEL[None, None, :, None]
-    y = np.arange(j0 - 1, j0 + 2)[None, :, None, None] + _SUBPIXEL[None, None, None, :]
-    # the sub-pixel samples inside, counted: more than half of them (the share's own test,
-    # exact in whole counts, without the mean's float division)
-    cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).sum(axis=(2, 3)).max(axis=1)
-    hit = np.flatnonzero(2 * cover > _SUBPIXEL.size ** 2)
-    return int(cols[hit[0]]) if hit.size else None
+    i = tip_pixel(c, r, c2, r2, _SUBPIXEL)
+    return None if i == NO_PIXEL else i
 
 
 def diamond_pixel_box(cx: float, cy: float, a: float, b: float) -> tuple[int, int, int, int]:
@@ -1658,35 +1607,9 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     worst first (a legend stroke near an edge, a pole across it), at most ``max_drop``,
     while every edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
     inconsistent)."""
-    # rows (sx x, sy y, -sx, -sy), each point's edge, and the points kept (in order)
-    full = np.concatenate([signs * points, -signs], axis=1)
-    edge = (signs[:, 0] + 2.0 * signs[:, 1]).tolist()
-    keep = list(range(len(points)))
-    for _ in range(max_drop + 1):
-        if len({edge[i] for i in keep}) < 4:
-            return None                 # an edge without a point
-        p, sg, mat = (points, signs, full) if len(keep) == len(points) else (
-            points[keep], signs[keep], full[keep])
-        try:
-            inv = np.linalg.inv(mat.T @ mat)
-        except np.linalg.LinAlgError:
-            return None
-        u, v, pu, rv = (inv @ mat.sum(axis=0)).tolist()
-        if u <= 1e-6 or v <= 1e-6:
-            return None
-        a, b = 1.0 / u, 1.0 / v
-        cx, cy = pu * a, rv * b
-        # distance of every kept point to its edge's line as fitted without it (leave one
-        # out: the residual over 1 - its leverage), so that one bad point cannot hide by
-        # pulling the fit towards itself
-        lev = np.minimum(np.einsum('ij,jk,ik->i', mat, inv, mat), 0.95)
-        dist = np.abs(sg[:, 0] * (p[:, 0] - cx) / a + sg[:, 1] * (p[:, 1] - cy) / b - 1.0) \
-            * a * b / math.hypot(a, b) / (1.0 - lev)
-        k = int(dist.argmax())          # the first of the worst (NaN counts as worst)
-        if dist[k] <= max(outlier_px, 0.07 * min(a, b)):
-            return cx, cy, a, b
-        del keep[k]
-    return None
+    out = rhombus_fit(np.ascontiguousarray(points, np.float64),
+                      np.ascontiguousarray(signs, np.float64), float(outlier_px), int(max_drop))
+    return None if math.isnan(out[0]) else tuple(out.tolist())
 
 
 # the smallest face-to-line contrast (a share of the face's brightness) an edge must show

@@ -1,0 +1,160 @@
+"""The compiled kernels reproduce numpy's arithmetic (workzone_ros.core.kernels)."""
+import numpy as np
+import pytest
+
+from workzone_ros.core import detection as dt
+from workzone_ros.core import kernels as k
+
+
+@pytest.mark.parametrize('n', [0, 1, 5, 7, 8, 9, 15, 16, 17, 24, 31, 64, 127, 128, 129, 200,
+                               257, 1000])
+def test_pairwise_sum_is_numpys_sum_bit_for_bit(n):
+    rng = np.random.default_rng(n)
+    for scale in (1e-3, 1.0, 1e6):
+        a = rng.normal(0, scale, n) + rng.uniform(-1, 1) * scale * 1e3
+        assert k.pairwise_sum(a) == np.add.reduce(a)
+        # and along the last axis of a 2-d array (fit_diamond's row sums)
+        rows = rng.normal(0, scale, (3, n))
+        assert [k.pairwise_sum(r) for r in rows] == rows.sum(axis=1).tolist()
+
+
+def test_float_range_is_numpys_arange():
+    rng = np.random.default_rng(1)
+    for _ in range(2000):
+        start = rng.uniform(-50, 300)
+        step = rng.choice([0.25, 0.5, rng.uniform(0.5, 15.0)])
+        stop = start + rng.uniform(-1, 60) + rng.choice([0.0, 0.01, 0.26])
+        assert np.array_equal(k.float_range(start, stop, step), np.arange(start, stop, step))
+
+
+@pytest.mark.parametrize('n', [1, 2, 3, 4, 5, 24, 25, 47, 48, 100])
+def test_median_inplace_is_numpys_median(n):
+    rng = np.random.default_rng(n)
+    for _ in range(300):
+        v = rng.normal(0, 10, n)
+        if rng.random() < 0.5:
+            v = np.round(v)             # ties
+        want = np.median(v)
+        assert k.median_inplace(v.copy(), n) == want
+        # only the first n values count
+        assert k.median_inplace(np.concatenate([v, [1e9, -1e9]]), n) == want
+
+
+def test_inverse4_and_singular():
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        a = rng.normal(size=(8, 4))
+        m = a.T @ a
+        np.testing.assert_allclose(k._inverse4(m) @ m, np.eye(4), atol=1e-9)
+    assert k._inverse4(np.ones((4, 4))).size == 0
+
+
+def _rhombus_points(cx, cy, a, b, ts):
+    signs = dt._STRETCH_SIGNS
+    pts = np.array([(cx + s[0] * a * t, cy + s[1] * b * (1 - t)) for s, t in zip(signs, ts)])
+    return pts, signs
+
+
+def _fit_rhombus_numpy(points, signs, outlier_px, max_drop):
+    """fit_rhombus as numpy computed it before the kernel (the reference)."""
+    keep = np.ones(len(points), bool)
+    for _ in range(max_drop + 1):
+        p, sg = points[keep], signs[keep]
+        if len({tuple(e) for e in sg.tolist()}) < 4:
+            return None
+        mat = np.concatenate([sg * p, -sg], axis=1)
+        inv = np.linalg.inv(mat.T @ mat)
+        u, v, pu, rv = inv @ mat.sum(axis=0)
+        if u <= 1e-6 or v <= 1e-6:
+            return None
+        a, b = 1.0 / u, 1.0 / v
+        cx, cy = pu * a, rv * b
+        lev = np.minimum(np.einsum('ij,jk,ik->i', mat, inv, mat), 0.95)
+        dist = np.abs(sg[:, 0] * (p[:, 0] - cx) / a + sg[:, 1] * (p[:, 1] - cy) / b - 1.0) \
+            * a * b / np.hypot(a, b) / (1.0 - lev)
+        worst = np.full(len(points), -1.0)
+        worst[keep] = dist
+        k_ = int(np.argmax(worst))
+        if worst[k_] <= max(outlier_px, 0.07 * min(a, b)):
+            return cx, cy, a, b
+        keep[k_] = False
+    return None
+
+
+def test_rhombus_fit_is_the_numpy_fit():
+    """Exact and noisy edge points, with and without a point off its edge, every drop
+    budget: the same points dropped and the same diamond (to rounding)."""
+    rng = np.random.default_rng(3)
+    n_none = 0
+    for t in range(3000):
+        cx, cy = rng.uniform(10, 600, 2)
+        a = rng.uniform(6, 60)
+        b = a * rng.uniform(0.7, 1.4)
+        pts, signs = _rhombus_points(cx, cy, a, b, rng.uniform(0.15, 0.85, 8))
+        pts = pts + rng.normal(0, [0.0, 0.1, 0.5, 1.5][t % 4], pts.shape)
+        if t % 3:
+            i = int(rng.integers(8))
+            pts[i] += rng.uniform(1, 8) * rng.choice([-1, 1]) * signs[i]
+        for max_drop in (0, 1, 2, 3):
+            want = _fit_rhombus_numpy(pts, signs, 1.0, max_drop)
+            got = dt.fit_rhombus(pts, signs, 1.0, max_drop)
+            assert (got is None) == (want is None)
+            if want is not None:
+                np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)
+            n_none += want is None
+    assert 0 < n_none < 12000 - 1000     # both outcomes tested
+
+
+def test_rhombus_fit_matches_numpy_least_squares():
+    """Without outliers the fit is the least-squares solution of the edge equations."""
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        pts, signs = _rhombus_points(*rng.uniform(20, 300, 2), *rng.uniform(8, 40, 2),
+                                     rng.uniform(0.2, 0.8, 8))
+        pts = pts + rng.normal(0, 0.05, pts.shape)
+        mat = np.concatenate([signs * pts, -signs], axis=1)
+        u, v, pu, rv = np.linalg.lstsq(mat, np.ones(8), rcond=None)[0]
+        got = dt.fit_rhombus(pts, signs, 5.0, 0)
+        np.testing.assert_allclose(got, (pu / u, rv / v, 1 / u, 1 / v), rtol=1e-9)
+
+
+def test_rhombus_fit_needs_every_edge():
+    pts, signs = _rhombus_points(50, 50, 20, 20, np.full(8, 0.5))
+    keep = np.any(signs != dt._RHOMBUS_SIGNS[2], axis=1)       # no lower-right point
+    assert dt.fit_rhombus(pts[keep], signs[keep], 1.0, 2) is None
+
+
+@pytest.mark.parametrize('kind', ['uint8', 'uint8_255', 'bool', 'transposed', 'int32'])
+def test_fit_diamond_takes_any_mask_layout(kind):
+    yy, xx = np.mgrid[:41, :37]
+    inside = np.abs(xx + 0.5 - 18.3) / 15.2 + np.abs(yy + 0.5 - 20.1) / 17.4 <= 1
+    mask = inside.astype(np.uint8)
+    want = dt.fit_diamond(mask)
+    assert want is not None
+    if kind == 'uint8_255':
+        m = mask * 255
+    elif kind == 'bool':
+        m = inside
+    elif kind == 'transposed':
+        m = np.ascontiguousarray(mask.T).T          # a non-contiguous view, same pixels
+    else:
+        m = mask.astype(np.int32)
+    assert dt.fit_diamond(m) == want
+
+
+def test_tip_pixel_is_the_first_half_covered_pixel():
+    """Against the coverage counted on the full 8 x 8 sub-pixel grid of every pixel."""
+    rng = np.random.default_rng(5)
+    sub = dt._SUBPIXEL
+    for _ in range(300):
+        c, c2 = rng.uniform(-20, 20, 2)
+        r, r2 = rng.uniform(0.6, 12, 2)
+        got = dt._tip_pixel(c, r, c2, r2)
+        i0 = int(np.floor(c - r))
+        cols = np.arange(i0, min(i0 + 4 + int(np.ceil(2.0 * r / r2)), int(np.floor(c)) + 1))
+        rows = np.arange(int(np.floor(c2)) - 1, int(np.floor(c2)) + 2)
+        x = cols[:, None, None, None] + sub[None, None, :, None]
+        y = rows[None, :, None, None] + sub[None, None, None, :]
+        cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).sum(axis=(2, 3)).max(axis=1)
+        hit = np.flatnonzero(2 * cover > sub.size ** 2)
+        assert got == (int(cols[hit[0]]) if hit.size else None)

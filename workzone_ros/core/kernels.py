@@ -1,0 +1,352 @@
+"""Compiled inner loops of the sign measurement (numba), with numpy's own arithmetic.
+
+A warning sign's measurement (:mod:`workzone_ros.core.detection`) runs a few fits on arrays of
+a few dozen values.  In numpy each of their steps is a call costing microseconds of
+dispatch, more than its arithmetic: a sign's frame made some 2300 numpy calls.  The loops
+here do the same arithmetic compiled, in the same order, so they return the values the numpy
+code returned, bit for bit: sums are numpy's pairwise sums (:func:`pairwise_sum`), float ranges
+are filled as ``np.arange`` fills them (:func:`float_range`), a median is np.median's middle
+value or the mean of the middle two (:func:`median_inplace`).  ``test/core/test_kernels.py``
+checks each against numpy.
+
+Compiled on first use and cached beside this file (``cache=True``: a few seconds once per
+install, then about 0.1 s per process to load).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
+           'tip_pixel', 'NO_PIXEL']
+
+#: :func:`tip_pixel`'s "no pixel" (an index no image has)
+NO_PIXEL = -(1 << 62)
+
+
+@njit(cache=True)
+def pairwise_sum(a: np.ndarray) -> float:
+    """``np.add.reduce`` of a 1-d float64 array: numpy's pairwise summation (fewer than 8
+    values in turn; up to 128 in eight interleaved partial sums combined as a tree, the
+    remainder after them in turn; more: the two halves, split at a multiple of 8)."""
+    n = a.size
+    if n < 8:
+        res = 0.0
+        for i in range(n):
+            res += a[i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = a[0], a[1], a[2], a[3]
+        r4, r5, r6, r7 = a[4], a[5], a[6], a[7]
+        i = 8
+        while i < n - (n % 8):
+            r0 += a[i]
+            r1 += a[i + 1]
+            r2 += a[i + 2]
+            r3 += a[i + 3]
+            r4 += a[i + 4]
+            r5 += a[i + 5]
+            r6 += a[i + 6]
+            r7 += a[i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += a[i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return pairwise_sum(a[:n2]) + pairwise_sum(a[n2:])
+
+
+@njit(cache=True)
+def float_range(start: float, stop: float, step: float) -> np.ndarray:
+    """``np.arange(start, stop, step)`` of floats as numpy fills it: ``ceil((stop - start) /
+    step)`` values, ``start``, ``start + step``, then ``start + i * delta`` with ``delta``
+    the difference of those two."""
+    n = max(int(math.ceil((stop - start) / step)), 0)
+    out = np.empty(n)
+    if n > 0:
+        out[0] = start
+    if n > 1:
+        nxt = start + step
+        delta = nxt - start
+        out[1] = nxt
+        for i in range(2, n):
+            out[i] = start + i * delta
+    return out
+
+
+@njit(cache=True)
+def median_inplace(v: np.ndarray, n: int) -> float:
+    """np.median of ``v[:n]`` (NaN-free): the middle value, or the mean of the middle two;
+    by a selection that reorders ``v[:n]``."""
+    k = n // 2
+    lo, hi = 0, n - 1
+    while lo < hi:                      # Hoare selection: v[k] becomes the k-th smallest
+        pivot = v[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while v[i] < pivot:
+                i += 1
+            while v[j] > pivot:
+                j -= 1
+            if i <= j:
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    if n % 2:
+        return v[k]
+    below = v[0]                        # everything before k is at most v[k]
+    for q in range(1, k):
+        if v[q] > below:
+            below = v[q]
+    return (below + v[k]) / 2
+
+
+@njit(cache=True)
+def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: float,
+                 s_hi: float) -> np.ndarray:
+    """:func:`workzone_ros.core.detection.fit_diamond` on a C-contiguous uint8 mask (non-zero:
+    the blob) with the tent slopes ``slopes`` (``s_lo``, ``s_hi``: their range): ``(cx, cy,
+    a, b, inliers)``, all NaN for no fit.  The steps and their arithmetic are fit_diamond's
+    (see there)."""
+    H, W = mask.shape
+    out = np.full(5, np.nan)
+    # every non-empty row: its centre, first pixel and one past its last
+    yc = np.empty(H)
+    half = np.empty(H)
+    mid = np.empty(H)
+    n = 0
+    for r in range(H):
+        left = -1
+        for c in range(W):
+            if mask[r, c] != 0:
+                left = c
+                break
+        if left < 0:
+            continue
+        right = W - 1
+        while mask[r, right] == 0:
+            right -= 1
+        right += 1
+        yc[n] = r + 0.5
+        half[n] = 0.5 * (float(right) - float(left))
+        mid[n] = 0.5 * (float(right) + float(left))
+        n += 1
+    if n < min_rows:
+        return out
+    # consensus: the median peak of every (apex row, slope) over a subsample of the rows
+    stride = max(1, n // 24)
+    nsub = (n + stride - 1) // stride
+    step = max(0.5, (yc[n - 1] - yc[0]) / 20.0)
+    cys = float_range(yc[0], yc[n - 1] + 0.01, step)
+    hs = np.empty(nsub)
+    dq = np.empty(nsub)
+    col = np.empty(nsub)
+    buf = np.empty(nsub)
+    low = np.empty(nsub)
+    for q in range(nsub):
+        hs[q] = half[q * stride]
+    best = -np.inf
+    ic, js, a0 = 0, 0, 0.0
+    for i in range(cys.size):
+        for q in range(nsub):
+            dq[q] = abs(yc[q * stride] - cys[i])
+        for j in range(slopes.size):
+            sj = slopes[j]
+            for q in range(nsub):
+                col[q] = hs[q] + sj * dq[q]
+                buf[q] = col[q]
+            a = median_inplace(buf, nsub)
+            tol = max(1.0, 0.1 * a)
+            count = 0
+            for q in range(nsub):
+                res = abs(col[q] - a)
+                if res <= tol:
+                    count += 1
+                low[q] = min(res, tol)
+            score = count - 1e-3 * pairwise_sum(low)
+            if score > best:                # the first of the best, as np.argmax
+                best, ic, js, a0 = score, i, j, a
+    s0 = slopes[js]
+    lim = max(1.0, 0.1 * a0)
+    hk = np.empty(n)
+    yk = np.empty(n)
+    mk = np.empty(n)
+    n_keep = 0
+    for q in range(n):
+        if abs(half[q] + s0 * abs(yc[q] - cys[ic]) - a0) <= lim:
+            hk[n_keep], yk[n_keep], mk[n_keep] = half[q], yc[q], mid[q]
+            n_keep += 1
+    if n_keep < min_rows:
+        return out
+    hk, yk = hk[:n_keep], yk[:n_keep]
+    # least squares on the consensus rows, the apex row on a quarter-pixel grid
+    cyr = float_range(cys[ic] - step - 0.25, cys[ic] + step + 0.26, 0.25)
+    hm = pairwise_sum(hk) / n_keep
+    dd = np.empty(n_keep)
+    d2 = np.empty(n_keep)
+    dh = np.empty(n_keep)
+    e2 = np.empty(n_keep)
+    found = False
+    best_sse, cy, aa, slope = 0.0, cys[ic], a0, s0
+    for i in range(cyr.size):
+        for q in range(n_keep):
+            dd[q] = abs(yk[q] - cyr[i])
+            d2[q] = dd[q] * dd[q]
+            dh[q] = dd[q] * hk[q]
+        dm = pairwise_sum(dd) / n_keep
+        var = pairwise_sum(d2) / n_keep - dm * dm
+        cov = pairwise_sum(dh) / n_keep - dm * hm
+        slope_r = -cov / max(var, 1e-9)
+        a_r = hm + slope_r * dm
+        for q in range(n_keep):
+            e = hk[q] - (a_r - slope_r * dd[q])
+            e2[q] = e * e
+        sse = pairwise_sum(e2)
+        if var > 1e-9 and s_lo * 0.8 <= slope_r <= s_hi * 1.25 and (
+                not found or sse < best_sse):
+            found = True
+            best_sse, cy, aa, slope = sse, cyr[i], a_r, slope_r
+    if aa <= 0:
+        return out
+    out[0] = median_inplace(mk, n_keep)
+    out[1] = cy
+    out[2] = aa
+    out[3] = aa / slope
+    out[4] = n_keep / n
+    return out
+
+
+@njit(cache=True)
+def tip_pixel(c: float, r: float, c2: float, r2: float, sub: np.ndarray) -> int:
+    """:func:`workzone_ros.core.detection._tip_pixel` (``sub``: the sub-pixel sample offsets);
+    :data:`NO_PIXEL` for none."""
+    i0 = math.floor(c - r)
+    i1 = min(i0 + 4 + math.ceil(2.0 * r / r2), math.floor(c) + 1)
+    j0 = math.floor(c2)
+    ns = sub.size
+    for col in range(i0, i1):
+        cover = 0
+        for row in range(j0 - 1, j0 + 2):
+            inside = 0
+            for p in range(ns):
+                dx = abs((col + sub[p]) - c) / r
+                for q in range(ns):
+                    if dx + abs((row + sub[q]) - c2) / r2 <= 1.0:
+                        inside += 1
+            cover = max(cover, inside)
+        if 2 * cover > ns * ns:
+            return col
+    return NO_PIXEL
+
+
+@njit(cache=True)
+def _inverse4(m: np.ndarray) -> np.ndarray:
+    """The inverse of a 4 x 4 matrix by Gauss-Jordan elimination with partial pivoting (an
+    empty array when it is singular)."""
+    a = m.copy()
+    inv = np.eye(4)
+    for c in range(4):
+        p = c
+        for r in range(c + 1, 4):
+            if abs(a[r, c]) > abs(a[p, c]):
+                p = r
+        if a[p, c] == 0.0:
+            return np.empty((0, 0))
+        if p != c:
+            for k in range(4):
+                a[c, k], a[p, k] = a[p, k], a[c, k]
+                inv[c, k], inv[p, k] = inv[p, k], inv[c, k]
+        d = a[c, c]
+        for k in range(4):
+            a[c, k] /= d
+            inv[c, k] /= d
+        for r in range(4):
+            if r != c and a[r, c] != 0.0:
+                f = a[r, c]
+                for k in range(4):
+                    a[r, k] -= f * a[c, k]
+                    inv[r, k] -= f * inv[c, k]
+    return inv
+
+
+@njit(cache=True)
+def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
+                max_drop: int) -> np.ndarray:
+    """:func:`workzone_ros.core.detection.fit_rhombus`: ``(cx, cy, a, b)``, all NaN for no
+    fit.  The same least squares and leave-one-out outlier test (see there); the 4 x 4
+    normal equations are summed and inverted here (to rounding, not bit for bit, numpy's
+    matrix product and LAPACK's inverse)."""
+    n = points.shape[0]
+    out = np.full(4, np.nan)
+    rows = np.empty((n, 4))
+    edge = np.empty(n, np.int64)
+    for i in range(n):
+        sx, sy = signs[i, 0], signs[i, 1]
+        rows[i, 0] = sx * points[i, 0]
+        rows[i, 1] = sy * points[i, 1]
+        rows[i, 2] = -sx
+        rows[i, 3] = -sy
+        edge[i] = (1 if sx > 0 else 0) + (2 if sy > 0 else 0)
+    keep = np.ones(n, np.bool_)
+    for _ in range(max_drop + 1):
+        has = np.zeros(4, np.bool_)
+        for i in range(n):
+            if keep[i]:
+                has[edge[i]] = True
+        if not (has[0] and has[1] and has[2] and has[3]):
+            return out                  # an edge without a point
+        mtm = np.zeros((4, 4))
+        rhs = np.zeros(4)
+        for i in range(n):
+            if keep[i]:
+                for j in range(4):
+                    rhs[j] += rows[i, j]
+                    for k in range(4):
+                        mtm[j, k] += rows[i, j] * rows[i, k]
+        inv = _inverse4(mtm)
+        if inv.size == 0:
+            return out
+        sol = np.zeros(4)
+        for j in range(4):
+            for k in range(4):
+                sol[j] += inv[j, k] * rhs[k]
+        u, v = sol[0], sol[1]
+        if u <= 1e-6 or v <= 1e-6:
+            return out
+        a, b = 1.0 / u, 1.0 / v
+        cx, cy = sol[2] * a, sol[3] * b
+        scale = a * b / math.hypot(a, b)
+        worst, wi, nan_seen = -1.0, -1, False
+        for i in range(n):
+            if not keep[i]:
+                continue
+            lev = 0.0
+            for j in range(4):
+                t = 0.0
+                for k in range(4):
+                    t += inv[j, k] * rows[i, k]
+                lev += rows[i, j] * t
+            lev = min(lev, 0.95)
+            d = abs(signs[i, 0] * (points[i, 0] - cx) / a
+                    + signs[i, 1] * (points[i, 1] - cy) / b - 1.0) * scale / (1.0 - lev)
+            if math.isnan(d):
+                if not nan_seen:        # np.argmax: the first NaN is the worst
+                    wi, nan_seen = i, True
+            elif not nan_seen and d > worst:
+                worst, wi = d, i
+        if not nan_seen and worst <= max(outlier_px, 0.07 * min(a, b)):
+            out[0], out[1], out[2], out[3] = cx, cy, a, b
+            return out
+        keep[wi] = False
+    return out

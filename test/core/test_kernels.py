@@ -1,4 +1,5 @@
 """The compiled kernels reproduce numpy's arithmetic (workzone_ros.core.kernels)."""
+import cv2
 import numpy as np
 import pytest
 
@@ -158,3 +159,49 @@ def test_tip_pixel_is_the_first_half_covered_pixel():
         cover = (np.abs(x - c) / r + np.abs(y - c2) / r2 <= 1.0).sum(axis=(2, 3)).max(axis=1)
         hit = np.flatnonzero(2 * cover > sub.size ** 2)
         assert got == (int(cols[hit[0]]) if hit.size else None)
+
+
+def _low_chroma_numpy(small, lo=0.6, hi=1.6, share=0.2, iters=2):
+    """low_chroma_gains' rounds as numpy computed them before the kernel (the reference)."""
+    px = small.reshape(-1, 3).astype(np.float32)
+    mx0 = px.max(axis=1)
+    keep = (mx0 > 30) & (mx0 < 245)
+    px, mx0 = px[keep], mx0[keep]
+    if len(px) < 50:
+        return (1.0, 1.0, 1.0)
+    g = np.ones(3, np.float32)
+    for i in range(max(1, iters)):
+        x = px * g if i else px
+        mx = x.max(axis=1) if i else mx0
+        c = (mx - x.min(axis=1)) / np.maximum(mx, 1.0)
+        m = x[c <= np.quantile(c, share)].mean(axis=0)
+        g = np.minimum(np.maximum(g * m.mean() / np.maximum(m, 1.0), lo), hi)
+    return tuple(float(v) for v in g)
+
+
+def test_low_chroma_gains_are_the_numpy_gains_bit_for_bit():
+    """Drawn scenes (grey ground, a tint, a sign, noise, dark and clipped parts) and noise."""
+    from workzone_ros.core.color_model import low_chroma_gains
+    rng = np.random.default_rng(6)
+    n_ones = 0
+    for t in range(300):
+        h, w = rng.integers(40, 300, 2)
+        img = np.empty((h, w, 3), np.uint8)
+        img[: h // 2] = rng.integers(0, 256, 3)                          # sky
+        img[h // 2:] = np.clip(rng.normal(110, 40) * rng.uniform(0.7, 1.3, 3), 0, 255)
+        y, x = rng.integers(0, h - 10), rng.integers(0, w - 10)
+        img[y:y + 10, x:x + 10] = (0, 110, 245)                              # a sign
+        img = np.clip(img + rng.normal(0, rng.uniform(1, 30), img.shape), 0, 255).astype(np.uint8)
+        if t % 5 == 0:
+            img //= 8                                                      # mostly too dark
+        kw = {} if t % 2 else {'share': float(rng.uniform(0.05, 0.9)),
+                               'iters': int(rng.integers(1, 4))}
+        top = 0.5
+        part = img[int(h * top):]
+        ph, pw = part.shape[:2]
+        small = part if min(ph, pw) < 64 else cv2.resize(part, (pw // 4, ph // 4),
+                                                         interpolation=cv2.INTER_AREA)
+        want = _low_chroma_numpy(small, **kw)
+        assert low_chroma_gains(img, **kw) == want
+        n_ones += want == (1.0, 1.0, 1.0)
+    assert 0 < n_ones < 150

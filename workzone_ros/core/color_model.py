@@ -42,6 +42,8 @@ from typing import Any, Mapping, Optional, Sequence
 import cv2
 import numpy as np
 
+from workzone_ros.core.kernels import low_chroma_rounds
+
 __all__ = [
     'ModelError', 'SCHEMA', 'VERSION', 'H_BINS', 'S_BINS', 'HSV_RANGES', 'ColorModel',
     'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
@@ -330,18 +332,6 @@ def gray_world_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6) -> tuple
     return tuple(float(np.clip(grey / max(c, 1.0), lo, hi)) for c in m)
 
 
-def _channel_max(px: np.ndarray) -> np.ndarray:
-    """``px.max(axis=1)`` of (n, 3) pixels, as two element-wise maxima (the same values; a
-    reduction over a 3-long axis costs about ten times more on the few thousand pixels
-    here)."""
-    return np.maximum(np.maximum(px[:, 0], px[:, 1]), px[:, 2])
-
-
-def _channel_min(px: np.ndarray) -> np.ndarray:
-    """``px.min(axis=1)`` of (n, 3) pixels (see :func:`_channel_max`)."""
-    return np.minimum(np.minimum(px[:, 0], px[:, 1]), px[:, 2])
-
-
 def _quantile(values: np.ndarray, q: float) -> np.floating:
     """``np.quantile(values, q)`` of a 1-d float array without NaNs, the same value
     (numpy's default ``linear`` method: the order statistics either side of ``(n - 1) q``
@@ -377,23 +367,9 @@ def low_chroma_gains(bgr: np.ndarray, lo: float = 0.6, hi: float = 1.6, share: f
     h, w = bgr.shape[:2]
     small = bgr if min(h, w) < 64 else cv2.resize(bgr, (w // 4, h // 4),
                                                    interpolation=cv2.INTER_AREA)
-    px = small.reshape(-1, 3).astype(np.float32)
-    mx0 = _channel_max(px)
-    # neither dark noise nor clipped (np.compress: the rows ``px[keep]`` selects, at a
-    # fraction of a boolean index's cost on (n, 3) rows)
-    keep = (mx0 > 30) & (mx0 < 245)
-    px, mx0 = np.compress(keep, px, axis=0), mx0[keep]
-    if len(px) < 50:
-        return (1.0, 1.0, 1.0)
-    g = np.ones(3, np.float32)
-    for i in range(max(1, iters)):
-        # (the first round's gains are ones: the pixels and their maxima as they are)
-        x = px * g if i else px
-        mx = _channel_max(x) if i else mx0
-        c = (mx - _channel_min(x)) / np.maximum(mx, 1.0)
-        m = np.compress(c <= _quantile(c, share), x, axis=0).mean(axis=0)
-        g = np.minimum(np.maximum(g * m.mean() / np.maximum(m, 1.0), lo), hi)
-    return tuple(float(v) for v in g)
+    # (the selection and the means: compiled, in numpy's float32 arithmetic)
+    g = low_chroma_rounds(np.ascontiguousarray(small), lo, hi, share, iters)
+    return (1.0, 1.0, 1.0) if g.size == 0 else tuple(float(v) for v in g)
 
 
 #: White-balance estimators by model metadata name (``white_balance``).

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
-           'tip_pixel', 'NO_PIXEL']
+           'tip_pixel', 'low_chroma_rounds', 'NO_PIXEL']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
 NO_PIXEL = -(1 << 62)
@@ -350,3 +350,99 @@ def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
             return out
         keep[wi] = False
     return out
+
+
+@njit(cache=True)
+def _select_f32(v: np.ndarray, k: int) -> np.float32:
+    """The k-th smallest of ``v`` (reordered), by Hoare selection."""
+    lo, hi = 0, v.size - 1
+    while lo < hi:
+        pivot = v[(lo + hi) // 2]
+        i, j = lo, hi
+        while i <= j:
+            while v[i] < pivot:
+                i += 1
+            while v[j] > pivot:
+                j -= 1
+            if i <= j:
+                v[i], v[j] = v[j], v[i]
+                i += 1
+                j -= 1
+        if k <= j:
+            hi = j
+        elif k >= i:
+            lo = i
+        else:
+            break
+    return v[k]
+
+
+@njit(cache=True)
+def low_chroma_rounds(small: np.ndarray, lo: float, hi: float, share: float,
+                      iters: int) -> np.ndarray:
+    """:func:`workzone_ros.core.color_model.low_chroma_gains` after its downscaling: the
+    (b, g, r) gains from an (h, w, 3) uint8 image, or an empty array for fewer than 50
+    well-exposed pixels.  float32 throughout, as numpy computes it there: the chroma
+    quantile interpolated as ``np.quantile`` does (in float32), the mean of the least
+    chromatic pixels summed row by row (numpy's order for a mean over the first axis of (n,
+    3) pixels)."""
+    f1 = np.float32(1.0)
+    flat = small.reshape(-1, 3)
+    n_all = flat.shape[0]
+    px = np.empty((n_all, 3), np.float32)
+    n = 0
+    for i in range(n_all):
+        b, g_, r = np.float32(flat[i, 0]), np.float32(flat[i, 1]), np.float32(flat[i, 2])
+        mx = max(max(b, g_), r)
+        if mx > 30 and mx < 245:
+            px[n, 0], px[n, 1], px[n, 2] = b, g_, r
+            n += 1
+    if n < 50:
+        return np.empty(0, np.float32)
+    px = px[:n]
+    gain = np.ones(3, np.float32)
+    x = np.empty((n, 3), np.float32)
+    c = np.empty(n, np.float32)
+    buf = np.empty(n, np.float32)
+    lo32, hi32 = np.float32(lo), np.float32(hi)
+    for it in range(max(1, iters)):
+        for i in range(n):
+            for ch in range(3):
+                x[i, ch] = px[i, ch] * gain[ch] if it else px[i, ch]
+            mx = max(max(x[i, 0], x[i, 1]), x[i, 2])
+            mn = min(min(x[i, 0], x[i, 1]), x[i, 2])
+            c[i] = (mx - mn) / max(mx, f1)
+        # np.quantile(c, share), numpy's linear method and lerp
+        vi = (n - 1) * share
+        i0 = math.floor(vi)
+        j0 = min(i0 + 1, n - 1)
+        buf[:] = c
+        a = _select_f32(buf, i0)
+        bnext = a
+        if j0 != i0:
+            # the next order statistic: the smallest of what lies above position i0
+            bnext = buf[i0 + 1]
+            for q in range(i0 + 2, n):
+                if buf[q] < bnext:
+                    bnext = buf[q]
+        t = vi - i0
+        diff = bnext - a
+        if t < 0.5:
+            qv = a + diff * np.float32(t)
+        else:
+            qv = bnext - diff * np.float32(1 - t)
+        s0, s1, s2 = np.float32(0.0), np.float32(0.0), np.float32(0.0)
+        cnt = 0
+        for i in range(n):
+            if c[i] <= qv:
+                s0 += x[i, 0]
+                s1 += x[i, 1]
+                s2 += x[i, 2]
+                cnt += 1
+        fc = np.float32(cnt)
+        m0, m1, m2 = s0 / fc, s1 / fc, s2 / fc
+        mm = ((np.float32(0.0) + m0) + m1 + m2) / np.float32(3)
+        gain[0] = min(max(gain[0] * mm / max(m0, f1), lo32), hi32)
+        gain[1] = min(max(gain[1] * mm / max(m1, f1), lo32), hi32)
+        gain[2] = min(max(gain[2] * mm / max(m2, f1), lo32), hi32)
+    return gain

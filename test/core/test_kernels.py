@@ -205,3 +205,66 @@ def test_low_chroma_gains_are_the_numpy_gains_bit_for_bit():
         assert low_chroma_gains(img, **kw) == want
         n_ones += want == (1.0, 1.0, 1.0)
     assert 0 < n_ones < 150
+
+
+@pytest.mark.parametrize('nt', [3, 4, 9, 10, 31, 64, 65, 80])
+def test_profile_medians_are_numpys_medians(nt):
+    rng = np.random.default_rng(nt)
+    for n in (1, 3, 8):
+        s = rng.uniform(0, 255, (n * nt, 35)).astype(np.float32)
+        s[rng.random(s.shape) < 0.3] = 100.0                    # ties
+        want = np.median(s.reshape(n, nt, 35), axis=1).astype(np.float64)
+        assert np.array_equal(k.profile_medians(s, n, nt), want)
+
+
+def _edge_choice_numpy(prof_v, atb, coef, valid, min_contrast, u0, ns):
+    """_edge_offsets' choice of model and offset as numpy computed it (the reference)."""
+    n = prof_v.shape[0]
+    sse = (prof_v * prof_v).sum(axis=1)[None, :] - (
+        atb[:, 0] * coef[:, 0] + atb[:, 1] * coef[:, 1] + atb[:, 2] * coef[:, 2])
+    hi, lo = coef[:, 0, :], coef[:, 1, :]
+    ok = valid[:, None] & (hi > 0) & (hi - lo >= min_contrast * hi)
+    seen = ok.any(axis=0)
+    sse = np.where(ok, sse, np.inf)
+    off, best = np.full(n, np.nan), np.full(n, -1)
+    for c, kk in enumerate(np.argmin(sse, axis=0).tolist()):
+        if not seen[c]:
+            continue
+        i0 = kk // ns
+        o = float(u0[i0])
+        if 0 < i0 < u0.size - 1:
+            s_m, s_0, s_p = float(sse[kk - ns, c]), float(sse[kk, c]), float(sse[kk + ns, c])
+            den = s_m - 2 * s_0 + s_p
+            if np.isfinite(den) and den > 0:
+                o += 0.05 * (s_m - s_p) / den
+        off[c], best[c] = o, kk
+    return off, best
+
+
+def test_edge_choice_is_the_numpy_choice():
+    """Profiles of blurred face-line-background edges and of plain noise, through the real
+    edge models: the same model, offset and stretches without a step."""
+    rng = np.random.default_rng(7)
+    u, bases_t, ata_inv, valid = dt._edge_profile(16.0, 1.1, 0.35)
+    u0, ns = dt._PROFILE_U0, dt._PROFILE_SIG.size
+    n_lost = 0
+    for t in range(200):
+        n = 8
+        face, line, bg = rng.uniform(60, 250), rng.uniform(0, 80), rng.uniform(0, 255, n)
+        edge = rng.uniform(-2, 2, n)[:, None]
+        outside = np.where(u[None, :] > edge - 1.1, line, bg[:, None])
+        prof = np.where(u[None, :] > edge, face, outside)
+        prof = prof + rng.normal(0, rng.uniform(0, 25), prof.shape)
+        if t % 4 == 0:
+            prof[: t % 8] = rng.uniform(0, 255, (t % 8, u.size))          # no edge there
+        atb = (bases_t @ prof.T).reshape(-1, 3, n)
+        coef = ata_inv @ atb
+        mc = float(rng.choice([0.05, 0.25, 0.6]))
+        off, best = np.empty(n), np.empty(n, np.int64)
+        seen = k.edge_choice(prof, atb, coef, valid, mc, u0, ns, off, best)
+        want_off, want_best = _edge_choice_numpy(prof, atb, coef, valid, mc, u0, ns)
+        assert np.array_equal(off, want_off, equal_nan=True)
+        assert best.tolist() == want_best.tolist()
+        assert seen == int(np.count_nonzero(want_best >= 0))
+        n_lost += n - seen
+    assert 0 < n_lost < 800        # stretches with and without a step

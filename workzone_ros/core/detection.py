@@ -114,7 +114,14 @@ from workzone_ros.core.color_model import (
     saturation_gain,
     saturation_table,
 )
-from workzone_ros.core.kernels import NO_PIXEL, diamond_tent, rhombus_fit, tip_pixel
+from workzone_ros.core.kernels import (
+    NO_PIXEL,
+    diamond_tent,
+    edge_choice,
+    profile_medians,
+    rhombus_fit,
+    tip_pixel,
+)
 from workzone_ros.core.signs import CATALOGUE
 from workzone_ros.interfaces import Box, Detection, Roi
 
@@ -1538,46 +1545,28 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
         return None
     n, nt, nu = mx.shape
     samples = cv2.remap(img, mx.reshape(n * nt, nu), my.reshape(n * nt, nu), cv2.INTER_LINEAR)
-    prof_v = _median(samples.reshape(n, nt, nu), axis=1).astype(np.float64)     # (n, u)
+    prof_v = profile_medians(samples, n, nt)                                    # (n, u)
     atb = (bases_t @ prof_v.T).reshape(-1, 3, n)                                # (k, 3, n)
     coef = ata_inv @ atb
-    # residual of each least-squares fit: |p|^2 - (A^T p) . coef (the dot product over the
-    # three bases written out: the same sum, in the same order, as a reduction over them)
-    sse = (prof_v * prof_v).sum(axis=1)[None, :] - (
-        atb[:, 0] * coef[:, 0] + atb[:, 1] * coef[:, 1] + atb[:, 2] * coef[:, 2])  # (k, n)
-    # the border line is dark: a plain step is the face's edge against a background as
-    # dark as the line, never the margin's outer edge with a line as bright as the face
-    hi, lo = coef[:, 0, :], coef[:, 1, :]
-    ok = valid[:, None] & (hi > 0) & (hi - lo >= min_contrast * hi)
-    seen = ok.any(axis=0)
-    if not (seen.any() if missing else seen.all()):
+    # per stretch: the best model among those showing a step (the border line is dark: a
+    # plain step is the face's edge against a background as dark as the line, never the
+    # margin's outer edge with a line as bright as the face), its offset moved by the
+    # parabola through its neighbours' residuals (compiled: :func:`kernels.edge_choice`)
+    off = np.empty(n)
+    best = np.empty(n, np.int64)
+    seen = edge_choice(prof_v, atb, coef, valid, float(min_contrast), _PROFILE_U0,
+                       _PROFILE_SIG.size, off, best)
+    if not (seen > 0 if missing else seen == n):
         return None
-    sse = np.where(ok, sse, np.inf)
-    ns, nu0 = _PROFILE_SIG.size, _PROFILE_U0.size
-    # per stretch (a handful: plain floats, the same double arithmetic as numpy's): the best
-    # offset, moved by the parabola through its neighbours' residuals when both are finite
-    # and it opens upwards; NaN without a step
-    off = np.full(n, np.nan)
-    seen_l = seen.tolist()
-    for c, k in enumerate(np.argmin(sse, axis=0).tolist()):
-        if not seen_l[c]:
-            continue
-        i0, isg = divmod(k, ns)
-        o = float(_PROFILE_U0[i0])
-        if 0 < i0 < nu0 - 1:
-            s_m, s_0, s_p = float(sse[k - ns, c]), float(sse[k, c]), float(sse[k + ns, c])
-            den = s_m - 2 * s_0 + s_p
-            if math.isfinite(den) and den > 0:
-                o += 0.05 * (s_m - s_p) / den
-        off[c] = o
+    if blur is not None or levels is not None:
+        shown = best >= 0
+        k = np.where(shown, best, 0)
         if blur is not None:
-            blur[c] = _PROFILE_SIG[isg]        # the stretch's best blur width
+            blur[:] = np.where(shown, _PROFILE_SIG[k % _PROFILE_SIG.size], np.nan)
         if levels is not None:
-            levels[c] = coef[k, 0, c], coef[k, 2, c]
-    if blur is not None:
-        blur[~seen] = np.nan
-    if levels is not None:
-        levels[~seen] = np.nan
+            cols = np.arange(n)
+            levels[:] = np.where(shown[:, None], np.stack([coef[k, 0, cols], coef[k, 2, cols]],
+                                                         axis=1), np.nan)
     return off
 
 

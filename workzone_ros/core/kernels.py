@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
-           'tip_pixel', 'low_chroma_rounds', 'NO_PIXEL']
+           'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice', 'NO_PIXEL']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
 NO_PIXEL = -(1 << 62)
@@ -446,3 +446,73 @@ def low_chroma_rounds(small: np.ndarray, lo: float, hi: float, share: float,
         gain[1] = min(max(gain[1] * mm / max(m1, f1), lo32), hi32)
         gain[2] = min(max(gain[2] * mm / max(m2, f1), lo32), hi32)
     return gain
+
+
+@njit(cache=True)
+def profile_medians(samples: np.ndarray, n: int, nt: int) -> np.ndarray:
+    """The median over each stretch's ``nt`` profiles of float32 ``samples`` (n * nt, nu):
+    (n, nu) float64, np.median's values (the mean of the middle two in float32)."""
+    nu = samples.shape[1]
+    out = np.empty((n, nu))
+    buf = np.empty(nt, np.float32)
+    k = nt // 2
+    for s in range(n):
+        for u in range(nu):
+            for t in range(nt):
+                buf[t] = samples[s * nt + t, u]
+            hi = _select_f32(buf, k)
+            if nt % 2:
+                out[s, u] = hi
+            else:
+                below = buf[0]
+                for q in range(1, k):
+                    if buf[q] > below:
+                        below = buf[q]
+                out[s, u] = (below + hi) / np.float32(2)
+    return out
+
+
+@njit(cache=True)
+def edge_choice(prof_v: np.ndarray, atb: np.ndarray, coef: np.ndarray, valid: np.ndarray,
+                min_contrast: float, u0: np.ndarray, ns: int, off: np.ndarray,
+                best: np.ndarray) -> int:
+    """:func:`workzone_ros.core.detection._edge_offsets` after its least squares: per
+    stretch (``prof_v`` (n, u): its median profile; ``atb``, ``coef`` (k, 3, n): the edge
+    models' ``A^T p`` and coefficients; ``valid`` (k,)) the model of least residual among
+    those showing a face-to-border step (``coef`` hi > 0, hi - lo >= ``min_contrast`` hi),
+    its offset moved by the parabola through its neighbours' residuals (``u0``: the
+    offsets, ``ns`` blur widths per offset).  Writes ``off`` (NaN: no step) and ``best``
+    (the model, -1: none); returns how many stretches show a step."""
+    n = prof_v.shape[0]
+    nk = atb.shape[0]
+    nu0 = u0.size
+    pp = np.empty(n)
+    for c in range(n):
+        pp[c] = pairwise_sum(prof_v[c] * prof_v[c])
+    sse = np.empty(nk)
+    seen = 0
+    for c in range(n):
+        kb = -1
+        for k in range(nk):
+            hi, lo = coef[k, 0, c], coef[k, 1, c]
+            if valid[k] and hi > 0 and hi - lo >= min_contrast * hi:
+                sse[k] = pp[c] - (atb[k, 0, c] * coef[k, 0, c] + atb[k, 1, c] * coef[k, 1, c]
+                                  + atb[k, 2, c] * coef[k, 2, c])
+                if kb < 0 or sse[k] < sse[kb]:
+                    kb = k
+            else:
+                sse[k] = np.inf
+        best[c] = kb
+        if kb < 0:
+            off[c] = np.nan
+            continue
+        seen += 1
+        i0 = kb // ns
+        o = float(u0[i0])
+        if 0 < i0 < nu0 - 1:
+            s_m, s_0, s_p = sse[kb - ns], sse[kb], sse[kb + ns]
+            den = s_m - 2 * s_0 + s_p
+            if math.isfinite(den) and den > 0:
+                o += 0.05 * (s_m - s_p) / den
+        off[c] = o
+    return seen

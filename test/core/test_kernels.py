@@ -268,3 +268,18 @@ def test_edge_choice_is_the_numpy_choice():
         assert seen == int(np.count_nonzero(want_best >= 0))
         n_lost += n - seen
     assert 0 < n_lost < 800        # stretches with and without a step
+
+
+def test_label_at_first_pixel():
+    rng = np.random.default_rng(8)
+    for _ in range(100):
+        hi = (rng.random((40, 60)) < 0.08).astype(np.uint8)
+        lo = cv2.dilate(hi, np.ones((3, 3), np.uint8)) | (rng.random((40, 60)) < 0.2)
+        n, lab_hi, stats, _ = cv2.connectedComponentsWithStats(hi, connectivity=8)
+        _, lab_lo = cv2.connectedComponents(lo.astype(np.uint8), connectivity=8)
+        got = k.label_at_first_pixel(lab_hi, n, lab_lo)
+        assert got[0] == -1                                       # the background
+        for i in range(1, n):
+            first = int(np.argmax(lab_hi.ravel() == i))          # row-major
+            assert got[i] == lab_lo.flat[first]
+            assert got[i] > 0                                     # lo holds hi

@@ -118,6 +118,7 @@ from workzone_ros.core.kernels import (
     NO_PIXEL,
     diamond_tent,
     edge_choice,
+    label_at_first_pixel,
     profile_medians,
     rhombus_fit,
     tip_pixel,
@@ -2159,11 +2160,12 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     _, lab_lo = cv2.connectedComponents(lo, connectivity=8)
     boxes: dict = {}                 # dim blob -> its bright pixels' box (x0, y0, x1, y1)
     count: dict = {}
-    for k in range(1, n_hi):
-        x, y, w, h, _ = (int(v) for v in stats[k])
-        sub = lab_hi[y:y + h, x:x + w] == k
-        r, c = np.unravel_index(int(np.argmax(sub)), sub.shape)
-        key = int(lab_lo[y + r, x + c])
+    # the dim blob of each bright blob: the one at its first pixel (compiled: one pass)
+    keys = label_at_first_pixel(lab_hi, n_hi, lab_lo).tolist()
+    for k, (x, y, w, h, _) in enumerate(stats.tolist()):
+        if k == 0:
+            continue
+        key = keys[k]
         b = boxes.get(key)
         count[key] = count.get(key, 0) + 1
         boxes[key] = (x, y, x + w, y + h) if b is None else (

@@ -20,7 +20,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
-           'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice', 'NO_PIXEL']
+           'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice',
+           'label_at_first_pixel', 'NO_PIXEL']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
 NO_PIXEL = -(1 << 62)
@@ -516,3 +517,21 @@ def edge_choice(prof_v: np.ndarray, atb: np.ndarray, coef: np.ndarray, valid: np
                 o += 0.05 * (s_m - s_p) / den
         off[c] = o
     return seen
+
+
+@njit(cache=True)
+def label_at_first_pixel(labels: np.ndarray, n: int, other: np.ndarray) -> np.ndarray:
+    """For each of the ``n`` labels of ``labels``, ``other``'s label at its first pixel in
+    row-major order (-1 for the background, 0, and for a label without pixels)."""
+    out = np.full(n, -1, np.int64)
+    left = n - 1
+    H, W = labels.shape
+    for r in range(H):
+        for c in range(W):
+            k = labels[r, c]
+            if k > 0 and out[k] < 0:
+                out[k] = other[r, c]
+                left -= 1
+                if left == 0:
+                    return out
+    return out

@@ -14,6 +14,7 @@ $(STAMP): setup.py setup.cfg package.xml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip >/dev/null
 	$(BIN)/pip install -q -e '.[wheels,test]'
+	$(BIN)/python -m workzone_ros.core.kernels
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -18,3 +18,9 @@ SHARED = REPO.parent / 'shared'
 REALDATA = SHARED / 'realdata'
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
+
+# the detector's compiled kernels, compiled once here (or loaded from their cache) rather
+# than in whichever node process of a test first reaches them
+from workzone_ros.core import kernels  # noqa: E402
+
+kernels.warm()

@@ -535,3 +535,30 @@ def label_at_first_pixel(labels: np.ndarray, n: int, other: np.ndarray) -> np.nd
                 if left == 0:
                     return out
     return out
+
+
+def warm() -> None:
+    """Compile (or load from the cache) every kernel for the types the detector passes:
+    ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
+    waits for the compiler."""
+    mask = np.zeros((12, 12), np.uint8)
+    mask[2:10, 3:9] = 1
+    diamond_tent(mask, 5, np.linspace(0.7, 1.4, 6), 0.7, 1.4)
+    pts = np.array([(0.0, 5.0), (5.0, 0.0), (10.0, 5.0), (5.0, 10.0)] * 2)
+    signs = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] * 2)
+    rhombus_fit(pts, signs, 1.0, 2)
+    tip_pixel(5.0, 4.0, 5.0, 4.0, (np.arange(8) + 0.5) / 8)
+    low_chroma_rounds(np.full((10, 10, 3), 100, np.uint8), 0.6, 1.6, 0.2, 2)
+    medians = profile_medians(np.zeros((6, 5), np.float32), 2, 3)
+    atb = np.zeros((4, 3, 2))
+    edge_choice(medians, atb, atb, np.ones(4, np.bool_), 0.25,
+                np.arange(4, dtype=np.float32), 2, np.empty(2), np.empty(2, np.int64))
+    labels = np.zeros((4, 4), np.int32)
+    label_at_first_pixel(labels, 1, labels)
+
+
+if __name__ == '__main__':
+    import time
+    t0 = time.perf_counter()
+    warm()
+    print(f'workzone_ros kernels ready in {time.perf_counter() - t0:.1f} s')

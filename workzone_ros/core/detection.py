@@ -1157,7 +1157,8 @@ def fit_diamond(mask: np.ndarray, min_rows: int = 5, slopes: tuple[float, float]
     tent and is left out; corners thinned by blur are extrapolated from the straight
     edges.  ``inliers``: the share of the blob's rows on the tent.  Continuous
     coordinates (pixel ``i`` spans ``[i, i + 1)``).  None: fewer than ``min_rows`` rows
-    or no tent.
+    or no tent.  Computed by the compiled :func:`~workzone_ros.core.kernels.diamond_tent`
+    (numpy's arithmetic, the same values); ``mask``: any 2-d array, non-zero on the blob.
     """
     m = mask if mask.dtype == np.uint8 else (mask > 0).view(np.uint8)
     out = diamond_tent(np.ascontiguousarray(m), min_rows, _slope_grid(*slopes),
@@ -1596,7 +1597,7 @@ def fit_rhombus(points: np.ndarray, signs: np.ndarray, outlier_px: float = 1.0,
     smaller half-diagonal) from the outline fitted without them are dropped one at a time,
     worst first (a legend stroke near an edge, a pole across it), at most ``max_drop``,
     while every edge keeps a point.  Returns ``(cx, cy, a, b)`` or None (degenerate, or still
-    inconsistent)."""
+    inconsistent).  Computed by the compiled :func:`~workzone_ros.core.kernels.rhombus_fit`."""
     out = rhombus_fit(np.ascontiguousarray(points, np.float64),
                       np.ascontiguousarray(signs, np.float64), float(outlier_px), int(max_drop))
     return None if math.isnan(out[0]) else tuple(out.tolist())

@@ -1,16 +1,21 @@
-"""Compiled inner loops of the sign measurement (numba), with numpy's own arithmetic.
+"""Compiled inner loops of the colour detector (numba), with numpy's own arithmetic.
 
-A warning sign's measurement (:mod:`workzone_ros.core.detection`) runs a few fits on arrays of
-a few dozen values.  In numpy each of their steps is a call costing microseconds of
-dispatch, more than its arithmetic: a sign's frame made some 2300 numpy calls.  The loops
-here do the same arithmetic compiled, in the same order, so they return the values the numpy
-code returned, bit for bit: sums are numpy's pairwise sums (:func:`pairwise_sum`), float ranges
+A warning sign's measurement (:mod:`workzone_ros.core.detection`) runs fits on arrays of a few
+dozen values.  In numpy each step is a call costing microseconds of dispatch, more than its
+arithmetic: a frame with a sign made some 2300 numpy calls, and a sign cost 2.3-2.7 ms.  The
+loops here (the diamond's row tent, its tip pixels, the edge model's choice per stretch, the
+rhombus through the edge points, the frame's white balance, the hysteresis' blob lookup) do
+the same arithmetic compiled and in the same order, so they return what the numpy code
+returned, bit for bit: sums are numpy's pairwise sums (:func:`pairwise_sum`), float ranges
 are filled as ``np.arange`` fills them (:func:`float_range`), a median is np.median's middle
-value or the mean of the middle two (:func:`median_inplace`).  ``test/core/test_kernels.py``
-checks each against numpy.
+value or the mean of the middle two (:func:`median_inplace`), float32 stays float32.  The
+one exception is :func:`rhombus_fit`, whose 4 x 4 normal equations are summed and inverted
+here rather than by BLAS and LAPACK (equal to about 1e-10 relative).
+``test/core/test_kernels.py`` checks each against numpy.
 
-Compiled on first use and cached beside this file (``cache=True``: a few seconds once per
-install, then about 0.1 s per process to load).
+Compiled on first use and cached beside this file (``cache=True``): 10-15 s once per install
+(``python -m workzone_ros.core.kernels``, which ``make install`` runs), then about 0.5 s per
+process to load them all.
 """
 from __future__ import annotations
 

@@ -283,3 +283,20 @@ def test_label_at_first_pixel():
             first = int(np.argmax(lab_hi.ravel() == i))          # row-major
             assert got[i] == lab_lo.flat[first]
             assert got[i] > 0                                     # lo holds hi
+
+
+def test_table_lookups_are_numpys():
+    rng = np.random.default_rng(9)
+    for dtype in (np.uint8, np.float32):
+        table = (rng.random((180, 256)) * 255).astype(dtype)
+        hsv = np.dstack([rng.integers(0, 180, (30, 40)), rng.integers(0, 256, (30, 40)),
+                         rng.integers(0, 256, (30, 40))]).astype(np.uint8)
+        hue, sat = hsv[..., 0], hsv[..., 1]                     # strided channel views
+        assert np.array_equal(dt._lookup(table, hue, sat), table[hue, sat])
+        idx = cv2.merge([sat, hue]).view(np.uint16)[..., 0]     # hue * 256 + sat
+        assert np.array_equal(k.flat_take(table.reshape(-1), idx), np.take(table, idx))
+    # a hue past the table: numpy's error, not memory past the table
+    with pytest.raises(IndexError):
+        k.hue_sat_take(table, np.full((2, 2), 200, np.uint8), np.zeros((2, 2), np.uint8))
+    with pytest.raises(IndexError):
+        k.flat_take(table.reshape(-1), np.full((2, 2), 60000, np.uint16))

@@ -118,6 +118,8 @@ from workzone_ros.core.kernels import (
     NO_PIXEL,
     diamond_tent,
     edge_choice,
+    flat_take,
+    hue_sat_take,
     label_at_first_pixel,
     profile_medians,
     rhombus_fit,
@@ -1370,14 +1372,13 @@ def diamond_pixel_box(cx: float, cy: float, a: float, b: float) -> tuple[int, in
 
 
 def _lookup(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndarray:
-    """``table[hue, sat]`` of a colour table over (hue, saturation) and uint8 channels: one
-    ``np.take`` at the flat index ``hue * 256 + sat``, the two channels merged into one
-    uint16 (little-endian: saturation the low byte), as :meth:`ColorDetector._pass` looks
-    up its tables; a third of the cost of the two-index lookup."""
-    if (table.shape[1] != 256 or not table.flags.c_contiguous
-            or hue.dtype != np.uint8 or sat.dtype != np.uint8):
+    """``table[hue, sat]`` of a colour table over (hue, saturation) and 2-d uint8 channels
+    (compiled: :func:`~workzone_ros.core.kernels.hue_sat_take`)."""
+    if (hue.ndim != 2 or hue.shape != sat.shape or table.ndim != 2
+            or hue.dtype != np.uint8 or sat.dtype != np.uint8
+            or table.dtype not in (np.float32, np.uint8)):
         return table[hue, sat]
-    return np.take(table.reshape(-1), cv2.merge([sat, hue]).view(np.uint16)[..., 0])
+    return hue_sat_take(table, hue, sat)
 
 
 def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound: float,
@@ -2955,7 +2956,7 @@ class ColorDetector:
                     idx_c = cv2.merge([cv2.LUT(sat, self._sat_tab), h]).view(np.uint16)[..., 0]
                 else:
                     idx_c = idx
-                prob = full = np.take(self._lut_u8[color], idx_c)
+                prob = full = flat_take(self._lut_u8[color], idx_c)
                 if self._vmin[color] > 0:
                     # brightness gate outside the table: too dark for a reliable hue
                     prob = full & cv2.threshold(v, self._vmin[color] - 1, 255,

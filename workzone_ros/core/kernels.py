@@ -26,7 +26,7 @@ from numba import njit
 
 __all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
            'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice',
-           'label_at_first_pixel', 'NO_PIXEL']
+           'label_at_first_pixel', 'flat_take', 'hue_sat_take', 'NO_PIXEL']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
 NO_PIXEL = -(1 << 62)
@@ -542,6 +542,39 @@ def label_at_first_pixel(labels: np.ndarray, n: int, other: np.ndarray) -> np.nd
     return out
 
 
+@njit(cache=True)
+def flat_take(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``np.take(table, idx)`` of a C-contiguous table (read flat) at a 2-d array of indices
+    (uint16 here: a hue and a saturation merged), without numpy's conversion of every
+    index to intp first."""
+    flat = table.reshape(-1)
+    H, W = idx.shape
+    out = np.empty((H, W), table.dtype)
+    n = flat.size
+    for r in range(H):
+        for c in range(W):
+            i = idx[r, c]
+            if i >= n:
+                raise IndexError('flat_take: an index past the table')
+            out[r, c] = flat[i]
+    return out
+
+
+@njit(cache=True)
+def hue_sat_take(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndarray:
+    """``table[hue, sat]`` for 2-d hue and saturation arrays of the same shape."""
+    H, W = hue.shape
+    out = np.empty((H, W), table.dtype)
+    nh, ns = table.shape
+    for r in range(H):
+        for c in range(W):
+            h, s = hue[r, c], sat[r, c]
+            if h >= nh or s >= ns:
+                raise IndexError('hue_sat_take: a hue or saturation past the table')
+            out[r, c] = table[h, s]
+    return out
+
+
 def warm() -> None:
     """Compile (or load from the cache) every kernel for the types the detector passes:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
@@ -560,6 +593,12 @@ def warm() -> None:
                 np.arange(4, dtype=np.float32), 2, np.empty(2), np.empty(2, np.int64))
     labels = np.zeros((4, 4), np.int32)
     label_at_first_pixel(labels, 1, labels)
+    flat_take(np.zeros(180 * 256, np.uint8), np.zeros((4, 4), np.uint16))
+    hsv = np.zeros((4, 4, 3), np.uint8)
+    for table in (np.zeros((180, 256), np.float32), np.zeros((180, 256), np.uint8)):
+        hue_sat_take(table, hsv[..., 0], hsv[..., 1])       # channel views (strided)
+        hue_sat_take(table, hsv[..., 0], np.zeros((4, 4), np.uint8))
+        hue_sat_take(table, np.zeros((4, 4), np.uint8), np.zeros((4, 4), np.uint8))
 
 
 if __name__ == '__main__':

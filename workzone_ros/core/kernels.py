@@ -24,8 +24,8 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ['pairwise_sum', 'float_range', 'median_inplace', 'diamond_tent', 'rhombus_fit',
-           'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice',
+__all__ = ['pairwise_sum', 'float_range', 'select_kth', 'median_inplace', 'diamond_tent',
+           'rhombus_fit', 'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice',
            'label_at_first_pixel', 'flat_take', 'hue_sat_take', 'NO_PIXEL']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
@@ -86,12 +86,11 @@ def float_range(start: float, stop: float, step: float) -> np.ndarray:
 
 
 @njit(cache=True)
-def median_inplace(v: np.ndarray, n: int) -> float:
-    """np.median of ``v[:n]`` (NaN-free): the middle value, or the mean of the middle two;
-    by a selection that reorders ``v[:n]``."""
-    k = n // 2
+def select_kth(v: np.ndarray, n: int, k: int):
+    """The k-th smallest of ``v[:n]`` (NaN-free), by Hoare selection; reorders ``v[:n]`` so
+    that nothing before ``v[k]`` is larger and nothing after it smaller."""
     lo, hi = 0, n - 1
-    while lo < hi:                      # Hoare selection: v[k] becomes the k-th smallest
+    while lo < hi:
         pivot = v[(lo + hi) // 2]
         i, j = lo, hi
         while i <= j:
@@ -109,13 +108,23 @@ def median_inplace(v: np.ndarray, n: int) -> float:
             lo = i
         else:
             break
+    return v[k]
+
+
+@njit(cache=True)
+def median_inplace(v: np.ndarray, n: int) -> float:
+    """np.median of ``v[:n]`` (NaN-free): the middle value, or the mean of the middle two
+    (their sum in the array's type, halved: exact, so float32 data gives numpy's float32
+    median); reorders ``v[:n]``."""
+    k = n // 2
+    mid = select_kth(v, n, k)
     if n % 2:
-        return v[k]
+        return mid
     below = v[0]                        # everything before k is at most v[k]
     for q in range(1, k):
         if v[q] > below:
             below = v[q]
-    return (below + v[k]) / 2
+    return (below + mid) / 2
 
 
 @njit(cache=True)
@@ -359,31 +368,6 @@ def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
 
 
 @njit(cache=True)
-def _select_f32(v: np.ndarray, k: int) -> np.float32:
-    """The k-th smallest of ``v`` (reordered), by Hoare selection."""
-    lo, hi = 0, v.size - 1
-    while lo < hi:
-        pivot = v[(lo + hi) // 2]
-        i, j = lo, hi
-        while i <= j:
-            while v[i] < pivot:
-                i += 1
-            while v[j] > pivot:
-                j -= 1
-            if i <= j:
-                v[i], v[j] = v[j], v[i]
-                i += 1
-                j -= 1
-        if k <= j:
-            hi = j
-        elif k >= i:
-            lo = i
-        else:
-            break
-    return v[k]
-
-
-@njit(cache=True)
 def low_chroma_rounds(small: np.ndarray, lo: float, hi: float, share: float,
                       iters: int) -> np.ndarray:
     """:func:`workzone_ros.core.color_model.low_chroma_gains` after its downscaling: the
@@ -423,7 +407,7 @@ def low_chroma_rounds(small: np.ndarray, lo: float, hi: float, share: float,
         i0 = math.floor(vi)
         j0 = min(i0 + 1, n - 1)
         buf[:] = c
-        a = _select_f32(buf, i0)
+        a = select_kth(buf, n, i0)
         bnext = a
         if j0 != i0:
             # the next order statistic: the smallest of what lies above position i0
@@ -461,20 +445,11 @@ def profile_medians(samples: np.ndarray, n: int, nt: int) -> np.ndarray:
     nu = samples.shape[1]
     out = np.empty((n, nu))
     buf = np.empty(nt, np.float32)
-    k = nt // 2
     for s in range(n):
         for u in range(nu):
             for t in range(nt):
                 buf[t] = samples[s * nt + t, u]
-            hi = _select_f32(buf, k)
-            if nt % 2:
-                out[s, u] = hi
-            else:
-                below = buf[0]
-                for q in range(1, k):
-                    if buf[q] > below:
-                        below = buf[q]
-                out[s, u] = (below + hi) / np.float32(2)
+            out[s, u] = median_inplace(buf, nt)
     return out
 
 

@@ -26,6 +26,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import String
 
 from workzone_ros import interfaces
+from workzone_ros.core import kernels
 from workzone_ros.core.color_model import ModelError, default_model, load_model
 from workzone_ros.core.detection import METHODS, ColorDetector, DetectorConfig, RgbLpModel
 from workzone_ros.nodes import conversions as conv
@@ -161,6 +162,9 @@ class ColorDetectorNode(WorkzoneNode):
             self.destroy_node()
             raise ConfigError(str(exc)) from None
         self.get_logger().info(f'colour model: {source}; classes {self._model.classes}')
+        # the compiled kernels loaded (or compiled) before the first image, not in its
+        # callback, where the frames behind it would be dropped
+        kernels.warm()
         self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
             collections.OrderedDict()
         self._frames = 0

@@ -2164,10 +2164,7 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     count: dict = {}
     # the dim blob of each bright blob: the one at its first pixel (compiled: one pass)
     keys = label_at_first_pixel(lab_hi, n_hi, lab_lo).tolist()
-    for k, (x, y, w, h, _) in enumerate(stats.tolist()):
-        if k == 0:
-            continue
-        key = keys[k]
+    for key, (x, y, w, h, _) in zip(keys[1:], stats.tolist()[1:]):
         b = boxes.get(key)
         count[key] = count.get(key, 0) + 1
         boxes[key] = (x, y, x + w, y + h) if b is None else (

@@ -145,10 +145,15 @@ class Detection(msgspec.Struct, frozen=True, **_STRUCT):
 
 class Detections(msgspec.Struct, frozen=True, tag='workzone_ros/Detections/1',
                  tag_field='schema', **_STRUCT):
-    """color_detector output."""
+    """color_detector output.
+
+    ``channelizers``: orange blobs of the frame the detector rejected as drums or cones (the
+    fusion's weaker in-zone evidence); None when the detector does not count them.
+    """
 
     header: Header
     detections: list[Detection] = []
+    channelizers: Optional[Count] = None
 
 
 class Track(msgspec.Struct, frozen=True, **_STRUCT):
@@ -174,16 +179,27 @@ class Tracks(msgspec.Struct, frozen=True, tag='workzone_ros/Tracks/1', tag_field
 
 
 class Sign(msgspec.Struct, frozen=True, **_STRUCT):
-    """One classified sign."""
+    """One classified sign.
+
+    ``class_key`` is a key of the sign catalogue (``core/signs.py``), or ``unknown`` with
+    ``category: "unknown"`` and a ``reason`` when the crop could not be classified (too
+    small, outside the image): never a guess.  ``distance_m`` is the estimated distance from
+    the camera (LiDAR range of the ROI the sign came from, else apparent size x the class's
+    standard size / focal length) and ``distance_source`` says which.
+    """
 
     box: Box
     class_key: str
     code: str
-    category: Literal['workzone', 'general']
+    category: Literal['workzone', 'general', 'unknown']
     score: Unit
     track_id: Optional[int] = None
     speed_limit_mph: Optional[int] = None
+    speed_limit_confidence: Optional[Unit] = None
     probabilities: dict[str, float] = {}
+    distance_m: Optional[NonNeg] = None
+    distance_source: Literal['lidar', 'size', 'none'] = 'none'
+    reason: str = ''
 
 
 class Signs(msgspec.Struct, frozen=True, tag='workzone_ros/Signs/1', tag_field='schema',
@@ -195,12 +211,19 @@ class Signs(msgspec.Struct, frozen=True, tag='workzone_ros/Signs/1', tag_field='
 
 
 class Evidence(msgspec.Struct, frozen=True, **_STRUCT):
-    """A sign that contributed to the state, with its discounted vote."""
+    """A sign (or channelizing devices) that contributed to the state, with its vote.
+
+    ``field`` names the state field it supports (``phase``, ``speed_limit_mph``,
+    ``lane_shift``, ``lanes_closed``); ``distance_m`` the estimated distance to the sign
+    when it was last seen.
+    """
 
     class_key: str
     weight: float
     stamp: Time
     track_id: Optional[int] = None
+    field: str = 'phase'
+    distance_m: Optional[float] = None
 
 
 class WorkzoneState(msgspec.Struct, frozen=True, tag='workzone_ros/WorkzoneState/1',
@@ -217,6 +240,8 @@ class WorkzoneState(msgspec.Struct, frozen=True, tag='workzone_ros/WorkzoneState
     unknowns: list[str] = []        # e.g. "speed_limit_value", "lane_shift_direction"
     stale_inputs: list[str] = []    # input topics whose last message is too old
     evidence: list[Evidence] = []
+    evidence_age_s: Optional[NonNeg] = None     # age of the newest evidence (None: none yet)
+    distance_since_evidence_m: Optional[NonNeg] = None  # travelled since the newest evidence
 
 
 # --- ground truth (synthetic bags only) ---------------------------------------------------

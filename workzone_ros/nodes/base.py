@@ -598,10 +598,18 @@ class WorkzoneNode(Node):
                     text = f'publisher(s) on {topic} but no message for {age:.1f} s'
                     self.warn_throttled(f'silent:{topic}', text)
                 problems.append(text)
+        try:
+            values += list(self.extra_diagnostics())
+        except Exception as exc:  # noqa: BLE001 - a subclass's figures never kill diagnostics
+            values.append(('extra diagnostics failed', str(exc)))
         status = DiagnosticStatus(level=level, name=self.get_name(), hardware_id=HARDWARE_ID,
                                   message='; '.join(problems) if problems else 'ok')
         status.values = [KeyValue(key=k, value=v) for k, v in values]
         return status
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """Node-specific ``(key, value)`` figures appended to ``/diagnostics`` (override)."""
+        return []
 
     def _qos_detail(self, stats: TopicStats) -> str:
         sub = stats.subscription

@@ -12,7 +12,7 @@ from __future__ import annotations
 import collections
 from typing import Any, Optional
 
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import String
 
 from workzone_ros.core.tracking import (
@@ -26,6 +26,7 @@ from workzone_ros.core.tracking import (
 from workzone_ros.interfaces import Detections, Tracks
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
+    compressed_to_numpy,
     image_to_numpy,
     payload_to_string,
     stamp_to_time,
@@ -228,6 +229,8 @@ class TrackerNode(WorkzoneNode):
 
     PARAMS = (
         Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)'),
+        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+              read_only=True),
         Param('detections_topic', '/workzone/detections', 'input Detections payloads'),
         Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads'),
         Param('image_buffer', 10, 'images kept while waiting for their detections', min=1,
@@ -240,13 +243,18 @@ class TrackerNode(WorkzoneNode):
         super().__init__('tracker', **kwargs)
         self._tracker = MultiTracker(config_from_params(self.params))
         n = self.params.image_buffer
-        self._images: collections.OrderedDict[int, Image] = collections.OrderedDict()
+        self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
         self._pending: collections.OrderedDict[int, Detections] = collections.OrderedDict()
         self._max = n
         self._last_ns: Optional[int] = None
         self._tracks_pub = self.reliable_publisher(String, self.params.tracks_topic)
-        self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
-                                                   self._on_image)
+        if self.params.compressed:
+            self._image_sub = self.sensor_subscription(
+                CompressedImage, self.params.image_topic.rstrip('/') + '/compressed',
+                self._on_image)
+        else:
+            self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
+                                                       self._on_image)
         self._det_sub = self.reliable_subscription(String, self.params.detections_topic,
                                                    self._on_detections)
 
@@ -259,7 +267,7 @@ class TrackerNode(WorkzoneNode):
 
     # --- callbacks ------------------------------------------------------------------------
 
-    def _on_image(self, msg: Image) -> None:
+    def _on_image(self, msg: Any) -> None:
         ns = stamp_to_time(msg.header.stamp).to_ns()
         if ns in self._pending:
             self._process(msg, self._pending.pop(ns))
@@ -283,7 +291,7 @@ class TrackerNode(WorkzoneNode):
 
     # --- the step -------------------------------------------------------------------------
 
-    def _process(self, image: Image, dets: Detections) -> None:
+    def _process(self, image: Any, dets: Detections) -> None:
         ns = dets.header.stamp.to_ns()
         if self._last_ns is not None and ns < self._last_ns:
             if self._last_ns - ns > 2_000_000_000:
@@ -291,7 +299,8 @@ class TrackerNode(WorkzoneNode):
                 self._tracker.reset()
             else:
                 raise InputError('detections older than the last processed frame')
-        frame = image_to_numpy(image, desired_encoding='bgr8')
+        frame = (compressed_to_numpy(image) if isinstance(image, CompressedImage)
+                 else image_to_numpy(image, desired_encoding='bgr8'))
         tracks = self._tracker.step(frame, dets.detections, stamp=ns * 1e-9)
         self._last_ns = ns
         for old in [k for k in self._images if k <= ns]:

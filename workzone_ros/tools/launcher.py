@@ -207,22 +207,6 @@ def _signal_name(code: int) -> str:
     return f'code {code}'
 
 
-class _Printer:
-    """Line-atomic output shared by the launcher and the child reader threads."""
-
-    def __init__(self, stream: TextIO) -> None:
-        self._stream = stream
-        self._lock = threading.Lock()
-
-    def __call__(self, prefix: str, text: str) -> None:
-        with self._lock:
-            try:
-                self._stream.write(f'[{prefix}] {text}\n')
-                self._stream.flush()
-            except (OSError, ValueError):
-                pass
-
-
 def _set_pdeathsig(parent: int) -> None:
     """In the child before exec: die with the launcher, even if it is SIGKILLed."""
     try:
@@ -426,7 +410,12 @@ class Launcher:
         self.args = args
         self.specs = specs
         self.params = params
-        self.say = _Printer(out)
+        from workzone_ros.tools.launch_console import Console, default_log_path
+        log_file = getattr(args, 'log_file', None)
+        log_path = None if log_file == '' else Path(log_file) if log_file \
+            else default_log_path()
+        self.say = Console(out, log_path, verbose=bool(getattr(args, 'verbose', True)))
+        self.state_watcher = None
         self.children = [_Child(s) for s in specs]
         self._stop = threading.Event()
         self._stop_reason = ''
@@ -563,7 +552,8 @@ class Launcher:
     # -- rclpy side (report, bag, single-process) ---------------------------------------------
 
     def _need_rclpy(self) -> bool:
-        return bool(self.args.bag or self.args.report or self.args.single_process)
+        return bool(self.args.bag or self.args.report or self.args.single_process
+                    or getattr(self.args, 'state', False))
 
     def _start_rclpy(self) -> None:
         import rclpy
@@ -580,6 +570,10 @@ class Launcher:
                                        start_parameter_services=False)
         if self.args.report:
             self.report = ReportCollector(self._node)
+        if getattr(self.args, 'state', False) and any(s.name == 'fusion' for s in self.specs):
+            from workzone_ros.tools.launch_console import StateWatcher
+            t0 = self.reader.start_time if self.reader is not None else None
+            self.state_watcher = StateWatcher(self._node, self.say, t0_ns=t0)
         if self.args.single_process:
             # One thread: rclpy's MultiThreadedExecutor under the GIL lost three quarters of
             # the camera frames here (15 of 38 processed at half rate); a single-threaded
@@ -730,7 +724,10 @@ class Launcher:
         if self._player_error and not self.exit_code:
             print(f'workzone-ros launch: error: {self._player_error}', file=sys.stderr)
             self.exit_code = EXIT_BAG
+        if self.say.log_path is not None:
+            self.log(f'full log: {self.say.log_path}')
         self.log(f'exit code {self.exit_code}')
+        self.say.close()
         return self.exit_code
 
     def _loop(self) -> None:
@@ -794,6 +791,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--ready-timeout', type=float, default=30.0, metavar='S',
                    help='longest wait for the nodes before playing the bag (30)')
     p.add_argument('--quiet-play', action='store_true', help='no bag progress lines')
+    p.add_argument('--state', action='store_true', help='print /workzone/state changes as a '
+                   'planner sees them (phase, speed limit, lanes, evidence)')
+    p.add_argument('--verbose', action='store_true', help="show every node's start-up "
+                   'configuration on the console (always in the log file)')
+    p.add_argument('--log-file', metavar='FILE', help='where every line goes (default: '
+                   "~/.ros/log/workzone_launch_<time>.log; '' = none)")
     p.add_argument('--dds-profile', default='shm', metavar='shm|none|FILE',
                    help='Fast DDS profile for every process: shm = shared memory with 32 MB '
                    'segments so large images/clouds are not fragmented over UDP (default; '

@@ -20,6 +20,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     'train': ('workzone_ros.tools.train', 'train a model (color, ...)'),
     'evaluate': ('workzone_ros.tools.evaluate', 'accuracy reports against ground truth'),
     'bench': ('workzone_ros.tools.bench', 'benchmarks (transport, lidar, color, tracker)'),
+    'bag-from-video': ('workzone_ros.tools.bag_from_video', 'a video file -> camera-only bag'),
 }
 
 

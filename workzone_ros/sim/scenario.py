@@ -19,7 +19,10 @@ Schema (every key optional except where noted; unknown keys are errors)::
     road: {curves: [[length_m, curvature_1_per_m], ...], guardrails: true,
            tree_line: true, overpasses: [s_m, ...],
            buildings: 0.0}          # share of roadside stretches with a building front
-    ego: {speed: 22.4, lane: middle, start_s: 0.0, jitter: 1.0}
+    ego: {speed: 22.4, lane: middle, start_s: 0.0, jitter: 1.0,
+          speed_profile: constant,  # constant | posted (slow to workzone.speed_limit)
+          decel: 1.2, accel: 1.0,   # m/s^2 of every slow-down / speed-up
+          stop_and_go: {at: 700, stop_s: 8}}   # standstill at arc length `at` (m)
     workzone: {taper_s: 600, length: 500, advance: 450, speed_limit: 45,
                lane_closed: left|right|null, taper_length: 150, drum_spacing: 15,
                lane_shifts: [{at: 200, direction: left|right|unknown, offset: 1.85}],
@@ -31,8 +34,16 @@ Schema (every key optional except where noted; unknown keys are errors)::
     distractors: {vehicles: 4, orange_vehicles: 1, yellow_vehicles: 1, cones: 2, drums: 1,
                   general_signs: 3, mile_markers: true}
 
-Positions are arc lengths ``s`` (m) along the route; the ego starts at ``ego.start_s`` and
-drives at constant speed, so an event at ``s`` happens at ``t = (s - start_s) / speed``.
+Positions are arc lengths ``s`` (m) along the route; the ego starts at ``ego.start_s`` and,
+with ``speed_profile: constant`` (the default) and no ``stop_and_go``, drives at constant
+speed, so an event at ``s`` happens at ``t = (s - start_s) / speed``.  ``speed_profile:
+posted`` brakes at ``decel`` from the work-zone speed limit sign down to ``speed_limit`` mph
+(needs ``workzone.speed_limit``) and accelerates at ``accel`` back to ``speed`` from the END
+ROAD WORK sign; ``stop_and_go`` brakes to a standstill at arc length ``at``, stands ``stop_s``
+seconds and drives on (sim/speed_profile.py).  Either way ``EgoTrajectory.t_at(s)`` is the
+first time the ego reaches ``s`` and every event's ``t`` comes from it.  ``random`` scenarios
+draw a stop-and-go (with the posted profile) on about a quarter of the seeds, from their own
+generator: the other seeds keep their scenarios.
 
 Sign mounts.  ``post`` (default): a fixed post, the face's bottom
 :data:`~workzone_ros.sim.world.SIGN_BOTTOM_HEIGHT` = 2.1 m above the road (MUTCD 2009,
@@ -61,6 +72,13 @@ import yaml
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import GtEvent
+from workzone_ros.sim.speed_profile import (
+    MPH,
+    SlowZone,
+    SpeedProfile,
+    SpeedProfileError,
+    Stop,
+)
 from workzone_ros.sim.world import (
     CAMERA_IN_BASE,
     LANE_CENTERS,
@@ -83,10 +101,11 @@ from workzone_ros.sim.world import (
 
 __all__ = [
     'ScenarioError', 'FPS', 'WEATHERS', 'LaneShift', 'WorkzoneSpec', 'SignSpec', 'RoadSpec',
-    'EgoSpec', 'DistractorSpec', 'ScenarioSpec', 'EgoTrajectory', 'LaneVehicle',
+    'EgoSpec', 'StopAndGo', 'DistractorSpec', 'ScenarioSpec', 'EgoTrajectory', 'LaneVehicle',
     'scenario_dir', 'list_scenarios', 'load_scenario', 'parse_scenario', 'random_scenario',
     'build_scene', 'lateral_offset', 'MOUNTS', 'STAND_BOTTOM_RANGE', 'STAND_LATERAL_RANGE',
-    'RANDOM_STAND_PROBABILITY', 'sign_bottom', 'sign_mount', 'stand_parts',
+    'RANDOM_STAND_PROBABILITY', 'sign_bottom', 'sign_mount', 'stand_parts', 'SPEED_PROFILES',
+    'RANDOM_STOP_PROBABILITY',
 ]
 
 FPS = 15.0
@@ -95,6 +114,11 @@ LANES = ('left', 'middle', 'right')
 SIDES = ('right', 'left', 'side_road')
 SHIFT_DIRECTIONS = ('left', 'right', 'unknown')
 DEFAULT_SPEED = 22.4            # m/s = 50 mph
+SPEED_PROFILES = ('constant', 'posted')
+DEFAULT_DECEL = 1.2             # m/s^2: a comfortable slow-down
+DEFAULT_ACCEL = 1.0             # m/s^2: a comfortable speed-up
+#: Share of ``random`` scenarios with a stop-and-go episode (and the posted profile).
+RANDOM_STOP_PROBABILITY = 0.25
 ADVANCE_DEFAULT = 450.0         # W20-1 distance before the taper (m)
 BEGIN_SIGN_LEAD = 40.0          # R22-1 this far before the taper
 END_SIGN_LAG = 60.0             # G20-2 this far after the activity area
@@ -186,13 +210,25 @@ class RoadSpec:
 
 
 @dataclass(frozen=True)
+class StopAndGo:
+    """A standstill in traffic: brake to 0 at arc length ``at``, stand ``stop_s`` seconds."""
+
+    at: float
+    stop_s: float = 8.0
+
+
+@dataclass(frozen=True)
 class EgoSpec:
-    """Ego lane, speed and motion jitter."""
+    """Ego lane, speed (cruise, profile, stop-and-go) and motion jitter."""
 
     speed: float = DEFAULT_SPEED
     lane: str = 'middle'
     start_s: float = 0.0
     jitter: float = 1.0
+    speed_profile: str = 'constant'
+    decel: float = DEFAULT_DECEL
+    accel: float = DEFAULT_ACCEL
+    stop_and_go: Optional[StopAndGo] = None
 
 
 @dataclass(frozen=True)
@@ -371,11 +407,25 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
                     tuple(float(x) for x in overpasses),
                     _num(rd, 'buildings', f'{w}: road', 0.0, lo=0.0, hi=1.0))
 
-    eg = _check_keys(top.get('ego'), ('speed', 'lane', 'start_s', 'jitter'), f'{w}: ego')
-    ego = EgoSpec(_num(eg, 'speed', f'{w}: ego', DEFAULT_SPEED, lo=1.0, hi=60.0),
-                  _choice(eg, 'lane', f'{w}: ego', 'middle', LANES),
-                  _num(eg, 'start_s', f'{w}: ego', 0.0, lo=0.0, hi=1e5),
-                  _num(eg, 'jitter', f'{w}: ego', 1.0, lo=0.0, hi=5.0))
+    ew = f'{w}: ego'
+    eg = _check_keys(top.get('ego'), ('speed', 'lane', 'start_s', 'jitter', 'speed_profile',
+                                      'decel', 'accel', 'stop_and_go'), ew)
+    stop = None
+    if eg.get('stop_and_go') is not None:
+        sg = _check_keys(eg['stop_and_go'], ('at', 'stop_s'), f'{ew}.stop_and_go')
+        if sg.get('at') is None:
+            raise _err(f'{ew}.stop_and_go', 'at (arc length of the standstill, m) is required')
+        stop = StopAndGo(_num(sg, 'at', f'{ew}.stop_and_go', None, lo=0.0, hi=1e5),
+                         _num(sg, 'stop_s', f'{ew}.stop_and_go', 8.0, lo=0.0, hi=600.0))
+    ego = EgoSpec(_num(eg, 'speed', ew, DEFAULT_SPEED, lo=1.0, hi=60.0),
+                  _choice(eg, 'lane', ew, 'middle', LANES),
+                  _num(eg, 'start_s', ew, 0.0, lo=0.0, hi=1e5),
+                  _num(eg, 'jitter', ew, 1.0, lo=0.0, hi=5.0),
+                  _choice(eg, 'speed_profile', ew, 'constant', SPEED_PROFILES),
+                  _num(eg, 'decel', ew, DEFAULT_DECEL, lo=0.3, hi=5.0),
+                  _num(eg, 'accel', ew, DEFAULT_ACCEL, lo=0.3, hi=5.0), stop)
+    if stop is not None and stop.at <= ego.start_s:
+        raise _err(f'{ew}.stop_and_go', f'at {stop.at} must lie after start_s {ego.start_s}')
 
     wz = None
     if top.get('workzone') is not None:
@@ -424,6 +474,8 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
             if sh.at + SHIFT_LENGTH > wz.length:
                 raise _err(ww, f'lane shift at {sh.at} m ends after the activity area '
                            f'({wz.length} m)')
+    if ego.speed_profile == 'posted' and (wz is None or wz.speed_limit is None):
+        raise _err(ew, 'speed_profile: posted needs workzone.speed_limit (the limit to slow to)')
 
     raw_signs = top.get('signs') or []
     if not isinstance(raw_signs, list):
@@ -560,6 +612,25 @@ def random_scenario(seed: int) -> ScenarioSpec:
         data['ground_cover'] = 'dry_grass'
     if dress.random() < 0.5:
         data['road']['buildings'] = round(float(dress.uniform(0.1, 0.5)), 2)
+    # Stop-and-go traffic queued at the work zone, from its own generator too (the other
+    # seeds keep their scenarios): a standstill between 250 m before the taper and the end
+    # of the activity area, the posted limit when there is one, and the duration stretched
+    # to the time the slowed ego needs for the same route (an upper bound: the slow zone
+    # from W20-1, where the limit sign can stand at the earliest), so it still leaves the zone.
+    jam = np.random.default_rng([int(seed), 7704])
+    if jam.random() < RANDOM_STOP_PROBABILITY:
+        wz = data['workzone']
+        at = round(float(jam.uniform(taper - 250.0, taper + length)), 1)
+        stop_s = round(float(jam.uniform(3.0, 20.0)), 1)
+        data['ego']['stop_and_go'] = {'at': at, 'stop_s': stop_s}
+        zones = []
+        if wz['speed_limit'] is not None:
+            data['ego']['speed_profile'] = 'posted'
+            zones.append(SlowZone(w20_1, taper + length + END_SIGN_LAG,
+                                  wz['speed_limit'] * MPH))
+        slowed = SpeedProfile(0.0, speed, zones, [Stop(at, stop_s)], DEFAULT_DECEL,
+                              DEFAULT_ACCEL)
+        data['duration'] = round(float(slowed.t_at(route)), 3)
     return parse_scenario(data, name=data['name'], source=f'random:{seed}')
 
 
@@ -686,23 +757,27 @@ def lane_profile(wz: Optional[WorkzoneSpec], lane: str, s: np.ndarray) -> np.nda
 # --- ego ------------------------------------------------------------------------------------
 
 class EgoTrajectory:
-    """The ego vehicle: constant speed along the route, lateral profile, pitch/roll jitter.
+    """The ego vehicle: speed along the route, lateral profile, pitch/roll jitter.
 
     Args:
         road: the road.
-        speed: m/s.
+        speed: cruise speed (m/s); the speed at every time without a ``profile``.
         start_s: arc length at t = 0.
         s_grid: arc-length samples of the lateral profile.
         d_grid: lateral offsets (left positive) at ``s_grid``.
-        jitter: scale of the pitch / roll oscillation (1.0 = about 0.25 / 0.2 degrees).
+        jitter: scale of the pitch / roll oscillation (1.0 = about 0.25 / 0.2 degrees at
+            cruise speed; with a ``profile`` it scales with the speed, none at a standstill).
         seed: phases of the oscillation.
+        profile: slow-downs and stops (sim/speed_profile.py); None = constant ``speed``.
     """
 
     def __init__(self, road: Road, speed: float, start_s: float, s_grid: np.ndarray,
-                 d_grid: np.ndarray, jitter: float = 1.0, seed: int = 0):
+                 d_grid: np.ndarray, jitter: float = 1.0, seed: int = 0,
+                 profile: Optional[SpeedProfile] = None):
         self.road = road
         self.speed = float(speed)
         self.start_s = float(start_s)
+        self.profile = profile
         self._s = np.asarray(s_grid, dtype=float)
         self._d = np.asarray(d_grid, dtype=float)
         self._dd = np.gradient(self._d, self._s)
@@ -713,12 +788,22 @@ class EgoTrajectory:
         self._phase = rng.uniform(0, 2 * np.pi, size=(2, 3))
 
     def s(self, t):
-        """Arc length at time ``t`` (s)."""
+        """Arc length at time ``t`` (s); non-decreasing."""
+        if self.profile is not None:
+            return self.profile.s(t)
         return self.start_s + self.speed * np.asarray(t, dtype=float)
 
     def t_at(self, s):
-        """Time at which the ego reaches arc length ``s``."""
+        """First time at which the ego reaches arc length ``s`` (its arrival at a stop)."""
+        if self.profile is not None:
+            return self.profile.t_at(s)
         return (np.asarray(s, dtype=float) - self.start_s) / self.speed
+
+    def speed_at(self, t):
+        """Speed along the route (ds/dt, m/s) at time ``t``."""
+        if self.profile is not None:
+            return self.profile.speed(t)
+        return np.full(np.shape(t), self.speed)
 
     def d(self, t):
         """Lateral offset at time ``t``."""
@@ -733,6 +818,9 @@ class EgoTrajectory:
         w = 2 * np.pi * self._freq * t
         pitch = float(np.sum(self._pitch * np.sin(w + self._phase[0])))
         roll = float(np.sum(self._roll * np.sin(w + self._phase[1])))
+        if self.profile is not None:            # the road shakes a moving car only
+            k = float(self.profile.speed(t)) / self.speed
+            pitch, roll = pitch * k, roll * k
         return Pose(np.array([float(x), float(y), 0.0]), yaw, pitch, roll)
 
     def _mounted(self, t: float, offset: np.ndarray) -> Pose:
@@ -1069,6 +1157,7 @@ class _Builder:
         spec, rng = self.spec, self.rng
         ds, wz = spec.distractors, spec.workzone
         v_ego, s_ego, dur = spec.ego.speed, spec.ego.start_s, spec.duration
+        ego = self.ego
         closed = wz.lane_closed if wz else None
         ego_lanes = {spec.ego.lane, _merge_target(spec.ego.lane, closed) or spec.ego.lane}
         other = [ln for ln in LANES if ln not in ego_lanes and ln != closed]
@@ -1084,7 +1173,8 @@ class _Builder:
                     lane = str(rng.choice(other))
                     dv = float(rng.uniform(2.0, 7.0)) * (1 if rng.random() < 0.3 else -1)
                     tm = float(rng.uniform(3.0, max(4.0, dur - 3.0)))  # alongside at tm
-                    s0 = max(s_ego - dv * tm, 1.0)
+                    s0 = max(s_ego - dv * tm, 1.0) if ego.profile is None else \
+                        max(float(ego.s(tm)) - (v_ego + dv) * tm, 1.0)
                 else:                                      # ego's lane: faster, ahead
                     lane = str(rng.choice(same))
                     dv = float(rng.uniform(0.5, 3.0))
@@ -1180,14 +1270,32 @@ class _Builder:
                                              str(rng.choice(mats))))
                 s += seg
 
+    def speed_profile(self, plan: list[_Placed]) -> Optional[SpeedProfile]:
+        """The ego's slow-down (posted limit sign .. END ROAD WORK) and stop, or None."""
+        eg, wz = self.spec.ego, self.spec.workzone
+        zones, stops = [], []
+        if eg.speed_profile == 'posted' and wz is not None and wz.speed_limit is not None:
+            at = {p.event[0]: p.s for p in reversed(plan) if p.event is not None}
+            zones.append(SlowZone(at['speed_limit'], at['zone_end'], wz.speed_limit * MPH))
+        if eg.stop_and_go is not None:
+            stops.append(Stop(eg.stop_and_go.at, eg.stop_and_go.stop_s))
+        if not zones and not stops:
+            return None
+        try:
+            return SpeedProfile(eg.start_s, eg.speed, zones, stops, eg.decel, eg.accel)
+        except SpeedProfileError as exc:
+            raise ScenarioError(f'scenario {self.spec.name}: ego: {exc}') from None
+
     def build(self) -> tuple[Scene, EgoTrajectory, list[GtEvent]]:
         spec = self.spec
         self.s_grid = np.arange(0.0, self.road.length + 1.0, 1.0)
         ego_d = lane_profile(spec.workzone, spec.ego.lane, self.s_grid)
+        plan = self.plan_signs()              # the profile brakes at the signs it plans
         ego = EgoTrajectory(self.road, spec.ego.speed, spec.ego.start_s, self.s_grid, ego_d,
-                            spec.ego.jitter, self.seed)
+                            spec.ego.jitter, self.seed, self.speed_profile(plan))
+        self.ego = ego
         events = []
-        for p in self.plan_signs():
+        for p in plan:
             panel = self.add_sign(p)
             if p.event is not None:
                 kind, value = p.event

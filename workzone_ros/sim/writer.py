@@ -21,7 +21,9 @@ clock is offset from the camera's by ``latency_ms`` (default 50 ms): scan ``j`` 
 spin at ``latency + j / 10`` s and is stamped with that start time, so scans are never
 synchronised with frames and a consumer must match them by time and compensate ego motion.
 Points are in the lidar frame at their own firing time (sim/lidar.py).  The odom frame is the
-simulator's world frame.
+simulator's world frame.  Every pose comes from the scenario's ego trajectory, so odometry,
+LiDAR motion and the camera follow its speed profile (slow-down, stop-and-go): the odom
+twist is ds/dt along the route, zero while the ego stands.
 
 Rendering and ray casting run in a pool of worker processes; every task is a pure function of
 (scenario, seed, index), results are consumed in order, and the bag is byte-identical for the
@@ -74,7 +76,7 @@ __all__ = [
     'EPOCH_NS', 'LIDAR_HZ', 'ODOM_HZ', 'TOPICS', 'SynthError', 'SynthOptions', 'BagSummary',
     'write_bag', 'lidar_scene', 'frame_times', 'scan_times', 'quaternion_from_rpy',
     'rpy_from_matrix', 'export_crops',
-    'export_pixels',
+    'export_pixels', 'SensorMessages',
 ]
 
 EPOCH_NS = 1_700_000_000 * 10 ** 9
@@ -187,8 +189,12 @@ def _quat_from_matrix(R: np.ndarray) -> tuple[float, float, float, float]:
 
 # --- messages -------------------------------------------------------------------------------
 
-class _Msgs:
-    """rosbags ROS 2 Jazzy message builders and CDR serialisation."""
+class SensorMessages:
+    """rosbags ROS 2 Jazzy message builders and CDR serialisation.
+
+    Shared with ``workzone-ros bag-from-video`` (tools/bag_from_video.py): images, JPEG
+    images and CameraInfo of any :class:`~workzone_ros.sim.world.CameraModel` and frame id.
+    """
 
     def __init__(self) -> None:
         from workzone_ros.bagio import typestore
@@ -204,26 +210,26 @@ class _Msgs:
             stamp=T['builtin_interfaces/msg/Time'](sec=t_ns // 10 ** 9,
                                                    nanosec=t_ns % 10 ** 9), frame_id=frame)
 
-    def image(self, t_ns: int, img: np.ndarray) -> bytes:
+    def image(self, t_ns: int, img: np.ndarray, frame: str = CAMERA_FRAME) -> bytes:
         h, w = img.shape[:2]
         msg = self.T['sensor_msgs/msg/Image'](
-            header=self.header(t_ns, CAMERA_FRAME), height=h, width=w, encoding='bgr8',
+            header=self.header(t_ns, frame), height=h, width=w, encoding='bgr8',
             is_bigendian=0, step=w * 3, data=np.ascontiguousarray(img).reshape(-1))
         return self.ser(msg, 'sensor_msgs/msg/Image')
 
-    def compressed(self, t_ns: int, jpeg: bytes) -> bytes:
+    def compressed(self, t_ns: int, jpeg: bytes, frame: str = CAMERA_FRAME) -> bytes:
         msg = self.T['sensor_msgs/msg/CompressedImage'](
-            header=self.header(t_ns, CAMERA_FRAME), format='bgr8; jpeg compressed bgr8',
+            header=self.header(t_ns, frame), format='bgr8; jpeg compressed bgr8',
             data=np.frombuffer(jpeg, dtype=np.uint8))
         return self.ser(msg, 'sensor_msgs/msg/CompressedImage')
 
-    def camera_info(self, t_ns: int, cam=DEFAULT_CAMERA) -> bytes:
+    def camera_info(self, t_ns: int, cam=DEFAULT_CAMERA, frame: str = CAMERA_FRAME) -> bytes:
         T = self.T
         K = cam.K
         P = np.zeros((3, 4))
         P[:, :3] = K
         msg = T['sensor_msgs/msg/CameraInfo'](
-            header=self.header(t_ns, CAMERA_FRAME), height=cam.height, width=cam.width,
+            header=self.header(t_ns, frame), height=cam.height, width=cam.width,
             distortion_model='plumb_bob', d=np.array(cam.D, dtype=np.float64),
             k=K.reshape(-1).astype(np.float64), r=np.eye(3).reshape(-1),
             p=P.reshape(-1), binning_x=0, binning_y=0,
@@ -318,7 +324,7 @@ class _World:
         cv2.setNumThreads(1)
         self.spec, self.opts = spec, opts
         self.scene, self.ego, self.events = build_scene(spec, opts.seed)
-        self.msgs = _Msgs()
+        self.msgs = SensorMessages()
         self._renderer = None
 
     @property

@@ -31,7 +31,7 @@ from typing import Any, Optional
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, Image, PointCloud2
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2
 from std_msgs.msg import String
 
 from workzone_ros import interfaces
@@ -54,6 +54,7 @@ from workzone_ros.core.sync import (
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
     camera_info_to_numpy,
+    compressed_to_numpy,
     header_to_payload,
     image_to_numpy,
     numpy_to_image,
@@ -80,6 +81,8 @@ class ProjectorNode(WorkzoneNode):
     PARAMS = (
         Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates'),
         Param('image_topic', '/camera/image_raw', 'input image'),
+        Param('compressed', False, 'subscribe to <image_topic>/compressed instead (the size '
+              'then comes from CameraInfo)', read_only=True),
         Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo'),
         Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)'),
         Param('rois_topic', '/workzone/rois', 'output Rois payload'),
@@ -144,8 +147,13 @@ class ProjectorNode(WorkzoneNode):
                                                     self._on_info, depth=1)
         self._cand_sub = self.reliable_subscription(PointCloud2, self.params.candidates_topic,
                                                     self._on_candidates, depth=5)
-        self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
-                                                   self._on_image, depth=5)
+        if self.params.compressed:
+            self._image_sub = self.sensor_subscription(
+                CompressedImage, self.params.image_topic.rstrip('/') + '/compressed',
+                self._on_image, depth=5)
+        else:
+            self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
+                                                       self._on_image, depth=5)
         self._odom_sub = self.reliable_subscription(
             Odometry, self.params.odom_topic, self._on_odom, depth=50) \
             if self.params.odom_topic and self.params.compensate else None
@@ -220,7 +228,7 @@ class ProjectorNode(WorkzoneNode):
         for _, (image, c) in self._sync.add(CANDS, stamp, cands):
             self._project(image, c)
 
-    def _on_image(self, msg: Image) -> None:
+    def _on_image(self, msg: Any) -> None:
         stamp = _ns(msg.header.stamp)
         self._image_stamps.append(stamp)
         if self.params.sync_policy == 'latest':
@@ -285,11 +293,13 @@ class ProjectorNode(WorkzoneNode):
             return False
         return True
 
-    def _project(self, image: Image, cands: tuple) -> None:
+    def _project(self, image: Any, cands: tuple) -> None:
         topic = self.resolve_topic_name(self.params.image_topic)
         if not self._ready(hold=(image, cands)):
             return
-        if (int(image.width), int(image.height)) != (self._camera.width, self._camera.height):
+        if not isinstance(image, CompressedImage) and \
+                (int(image.width), int(image.height)) != (self._camera.width,
+                                                          self._camera.height):
             self.drop(topic, f'image {image.width}x{image.height} does not match CameraInfo '
                              f'{self._camera.width}x{self._camera.height}')
             return
@@ -308,7 +318,8 @@ class ProjectorNode(WorkzoneNode):
         self._rois_pub.publish(payload_to_string(payload))
         self._counts['rois published'] += 1
         if self._crops_pub is not None and rois:
-            frame = image_to_numpy(image, 'bgr8')
+            frame = (compressed_to_numpy(image) if isinstance(image, CompressedImage)
+                     else image_to_numpy(image, 'bgr8'))
             for r in rois:
                 b = r.box
                 x0, y0 = int(b.x), int(b.y)

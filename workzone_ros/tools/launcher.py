@@ -188,11 +188,22 @@ def _has_main_block(module: str) -> bool:
         return False
 
 
-def _ros_args(spec: NodeSpec, params: Path, sim_time: bool, log_level: Optional[str]
-              ) -> list[str]:
+def _declares(module: str, param: str) -> bool:
+    """True when the node class of ``module`` declares the parameter ``param``."""
+    try:
+        cls = getattr(importlib.import_module(module), 'NODE_CLASS', None)
+    except Exception:  # noqa: BLE001 - the node's own start reports import problems
+        return False
+    return any(p.name == param for p in getattr(cls, 'PARAMS', ()))
+
+
+def _ros_args(spec: NodeSpec, params: Path, sim_time: bool, log_level: Optional[str],
+              compressed: bool = False) -> list[str]:
     args = ['--ros-args', '--params-file', str(params), '-r', f'__node:={spec.name}']
     if sim_time:
         args += ['-p', 'use_sim_time:=true']
+    if compressed and _declares(spec.module, 'compressed'):
+        args += ['-p', 'compressed:=true']
     if log_level:
         args += ['--log-level', log_level]
     return args
@@ -451,10 +462,16 @@ class Launcher:
     # -- processes ------------------------------------------------------------------------
 
     def _command(self, spec: NodeSpec) -> list[str]:
-        ros = _ros_args(spec, self.params, bool(self.args.bag), self.args.log_level)
+        ros = _ros_args(spec, self.params, bool(self.args.bag), self.args.log_level,
+                        self._compressed_bag())
         if _has_main_block(spec.module):
             return [sys.executable, '-m', spec.module, *ros]
         return [sys.executable, '-c', _RUNNER, spec.module, *ros]
+
+    def _compressed_bag(self) -> bool:
+        """The bag has JPEG images and no raw ones: image nodes read ``.../compressed``."""
+        topics = set(self.reader.topics) if self.reader is not None else set()
+        return '/camera/image_raw/compressed' in topics and '/camera/image_raw' not in topics
 
     def _spawn(self, child: _Child) -> None:
         env = dict(os.environ, PYTHONUNBUFFERED='1')
@@ -602,7 +619,7 @@ class Launcher:
         cls = getattr(module, 'NODE_CLASS', None)
         if cls is None:
             raise LaunchError(f'{spec.module} has no NODE_CLASS; cannot run --single-process')
-        cli = _ros_args(spec, self.params, bool(self.args.bag), None)
+        cli = _ros_args(spec, self.params, bool(self.args.bag), None, self._compressed_bag())
         return cls(context=self._ctx, cli_args=cli)
 
     def _spin(self) -> None:
@@ -690,6 +707,9 @@ class Launcher:
             except BagError as exc:
                 print(f'workzone-ros launch: error: {exc}', file=sys.stderr)
                 return EXIT_BAG
+        if self._compressed_bag():
+            self.log('the bag has compressed images only: image nodes read '
+                     '/camera/image_raw/compressed')
         names = ', '.join(s.name for s in self.specs) or 'none'
         mode = 'in one process' if self.args.single_process else 'one process each'
         self.log(f'nodes: {names} ({mode}); params {self.params}')

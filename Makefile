@@ -20,7 +20,7 @@ $(STAMP): setup.py setup.cfg package.xml
 install: $(STAMP)
 
 $(DEMO_BAG)/metadata.yaml: $(STAMP) $(wildcard config/scenarios/demo.yaml)
-	$(BIN)/workzone-ros synth --scenario demo -o $(DEMO_BAG) --overwrite
+	$(BIN)/workzone-ros synth --scenario demo --compressed -o $(DEMO_BAG) --overwrite
 
 demo: $(DEMO_BAG)/metadata.yaml
 	$(BIN)/workzone-ros launch --bag $(DEMO_BAG) --rate 1.0 --report

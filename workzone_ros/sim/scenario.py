@@ -33,6 +33,8 @@ Schema (every key optional except where noted; unknown keys are errors)::
              fade: null, tilt_deg: null, mount: post|stand, bottom: null}]
     distractors: {vehicles: 4, orange_vehicles: 1, yellow_vehicles: 1, cones: 2, drums: 1,
                   general_signs: 3, mile_markers: true}
+    lidar: {model: hdl64,           # hdl64 | hdl32 | vlp16 (sim/lidar.py LIDAR_PRESETS)
+            max_range: null}        # metres (null: the preset's datasheet range)
 
 Positions are arc lengths ``s`` (m) along the route; the ego starts at ``ego.start_s`` and,
 with ``speed_profile: constant`` (the default) and no ``stop_and_go``, drives at constant
@@ -72,6 +74,13 @@ import yaml
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import GtEvent
+from workzone_ros.sim.lidar import (
+    DEFAULT_PRESET,
+    LIDAR_PRESETS,
+    LidarError,
+    LidarModel,
+    lidar_preset,
+)
 from workzone_ros.sim.speed_profile import (
     MPH,
     SlowZone,
@@ -101,7 +110,8 @@ from workzone_ros.sim.world import (
 
 __all__ = [
     'ScenarioError', 'FPS', 'WEATHERS', 'LaneShift', 'WorkzoneSpec', 'SignSpec', 'RoadSpec',
-    'EgoSpec', 'StopAndGo', 'DistractorSpec', 'ScenarioSpec', 'EgoTrajectory', 'LaneVehicle',
+    'EgoSpec', 'StopAndGo', 'DistractorSpec', 'LidarSpec', 'ScenarioSpec', 'EgoTrajectory',
+    'LaneVehicle',
     'scenario_dir', 'list_scenarios', 'load_scenario', 'parse_scenario', 'random_scenario',
     'build_scene', 'lateral_offset', 'MOUNTS', 'STAND_BOTTOM_RANGE', 'STAND_LATERAL_RANGE',
     'RANDOM_STAND_PROBABILITY', 'sign_bottom', 'sign_mount', 'stand_parts', 'SPEED_PROFILES',
@@ -245,6 +255,18 @@ class DistractorSpec:
 
 
 @dataclass(frozen=True)
+class LidarSpec:
+    """Which simulated LiDAR the scenario carries (``lidar:`` in the YAML)."""
+
+    model: str = DEFAULT_PRESET
+    max_range: Optional[float] = None              # None: the preset's datasheet range
+
+    def sensor(self) -> LidarModel:
+        """The ray caster's sensor model."""
+        return lidar_preset(self.model, self.max_range)
+
+
+@dataclass(frozen=True)
 class ScenarioSpec:
     """A validated scenario."""
 
@@ -259,6 +281,7 @@ class ScenarioSpec:
     signs: tuple[SignSpec, ...] = ()
     distractors: DistractorSpec = field(default_factory=DistractorSpec)
     source: str = ''
+    lidar: LidarSpec = field(default_factory=LidarSpec)
 
     @property
     def frames(self) -> int:
@@ -371,7 +394,8 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
         ScenarioError: unknown keys, unknown sign classes, bad values (one line).
     """
     top = _check_keys(data, ('name', 'description', 'duration', 'frames', 'weather',
-                             'ground_cover', 'road', 'ego', 'workzone', 'signs', 'distractors'),
+                             'ground_cover', 'road', 'ego', 'workzone', 'signs', 'distractors',
+                             'lidar'),
                       f'scenario {name}')
     name = str(top.get('name', name))
     w = f'scenario {name}'
@@ -508,11 +532,19 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
           for k in ('vehicles', 'orange_vehicles', 'yellow_vehicles', 'cones', 'drums',
                     'general_signs')),
         _bool(ds, 'mile_markers', dw, True))
+    lw = f'{w}: lidar'
+    ld = _check_keys(top.get('lidar'), ('model', 'max_range'), lw)
+    lidar = LidarSpec(_choice(ld, 'model', lw, DEFAULT_PRESET, tuple(LIDAR_PRESETS)),
+                      _num(ld, 'max_range', lw, None, lo=5.0, hi=300.0))
+    try:
+        lidar.sensor()
+    except LidarError as exc:
+        raise _err(lw, str(exc)) from None
     desc = top.get('description', '')
     if not isinstance(desc, str):
         raise _err(w, f'description must be a string, got {desc!r}')
     return ScenarioSpec(name, ' '.join(desc.split()), float(duration), weather, cover, road,
-                        ego, wz, tuple(sign_specs), distractors, source)
+                        ego, wz, tuple(sign_specs), distractors, source, lidar)
 
 
 def scenario_dir() -> Path:

@@ -20,10 +20,11 @@ Timing: camera frame ``k`` is exposed at ``k / 15`` s and stamped with that time
 clock is offset from the camera's by ``latency_ms`` (default 50 ms): scan ``j`` starts its
 spin at ``latency + j / 10`` s and is stamped with that start time, so scans are never
 synchronised with frames and a consumer must match them by time and compensate ego motion.
-Points are in the lidar frame at their own firing time (sim/lidar.py).  The odom frame is the
-simulator's world frame.  Every pose comes from the scenario's ego trajectory, so odometry,
-LiDAR motion and the camera follow its speed profile (slow-down, stop-and-go): the odom
-twist is ds/dt along the route, zero while the ego stands.
+Points are in the lidar frame at their own firing time (sim/lidar.py), cast with the scenario's
+``lidar:`` preset (HDL-64E unless it names another).  The odom frame is the simulator's world
+frame.  Every pose comes from the scenario's ego trajectory, so odometry, LiDAR motion and the
+camera follow its speed profile (slow-down, stop-and-go): the odom twist is ds/dt along the
+route, zero while the ego stands.
 
 Rendering and ray casting run in a pool of worker processes; every task is a pure function of
 (scenario, seed, index), results are consumed in order, and the bag is byte-identical for the
@@ -368,8 +369,8 @@ class _World:
                        signs=signs, distractors=objs, weather=self.scene.weather)
 
     def scan(self, j: int, t0: float) -> list[tuple[int, str, bytes]]:
-        from workzone_ros.sim.lidar import LidarModel, cast_scan
-        model = LidarModel()
+        from workzone_ros.sim.lidar import cast_scan
+        model = self.spec.lidar.sensor()
         sc = cast_scan(lidar_scene(self.scene, t0), t0, self.ego.lidar_pose, model,
                        seed=self.opts.seed, scan_index=j)
         t_ns = _ns(t0)

@@ -2715,6 +2715,8 @@ class ColorDetector:
         self.model = model
         self.config = config
         self.rgb_lp = rgb_lp
+        #: places (16 px cells) of the last frame's blobs rejected as drums or cones
+        self.channelizers: set = set()
         if config.method == 'rgb_lp' and rgb_lp is None:
             raise ModelError("method 'rgb_lp' needs the seed 002 thresholds (train them with "
                              'workzone-ros train color --rgb-lp)')
@@ -2851,6 +2853,7 @@ class ColorDetector:
         height, width = bgr.shape[:2]
         s, sw, sh, thr_base, p_full, roi, own = self._frame_setup(width, height)
         cfg = self.config
+        self.channelizers = set()   # blobs rejected as banded drums / cones this frame
         self._ref_row = None
         self._peels_left = cfg.peel_max
         self._sharp_faces = set()
@@ -3517,6 +3520,8 @@ class ColorDetector:
             if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
                 if self.debug is not None:
                     self.debug[-1]['banded'] = True
+                # a drum or cone (the fusion's channelizer evidence): one per place
+                self.channelizers.add(((x0 + bx0 + bw // 2) // 16, (y0 + by0 + bh // 2) // 16))
                 return None
         cut, row_fit = None, None
         if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:

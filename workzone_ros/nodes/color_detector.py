@@ -279,8 +279,8 @@ class ColorDetectorNode(WorkzoneNode):
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
         dets = self._detector.detect(bgr, rois or ())
-        self._pub.publish(conv.payload_to_string(
-            interfaces.Detections(header=head, detections=dets)))
+        self._pub.publish(conv.payload_to_string(interfaces.Detections(
+            header=head, detections=dets, channelizers=len(self._detector.channelizers))))
         self._frames += 1
 
 

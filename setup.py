@@ -16,6 +16,8 @@ NODES = {
     'projector': 'workzone_ros.nodes.projector:main',
     'color_detector': 'workzone_ros.nodes.color_detector:main',
     'tracker': 'workzone_ros.nodes.tracker:main',
+    'classifier': 'workzone_ros.nodes.classifier:main',
+    'fusion': 'workzone_ros.nodes.fusion:main',
 }
 
 setup(

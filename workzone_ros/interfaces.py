@@ -215,7 +215,8 @@ class Evidence(msgspec.Struct, frozen=True, **_STRUCT):
 
     ``field`` names the state field it supports (``phase``, ``speed_limit_mph``,
     ``lane_shift``, ``lanes_closed``); ``distance_m`` the estimated distance to the sign
-    when it was last seen.
+    when it was last seen; ``ahead_m`` the distance still to travel to it now (negative
+    once passed; None for evidence that is not a sign).
     """
 
     class_key: str
@@ -224,6 +225,7 @@ class Evidence(msgspec.Struct, frozen=True, **_STRUCT):
     track_id: Optional[int] = None
     field: str = 'phase'
     distance_m: Optional[float] = None
+    ahead_m: Optional[float] = None
 
 
 class WorkzoneState(msgspec.Struct, frozen=True, tag='workzone_ros/WorkzoneState/1',
@@ -242,6 +244,7 @@ class WorkzoneState(msgspec.Struct, frozen=True, tag='workzone_ros/WorkzoneState
     evidence: list[Evidence] = []
     evidence_age_s: Optional[NonNeg] = None     # age of the newest evidence (None: none yet)
     distance_since_evidence_m: Optional[NonNeg] = None  # travelled since the newest evidence
+    reason: str = ''                # why the phase is what it is (the last transition's cause)
 
 
 # --- ground truth (synthetic bags only) ---------------------------------------------------

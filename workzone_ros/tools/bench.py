@@ -18,6 +18,7 @@ BENCHES: dict[str, str] = {
     'lidar': 'LiDAR message -> candidates per scan; ours vs scikit-learn DBSCAN',
     'color': 'color detector per 640x480 frame; LUT vs boosted predict_proba per pixel',
     'tracker': 'mean-shift tracker ms per track per frame; vs OpenCV CamShift',
+    'classifier': 'sign classifier ms per crop, single and batched; vs raw intensity + PCA',
 }
 
 

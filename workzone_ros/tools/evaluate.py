@@ -14,6 +14,8 @@ EVALUATIONS: dict[str, str] = {
     'lidar': 'LiDAR candidates (FP/FN by range band) and projection error (seed 004)',
     'color': 'color detection, seed 000 Table I metrics per weather; real clips',
     'tracker': 'tracking, seed 001 Table II quantities; CamShift peer',
+    'classifier': 'sign classifier, seed 000 Table III; mirror pairs, background, real clips',
+    'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
 }
 
 

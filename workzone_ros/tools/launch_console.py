@@ -163,6 +163,10 @@ class StateWatcher:
             if key == self._last:
                 return
             self._last = key
-        t = state.header.stamp.to_ns()
-        t = (t - self._t0) * 1e-9 if self._t0 is not None else t * 1e-9
-        self._say('state', f't={t:7.2f} s  {describe_state(state)}')
+        ns = state.header.stamp.to_ns()
+        if self._t0 is not None and ns < self._t0:
+            when = 't=  start  '          # published before the replay's clock began
+        else:
+            t = (ns - self._t0) * 1e-9 if self._t0 is not None else ns * 1e-9
+            when = f't={t:7.2f} s'
+        self._say('state', f'{when}  {describe_state(state)}')

@@ -442,6 +442,7 @@ class Launcher:
         self._player_error: Optional[str] = None
         self.report: Optional[ReportCollector] = None
         self._inproc_nodes: list = []
+        self._run_dir: Optional[str] = None
         self._t_start = time.monotonic()
 
     def log(self, text: str) -> None:
@@ -474,7 +475,12 @@ class Launcher:
         return '/camera/image_raw/compressed' in topics and '/camera/image_raw' not in topics
 
     def _spawn(self, child: _Child) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED='1')
+        # one folder per launch: a restarted node finds what its previous run left (the
+        # fusion's phase checkpoint), a new launch starts clean
+        if self._run_dir is None:
+            import tempfile
+            self._run_dir = tempfile.mkdtemp(prefix='workzone_run_')
+        env = dict(os.environ, PYTHONUNBUFFERED='1', WORKZONE_RUN_DIR=self._run_dir)
         if sys.stdout.isatty():
             env.setdefault('RCUTILS_COLORIZED_OUTPUT', '1')
         parent = os.getpid()
@@ -744,6 +750,9 @@ class Launcher:
         if self._player_error and not self.exit_code:
             print(f'workzone-ros launch: error: {self._player_error}', file=sys.stderr)
             self.exit_code = EXIT_BAG
+        if self._run_dir is not None:
+            import shutil
+            shutil.rmtree(self._run_dir, ignore_errors=True)
         if self.say.log_path is not None:
             self.log(f'full log: {self.say.log_path}')
         self.log(f'exit code {self.exit_code}')

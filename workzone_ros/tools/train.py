@@ -12,6 +12,7 @@ __all__ = ['TRAINERS', 'main']
 
 TRAINERS: dict[str, str] = {
     'color': 'boosted hue/saturation color model (seed 000) from `synth pixels` or images+masks',
+    'classifier': 'sign classifier: log-polar + PCA + RBF SVM (seed 000) from renders / folders',
 }
 
 

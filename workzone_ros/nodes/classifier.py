@@ -1,0 +1,263 @@
+"""``classifier`` node: image + ``/workzone/tracks`` -> ``/workzone/signs`` (seed 000 III.B).
+
+Thin wrapper around :mod:`workzone_ros.core.classifier` (log-polar + PCA + SVM with a
+``background`` reject class), :mod:`workzone_ros.core.digits` (the work-zone speed limit's
+value) and :mod:`workzone_ros.core.sign_distance` (LiDAR range, else apparent size).
+
+Images are kept in a short ring buffer keyed by stamp; a ``Tracks`` payload (or a
+``Detections`` payload when tracking is off: ``input_topic: /workzone/detections``) is
+processed with the image of exactly the same stamp, every box of the frame in one batch.
+A ``Signs`` payload is published for every frame, with an empty list when there is nothing,
+so a listener can tell a quiet scene from a dead camera.  Boxes the classifier rejects
+(``background``) are not published (they are counted in ``/diagnostics``); a box too small
+to classify, or mostly outside the image, is published as ``unknown`` with the reason, never
+as a guess.  ``/workzone/debug_image`` (sensor QoS) shows the frame with the signs and a
+banner with the phase of ``/workzone/state``; ``debug_image: false`` turns it off.
+"""
+from __future__ import annotations
+
+import collections
+import math
+from typing import Any, Optional
+
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image
+from std_msgs.msg import String
+
+from workzone_ros import interfaces as I
+from workzone_ros.core import signs as catalogue
+from workzone_ros.core.overlay import draw_debug
+from workzone_ros.core.sign_distance import estimate_distance, focal_from_fov
+from workzone_ros.nodes import conversions as conv
+from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
+from workzone_ros.resources import config_path
+
+__all__ = ['ClassifierNode', 'NODE_CLASS', 'main']
+
+
+class ClassifierNode(WorkzoneNode):
+    """Sign classification node (see the module docstring)."""
+
+    PARAMS = (
+        Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
+              read_only=True),
+        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+              read_only=True),
+        Param('input_topic', '/workzone/tracks', 'boxes to classify: Tracks (or Detections '
+              'when tracking is off)', read_only=True),
+        Param('rois_topic', '/workzone/rois', "LiDAR ROIs: a sign's distance is its ROI's "
+              'range (empty: distance from the apparent size only)', read_only=True),
+        Param('camera_info_topic', '/camera/camera_info', 'focal length for the size-based '
+              'distance', read_only=True),
+        Param('state_topic', '/workzone/state', 'the phase shown in the debug banner '
+              '(empty: no banner)', read_only=True),
+        Param('signs_topic', '/workzone/signs', 'output Signs payloads', read_only=True),
+        Param('debug_image_topic', '/workzone/debug_image', 'output debug image',
+              read_only=True),
+        Param('debug_image', True, 'publish the debug image'),
+        Param('model_path', '', 'classifier model (empty: config/models default)',
+              read_only=True),
+        Param('margin', 0.1, 'crop margin around a box (fraction of its size per side)',
+              min=0.0, max=1.0),
+        Param('min_size', 12, 'boxes smaller than this (px, either side) are published as '
+              'unknown', min=1, max=1000),
+        Param('min_visible', 0.5, 'boxes with less than this share inside the image are '
+              'published as unknown', min=0.0, max=1.0),
+        Param('read_speed', True, 'read the value of work-zone speed limit signs'),
+        Param('assumed_hfov_deg', 60.0, 'horizontal field of view used for distances until a '
+              'CameraInfo arrives', min=1.0, max=179.0),
+        Param('image_buffer', 10, 'images kept while waiting for their boxes', min=1,
+              max=100),
+        Param('rois_buffer', 30, 'ROIs payloads kept for stamp matching', min=1, max=1000),
+    )
+    INPUT_TOPICS = ('image_topic', 'input_topic', 'rois_topic', 'camera_info_topic')
+
+    def __init__(self, **kwargs: Any) -> None:
+        """Create the node; raises ConfigError on a missing or invalid model file."""
+        super().__init__('classifier', **kwargs)
+        p = self.params
+        self._model = self._load_model(p.model_path)
+        self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
+        self._pending: collections.OrderedDict[int, Any] = collections.OrderedDict()
+        self._rois: collections.OrderedDict[int, list[I.Roi]] = collections.OrderedDict()
+        self._focal: Optional[float] = None
+        self._state: Optional[I.WorkzoneState] = None
+        self._last_ns: Optional[int] = None
+        self.counts = collections.Counter()
+        self._signs_pub = self.reliable_publisher(String, p.signs_topic)
+        self._debug_pub = self.sensor_publisher(Image, p.debug_image_topic)
+        if p.compressed:
+            self._image_sub = self.sensor_subscription(
+                CompressedImage, p.image_topic.rstrip('/') + '/compressed', self._on_image)
+        else:
+            self._image_sub = self.sensor_subscription(Image, p.image_topic, self._on_image)
+        self._input_sub = self.reliable_subscription(String, p.input_topic, self._on_boxes)
+        self._rois_sub = (self.reliable_subscription(String, p.rois_topic, self._on_rois)
+                          if p.rois_topic else None)
+        self._info_sub = (self.reliable_subscription(CameraInfo, p.camera_info_topic,
+                                                     self._on_info, depth=1)
+                          if p.camera_info_topic else None)
+        self._state_sub = (self.reliable_subscription(String, p.state_topic, self._on_state,
+                                                      depth=1, transient_local=True)
+                           if p.state_topic else None)
+
+    def _load_model(self, path: str):
+        from workzone_ros.core import classifier as core
+        path = path or str(config_path(core.DEFAULT_MODEL))
+        try:
+            model = core.load_model(path)
+        except (core.ModelError, OSError, ValueError) as exc:
+            self.destroy_node()
+            raise ConfigError(f'classifier model: {exc}') from None
+        self.get_logger().info(f'classifier model {path}: {len(model.classes)} classes')
+        return model
+
+    # --- callbacks ------------------------------------------------------------------------
+
+    def _on_info(self, msg: CameraInfo) -> None:
+        self._focal = float(conv.camera_info_to_numpy(msg).K[1, 1])
+
+    def _on_state(self, msg: String) -> None:
+        self._state = conv.string_to_payload(msg, I.WorkzoneState)
+
+    def _on_rois(self, msg: String) -> None:
+        rois = conv.string_to_payload(msg, I.Rois)
+        self._rois[rois.header.stamp.to_ns()] = list(rois.rois)
+        while len(self._rois) > self.params.rois_buffer:
+            self._rois.popitem(last=False)
+
+    def _on_image(self, msg: Any) -> None:
+        ns = conv.stamp_to_time(msg.header.stamp).to_ns()
+        if ns in self._pending:
+            self._process(msg, self._pending.pop(ns))
+            return
+        self._images[ns] = msg
+        while len(self._images) > self.params.image_buffer:
+            self._images.popitem(last=False)
+
+    def _on_boxes(self, msg: String) -> None:
+        payload = conv.string_to_payload(msg)
+        if not isinstance(payload, (I.Tracks, I.Detections)):
+            raise InputError(f'expected Tracks or Detections, got {I.schema_of(payload)}')
+        ns = payload.header.stamp.to_ns()
+        image = self._images.pop(ns, None)
+        if image is not None:
+            self._process(image, payload)
+            return
+        self._pending[ns] = payload
+        while len(self._pending) > self.params.image_buffer:
+            self._pending.popitem(last=False)
+            self.drop(self.params.input_topic, 'no image with the stamp of these boxes arrived')
+
+    # --- the step -------------------------------------------------------------------------
+
+    def _process(self, image: Any, payload: Any) -> None:
+        ns = payload.header.stamp.to_ns()
+        if self._last_ns is not None and ns < self._last_ns:
+            if self._last_ns - ns <= 2_000_000_000:
+                raise InputError('boxes older than the last processed frame')
+            self.get_logger().info('time jumped back: buffers reset')
+            self._rois.clear()
+        self._last_ns = ns
+        for old in [k for k in self._images if k <= ns]:
+            del self._images[old]
+        frame = (conv.compressed_to_numpy(image) if isinstance(image, CompressedImage)
+                 else conv.image_to_numpy(image, 'bgr8'))
+        items = payload.tracks if isinstance(payload, I.Tracks) else payload.detections
+        signs, rejected = self._classify(frame, items, self._rois.get(ns, ()))
+        self._signs_pub.publish(conv.payload_to_string(I.Signs(header=payload.header,
+                                                                signs=signs)))
+        if self.params.debug_image:
+            overlay = draw_debug(frame, signs, rejected, self._state,
+                                 show_banner=bool(self.params.state_topic))
+            self._debug_pub.publish(conv.numpy_to_image(overlay, 'bgr8', image.header))
+
+    def _focal_px(self, width: int) -> float:
+        return self._focal or focal_from_fov(width, self.params.assumed_hfov_deg)
+
+    def _classify(self, frame, items, rois) -> tuple[list[I.Sign], list[I.Box]]:
+        """Signs of one frame, and the boxes rejected as background."""
+        p = self.params
+        h_img, w_img = frame.shape[:2]
+        ok, unknown = [], []
+        for item in items:
+            reason = _unclassifiable(item.box, w_img, h_img, p.min_size, p.min_visible)
+            (unknown if reason else ok).append((item, reason))
+        boxes = [(it.box.x, it.box.y, it.box.w, it.box.h) for it, _ in ok]
+        preds = self._model.classify_boxes(frame, boxes, margin=p.margin) if boxes else []
+        signs = [_unknown_sign(it, reason) for it, reason in unknown]
+        rejected = []
+        focal = self._focal_px(w_img)
+        for (item, _), pred in zip(ok, preds):
+            if pred is None:
+                signs.append(_unknown_sign(item, 'nothing of the box is inside the image'))
+            elif pred.class_key == 'background' or pred.class_key not in catalogue.BY_KEY:
+                rejected.append(item.box)
+            else:
+                signs.append(self._sign(frame, item, pred, focal, rois))
+        self.counts['signs'] += sum(1 for s in signs if s.category != 'unknown')
+        self.counts['unknown'] += sum(1 for s in signs if s.category == 'unknown')
+        self.counts['rejected'] += len(rejected)
+        return signs, rejected
+
+    def _sign(self, frame, item, pred, focal: float, rois) -> I.Sign:
+        c = catalogue.get(pred.class_key)
+        speed, speed_conf = None, None
+        if c.key == 'work_zone_speed_limit' and self.params.read_speed:
+            speed, speed_conf = self._read_speed(frame, item.box)
+        dist, source = estimate_distance(item.box, c.key, focal, rois)
+        return I.Sign(box=item.box, class_key=c.key, code=c.code, category=c.category,
+                      score=_unit(pred.score), track_id=getattr(item, 'track_id', None),
+                      speed_limit_mph=speed, speed_limit_confidence=speed_conf,
+                      probabilities={k: round(float(v), 4)
+                                     for k, v in pred.probabilities.items()},
+                      distance_m=None if dist is None else round(dist, 2),
+                      distance_source=source)
+
+    def _read_speed(self, frame, box: I.Box) -> tuple[Optional[int], Optional[float]]:
+        from workzone_ros.core.digits import read_speed_limit
+        from workzone_ros.core.features import crop_sign
+        crop, _ = crop_sign(frame, (box.x, box.y, box.w, box.h), self.params.margin)
+        if crop is None:
+            return None, None
+        reading = read_speed_limit(crop)
+        if reading.value is None:
+            return None, None
+        return int(reading.value), _unit(reading.confidence)
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """Counts of published, unknown and rejected boxes."""
+        return [(f'boxes {k}', str(v)) for k, v in sorted(self.counts.items())]
+
+
+def _unit(x: float) -> float:
+    return float(min(1.0, max(0.0, x))) if math.isfinite(x) else 0.0
+
+
+def _unclassifiable(box: I.Box, width: int, height: int, min_size: int,
+                    min_visible: float) -> str:
+    """Why ``box`` cannot be classified ('' when it can)."""
+    if min(box.w, box.h) < min_size:
+        return f'box {box.w:.0f}x{box.h:.0f} px is below min_size {min_size}'
+    iw = max(0.0, min(box.x2, width) - max(box.x, 0.0))
+    ih = max(0.0, min(box.y2, height) - max(box.y, 0.0))
+    visible = iw * ih / box.area if box.area > 0 else 0.0
+    if visible < min_visible:
+        return f'only {visible:.0%} of the box is inside the image'
+    return ''
+
+
+def _unknown_sign(item: Any, reason: str) -> I.Sign:
+    return I.Sign(box=item.box, class_key='unknown', code='-', category='unknown', score=0.0,
+                  track_id=getattr(item, 'track_id', None), reason=reason)
+
+
+NODE_CLASS = ClassifierNode
+
+
+def main(args: Optional[list[str]] = None) -> int:
+    """Entry point ``classifier``."""
+    return run_node(ClassifierNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

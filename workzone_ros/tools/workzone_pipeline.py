@@ -1,0 +1,198 @@
+"""``--signs pipeline`` of ``workzone-ros evaluate workzone``: signs from the camera image.
+
+The chain the nodes run, in process and in frame order, from ``workzone_ros.core``:
+
+* the colour detector (``core.detection.ColorDetector`` with the trained orange model,
+  ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it);
+* the mean-shift tracker (``core.tracking.MultiTracker``, ``TrackerConfig()`` defaults);
+* the sign classifier (``core.classifier.load_model``, ``classify_boxes``) with the
+  classifier node's rules: boxes under 12 px on a side or less than half inside the image
+  are ``unknown`` (never guessed), ``background`` answers are not published, a work-zone
+  speed limit's value is read with ``core.digits.read_speed_limit`` on its crop, and the
+  distance comes from the apparent size and CameraInfo's focal length
+  (``core.sign_distance.estimate_distance``; no LiDAR ROIs here).
+
+The colour detector does not count channelizing devices yet, so the frames carry none
+(``channelizers=None``).  The modules are imported lazily: :func:`check_available` says in
+one line what is missing.
+
+:class:`CachedSource` (``--cache DIR``) stores a bag's Signs once per bag and model files
+(JSON lines of ``Signs`` payloads): reruns of the fusion then skip the perception and the
+images.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Optional
+
+from workzone_ros.interfaces import Box, GtSigns, Sign, Signs, decode, encode
+
+__all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN_VISIBLE',
+           'MARGIN']
+
+MIN_SIZE = 12           # classifier node: min_size
+MIN_VISIBLE = 0.5       # classifier node: min_visible
+MARGIN = 0.1            # classifier node: margin
+
+
+def _classifier_path(opts) -> str:
+    from workzone_ros.core import classifier
+    from workzone_ros.resources import config_path
+    return opts.classifier_model or str(config_path(classifier.DEFAULT_MODEL))
+
+
+def check_available(opts) -> str:
+    """'' when the pipeline can run, else one line saying what is missing."""
+    for mod in ('detection', 'tracking', 'classifier', 'digits', 'sign_distance', 'features'):
+        try:
+            __import__(f'workzone_ros.core.{mod}')
+        except ImportError as exc:
+            return f'--signs pipeline needs workzone_ros.core.{mod} ({exc})'
+    path = _classifier_path(opts)
+    if not os.path.isfile(path):
+        return (f'--signs pipeline: no sign classifier at {path} (train one with '
+                "'workzone-ros train classifier' or pass --classifier-model)")
+    return ''
+
+
+def _file_key(path: str) -> str:
+    st = os.stat(path)
+    return f'{st.st_size}_{int(st.st_mtime)}'
+
+
+class CachedSource:
+    """The pipeline's Signs of one bag, computed once and stored in ``folder``.
+
+    The file is named after the bag and the colour and classifier model files (size and
+    mtime), and written only when a bag was run to its end.  ``needs_images`` is False when
+    the bag is cached: the caller does not decode images then.
+    """
+
+    name = 'pipeline'
+
+    def __init__(self, opts, bag_name: str, folder: str) -> None:
+        from workzone_ros.tools.eval_tracker import DEFAULT_MODEL
+        color = opts.color_model or DEFAULT_MODEL
+        key = '_'.join(_file_key(p) if os.path.exists(p) else 'none'
+                       for p in (color, _classifier_path(opts)))
+        self.path = Path(folder) / f'{bag_name}_{key}.jsonl'
+        self.opts = opts
+        self.stored: dict[int, tuple[Signs, Optional[int]]] = {}
+        self.new: list[str] = []
+        self.inner: Optional[PipelineSource] = None
+        if self.path.exists():
+            for line in self.path.read_text().splitlines():
+                row = json.loads(line)
+                signs = decode(json.dumps(row['signs']), Signs)
+                self.stored[signs.header.stamp.to_ns()] = (signs, row['channelizers'])
+        self.needs_images = not self.stored
+
+    def __call__(self, gt: GtSigns, image, focal: Optional[float]
+                 ) -> tuple[list[Sign], Optional[int]]:
+        """The stored signs of this frame, else the pipeline's (remembered for flush)."""
+        ns = gt.header.stamp.to_ns()
+        if ns in self.stored:
+            signs, channel = self.stored[ns]
+            return list(signs.signs), channel
+        if self.inner is None:
+            self.inner = PipelineSource(self.opts)
+        out, channel = self.inner(gt, image, focal)
+        self.new.append(json.dumps({'channelizers': channel, 'signs': json.loads(
+            encode(Signs(header=gt.header, signs=out)))}))
+        return out, channel
+
+    def flush(self) -> None:
+        """Write the computed frames (the whole bag) to the cache file."""
+        if self.new:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = self.path.with_suffix('.tmp')
+            tmp.write_text('\n'.join(self.new) + '\n')
+            tmp.replace(self.path)
+            self.new = []
+
+
+class PipelineSource:
+    """Detector + tracker + classifier on each frame (module docstring)."""
+
+    name = 'pipeline'
+    needs_images = True
+
+    def __init__(self, opts) -> None:
+        from workzone_ros.core.classifier import load_model
+        from workzone_ros.core.tracking import MultiTracker, TrackerConfig
+        from workzone_ros.tools.eval_tracker import _ColorDetector
+        self.detector = _ColorDetector(opts.color_model)
+        self.tracker = MultiTracker(TrackerConfig())
+        self.model = load_model(_classifier_path(opts))
+
+    def __call__(self, gt: GtSigns, image, focal: Optional[float]
+                 ) -> tuple[list[Sign], Optional[int]]:
+        """Signs of one frame (the classifier node's output) and no channelizer count."""
+        dets = self.detector(image, gt)
+        tracks = self.tracker.step(image, dets, stamp=gt.header.stamp.to_ns() * 1e-9)
+        return self.classify(image, tracks, focal), None
+
+    def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
+        """As ``nodes/classifier.py``: unknown for unclassifiable boxes, background dropped."""
+        from workzone_ros.core import signs as catalogue
+        h_img, w_img = frame.shape[:2]
+        out, ok = [], []
+        for item in items:
+            reason = _unclassifiable(item.box, w_img, h_img)
+            if reason:
+                out.append(Sign(box=item.box, class_key='unknown', code='-', category='unknown',
+                                score=0.0, track_id=getattr(item, 'track_id', None),
+                                reason=reason))
+            else:
+                ok.append(item)
+        boxes = [(it.box.x, it.box.y, it.box.w, it.box.h) for it in ok]
+        preds = self.model.classify_boxes(frame, boxes, margin=MARGIN) if boxes else []
+        for item, pred in zip(ok, preds):
+            if pred is None or pred.class_key not in catalogue.BY_KEY \
+                    or pred.class_key == 'background':
+                continue
+            out.append(self._sign(frame, item, pred, focal))
+        return out
+
+    def _sign(self, frame, item, pred, focal: Optional[float]) -> Sign:
+        from workzone_ros.core import signs as catalogue
+        from workzone_ros.core.sign_distance import estimate_distance
+        c = catalogue.get(pred.class_key)
+        speed, conf = (_read_speed(frame, item.box) if c.key == 'work_zone_speed_limit'
+                       else (None, None))
+        dist, source = estimate_distance(item.box, c.key, focal, ())
+        return Sign(box=item.box, class_key=c.key, code=c.code, category=c.category,
+                    score=_unit(pred.score), track_id=getattr(item, 'track_id', None),
+                    speed_limit_mph=speed, speed_limit_confidence=conf,
+                    probabilities={k: round(float(v), 4) for k, v in pred.probabilities.items()},
+                    distance_m=None if dist is None else round(dist, 2), distance_source=source)
+
+
+def _read_speed(frame, box: Box) -> tuple[Optional[int], Optional[float]]:
+    from workzone_ros.core.digits import read_speed_limit
+    from workzone_ros.core.features import crop_sign
+    crop, _ = crop_sign(frame, (box.x, box.y, box.w, box.h), MARGIN)
+    if crop is None:
+        return None, None
+    reading = read_speed_limit(crop)
+    if reading.value is None:
+        return None, None
+    return int(reading.value), _unit(reading.confidence)
+
+
+def _unit(x: float) -> float:
+    return float(min(1.0, max(0.0, x))) if math.isfinite(x) else 0.0
+
+
+def _unclassifiable(box: Box, width: int, height: int) -> str:
+    if min(box.w, box.h) < MIN_SIZE:
+        return f'box {box.w:.0f}x{box.h:.0f} px is below min_size {MIN_SIZE}'
+    iw = max(0.0, min(box.x2, width) - max(box.x, 0.0))
+    ih = max(0.0, min(box.y2, height) - max(box.y, 0.0))
+    visible = iw * ih / box.area if box.area > 0 else 0.0
+    if visible < MIN_VISIBLE:
+        return f'only {visible:.0%} of the box is inside the image'
+    return ''

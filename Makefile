@@ -23,7 +23,7 @@ $(DEMO_BAG)/metadata.yaml: $(STAMP) $(wildcard config/scenarios/demo.yaml)
 	$(BIN)/workzone-ros synth --scenario demo --compressed -o $(DEMO_BAG) --overwrite
 
 demo: $(DEMO_BAG)/metadata.yaml
-	$(BIN)/workzone-ros launch --bag $(DEMO_BAG) --rate 1.0 --report
+	$(BIN)/workzone-ros launch --bag $(DEMO_BAG) --rate 1.0 --state --score bags/demo_report --report
 
 test: $(STAMP) lint
 	$(BIN)/python -m pytest -q test

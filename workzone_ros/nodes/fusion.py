@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 from typing import Any, Optional
 
+import msgspec
 import numpy as np
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import CameraInfo
@@ -230,6 +231,11 @@ class FusionNode(WorkzoneNode):
         return I.Time.from_ns(ns)
 
     def _publish(self, state: I.WorkzoneState) -> None:
+        if self._last_stamp is not None and state.header.stamp.to_ns() < \
+                self._last_stamp.to_ns():
+            # a late frame after a timer tick: a planner never sees the stamps go back
+            state = msgspec.structs.replace(state, header=msgspec.structs.replace(
+                state.header, stamp=self._last_stamp))
         self._last_stamp = state.header.stamp
         self._state_pub.publish(conv.payload_to_string(state))
         self._active_pub.publish(Bool(data=bool(state.active)))

@@ -441,6 +441,7 @@ class Launcher:
         self._player_thread: Optional[threading.Thread] = None
         self._player_error: Optional[str] = None
         self.report: Optional[ReportCollector] = None
+        self.recorder = None
         self._inproc_nodes: list = []
         self._run_dir: Optional[str] = None
         self._t_start = time.monotonic()
@@ -576,7 +577,7 @@ class Launcher:
 
     def _need_rclpy(self) -> bool:
         return bool(self.args.bag or self.args.report or self.args.single_process
-                    or getattr(self.args, 'state', False))
+                    or getattr(self.args, 'state', False) or getattr(self.args, 'score', None))
 
     def _start_rclpy(self) -> None:
         import rclpy
@@ -593,6 +594,9 @@ class Launcher:
                                        start_parameter_services=False)
         if self.args.report:
             self.report = ReportCollector(self._node)
+        if getattr(self.args, 'score', None) and self.reader is not None:
+            from workzone_ros.tools.live_score import LiveRecorder
+            self.recorder = LiveRecorder(self._node)
         if getattr(self.args, 'state', False) and any(s.name == 'fusion' for s in self.specs):
             from workzone_ros.tools.launch_console import StateWatcher
             t0 = self.reader.start_time if self.reader is not None else None
@@ -745,6 +749,8 @@ class Launcher:
                 self._stop_rclpy()
             if self.report is not None:
                 print(self.report.render(self._report_header()), flush=True)
+            if self.recorder is not None and not self._player_error:
+                self._score()
             if self.reader is not None:
                 self.reader.close()
         if self._player_error and not self.exit_code:
@@ -758,6 +764,14 @@ class Launcher:
         self.log(f'exit code {self.exit_code}')
         self.say.close()
         return self.exit_code
+
+    def _score(self) -> None:
+        from workzone_ros.tools.live_score import score_live
+        try:
+            if score_live(self.args.bag, self.recorder, self.args.score) is None:
+                self.log('no /groundtruth/workzone in the bag: nothing to score')
+        except Exception as exc:  # noqa: BLE001 - a scoring problem never hides the run
+            self.log(f'scoring failed: {type(exc).__name__}: {exc}')
 
     def _loop(self) -> None:
         state = 'waiting' if self.reader is not None else 'running'
@@ -822,6 +836,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--quiet-play', action='store_true', help='no bag progress lines')
     p.add_argument('--state', action='store_true', help='print /workzone/state changes as a '
                    'planner sees them (phase, speed limit, lanes, evidence)')
+    p.add_argument('--score', metavar='DIR', help='with a synthetic bag: score the '
+                   "published states against the bag's ground truth at the end (Table IV) "
+                   'and write DIR/README.md with the timeline')
     p.add_argument('--verbose', action='store_true', help="show every node's start-up "
                    'configuration on the console (always in the log file)')
     p.add_argument('--log-file', metavar='FILE', help='where every line goes (default: '

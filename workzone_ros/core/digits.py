@@ -189,12 +189,12 @@ def _odd(x: float) -> int:
     return max(3, int(round(x)) | 1)
 
 
-def _make_sign(white: np.ndarray, pb: float, ph: float, rect: tuple[int, int, int, int]
-               ) -> Optional[_Sign]:
+def _make_sign(white: np.ndarray, pb: float, ph: float,
+               rect: tuple[float, float, float, float]) -> Optional[_Sign]:
     """The sign whose panel lies in ``rect`` (x0, y0, x1, y1): the panel is the largest
     white blob there, closed over its legend (a kernel of 0.6 ph); None when it is less
-    than half of the rectangle.  The panel region is a rectangle: the blob's rows, and its
-    columns beside the legend."""
+    than half of the rectangle.  The panel region is a rectangle: the blob's rows (to at
+    most 3.3 ph), and its columns beside the legend; ``ph`` is refined by the panel's size."""
     x0, y0, x1, y1 = (int(round(v)) for v in rect)
     H, W = white.shape
     x0, y0, x1, y1 = max(0, x0), max(0, y0), min(W, x1), min(H, y1)

@@ -76,6 +76,9 @@ class ClassifierNode(WorkzoneNode):
         super().__init__('classifier', **kwargs)
         p = self.params
         self._model = self._load_model(p.model_path)
+        if p.read_speed:
+            from workzone_ros.core.digits import warm_up
+            warm_up()       # the digit classifier and templates, before the first frame
         self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
         self._pending: collections.OrderedDict[int, Any] = collections.OrderedDict()
         self._rois: collections.OrderedDict[int, list[I.Roi]] = collections.OrderedDict()

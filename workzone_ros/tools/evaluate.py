@@ -16,6 +16,7 @@ EVALUATIONS: dict[str, str] = {
     'tracker': 'tracking, seed 001 Table II quantities; CamShift peer',
     'classifier': 'sign classifier, seed 000 Table III; mirror pairs, background, real clips',
     'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
+    'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
 }
 
 

@@ -188,8 +188,10 @@ def test_bad_model_files_are_refused_with_one_line(model, tmp_path):
 
 def test_training_refuses_classes_without_crops():
     crops, labels = dataset(3, seed=0, keys=KEYS[:2])
-    with pytest.raises(ValueError, match='stop'):
+    with pytest.raises(ValueError, match=r'stop \(0\)'):
         cl.fit(crops, labels, KEYS[:3], cv=2)
+    with pytest.raises(ValueError, match=r'work_zone_begin \(1\)'):
+        cl.fit(crops[:4], labels[:4], KEYS[:2], cv=2)
     with pytest.raises(ValueError, match='unknown method'):
         cl.fit(crops, labels, KEYS[:2], method='tree')
 

@@ -357,9 +357,10 @@ def fit_arrays(base: np.ndarray, extra: Optional[np.ndarray], labels: Sequence[s
     index = {c: i for i, c in enumerate(classes)}
     y = np.array([index[c] for c in labels], np.int64)
     present = np.bincount(y, minlength=len(classes))
-    if (present == 0).any():
-        empty = [c for c, n in zip(classes, present) if n == 0]
-        raise ValueError(f'no training crops for class(es) {", ".join(empty)}')
+    if (present < 2).any():
+        few = [f'{c} ({n})' for c, n in zip(classes, present) if n < 2]
+        raise ValueError(f'too few training crops (need 2 per class) for class(es) '
+                         f'{", ".join(few)}')
     pca = PCA(n_components=n_components, svd_solver='randomized', random_state=seed).fit(base)
     z = pca.transform(base)
     arrays = {'pca_mean': pca.mean_.astype(np.float32),

@@ -46,8 +46,8 @@ Algorithm (docs/fusion.md has the parameters, the rules and measured numbers):
    * ``leaving`` on a confirmed END ROAD WORK still ahead while approaching or inside (from
      ``none`` an end sign starts nothing: it is never a zone's first evidence); ``none``
      once it is passed;
-   * back to ``none`` from any phase when no evidence was seen for ``timeout_m`` metres
-     (``timeout_s`` seconds when there is no odometry);
+   * back to ``none`` from approaching, inside or leaving when no evidence was seen for
+     ``timeout_m`` metres (``timeout_s`` seconds when there is no odometry);
    * with ``stale_inputs`` no transition ever goes to ``none`` (timeouts and passed end
      signs wait for live inputs) and ``none`` is published as ``unknown``.
 

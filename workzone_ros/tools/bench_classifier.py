@@ -88,6 +88,8 @@ def _baseline_pair(progress=print):
     from workzone_ros.tools import train_classifier as tc
     specs = [s for s in tc.synth_specs([0], 0) if s[0].name in ('demo', 'paper_b')]
     data = tc.render_crops(specs, 20, progress=None)
+    counts = data.counts()
+    data = data.subset(i for i, lab in enumerate(data.labels) if counts[lab] >= 6)
     classes = sorted(set(data.labels))
     out = {}
     for kind in ('logpolar', 'raw'):

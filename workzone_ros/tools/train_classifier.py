@@ -400,12 +400,16 @@ def main(argv: Optional[list[str]] = None) -> int:
          f'{len(classes)} classes ' + ', '.join(f'{k} {v}' for k, v in
                                                  sorted(data.counts().items())))
     t0 = time.monotonic()
-    model = clf_mod.fit(data.crops, labels, classes, features=args.features,
-                        method=args.method, n_components=args.components, seed=args.seed,
-                        cv=args.cv, margin=args.margin,
-                        metadata={'training_sources': describe_sources(args, data),
-                                  'class_set': args.classes},
-                        progress=_say)
+    try:
+        model = clf_mod.fit(data.crops, labels, classes, features=args.features,
+                            method=args.method, n_components=args.components, seed=args.seed,
+                            cv=args.cv, margin=args.margin,
+                            metadata={'training_sources': describe_sources(args, data),
+                                      'class_set': args.classes},
+                            progress=_say)
+    except ValueError as exc:
+        print(f'workzone-ros train classifier: {exc}', file=sys.stderr)
+        return 2
     clf_mod.save_model(model, args.output)
     md = model.metadata
     _say(f'PCA {md["n_components"]} components hold {md["pca_variance_held"]:.1%} of the '

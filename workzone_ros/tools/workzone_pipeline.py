@@ -12,9 +12,10 @@ The chain the nodes run, in process and in frame order, from ``workzone_ros.core
   distance comes from the apparent size and CameraInfo's focal length
   (``core.sign_distance.estimate_distance``; no LiDAR ROIs here).
 
-The colour detector does not count channelizing devices yet, so the frames carry none
-(``channelizers=None``).  The modules are imported lazily: :func:`check_available` says in
-one line what is missing.
+Each frame's channelizer count is the colour detector's (``ColorDetector.channelizers``:
+the blobs it rejected as banded drums or cones, one per place), as the ``color_detector``
+node publishes it in ``Detections.channelizers``.  The modules are imported lazily:
+:func:`check_available` says in one line what is missing.
 
 :class:`CachedSource` (``--cache DIR``) stores a bag's Signs once per bag and model files
 (JSON lines of ``Signs`` payloads): reruns of the fusion then skip the perception and the
@@ -36,6 +37,7 @@ __all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN
 MIN_SIZE = 12           # classifier node: min_size
 MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
+_CACHE_VERSION = 2      # 2: frames carry the colour detector's channelizer count
 
 
 def _classifier_path(opts) -> str:
@@ -76,8 +78,8 @@ class CachedSource:
     def __init__(self, opts, bag_name: str, folder: str) -> None:
         from workzone_ros.tools.eval_tracker import DEFAULT_MODEL
         color = opts.color_model or DEFAULT_MODEL
-        key = '_'.join(_file_key(p) if os.path.exists(p) else 'none'
-                       for p in (color, _classifier_path(opts)))
+        key = '_'.join([f'v{_CACHE_VERSION}'] + [_file_key(p) if os.path.exists(p) else 'none'
+                                                 for p in (color, _classifier_path(opts))])
         self.path = Path(folder) / f'{bag_name}_{key}.jsonl'
         self.opts = opts
         self.stored: dict[int, tuple[Signs, Optional[int]]] = {}
@@ -130,10 +132,12 @@ class PipelineSource:
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:
-        """Signs of one frame (the classifier node's output) and no channelizer count."""
+        """Signs of one frame (the classifier node's output) and its channelizer count."""
         dets = self.detector(image, gt)
+        found = getattr(self.detector.det, 'channelizers', None)
+        channel = None if found is None else len(found)
         tracks = self.tracker.step(image, dets, stamp=gt.header.stamp.to_ns() * 1e-9)
-        return self.classify(image, tracks, focal), None
+        return self.classify(image, tracks, focal), channel
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py``: unknown for unclassifiable boxes, background dropped."""

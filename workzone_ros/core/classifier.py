@@ -172,7 +172,11 @@ class SignClassifier:
                         for c in range(k)]
         i, j = np.array(_pairs(k)).T
         self._pair_index = (i, j - 1, j, i)
-        self._sv_sq = (a['support_vectors'] ** 2).sum(1)
+        # the kernel in float32: |z - sv|^2 ~ 1e3..1e4 and gamma ~ 1e-4, so its rounding
+        # (~1e-7 of the exponent) is far below the probabilities' precision
+        self._sv32 = a['support_vectors'].astype(np.float32)
+        self._sv_sq = (self._sv32 ** 2).sum(1)
+        self._neg_gamma = np.float32(-float(a['gamma']))
 
     # --- prediction -----------------------------------------------------------------------
     def transform(self, crops: Sequence[np.ndarray]) -> np.ndarray:
@@ -194,9 +198,9 @@ class SignClassifier:
         """Class probabilities ``(n, len(classes))`` of reduced feature vectors."""
         a, k = self.arrays, len(self.classes)
         if self.method == 'svm':
-            sv = a['support_vectors']
-            d2 = (z * z).sum(1)[:, None] + self._sv_sq[None] - 2.0 * z @ sv.T
-            K = np.exp(-float(a['gamma']) * np.maximum(d2, 0.0))
+            z32 = z.astype(np.float32)
+            d2 = (z32 * z32).sum(1)[:, None] + self._sv_sq[None] - 2.0 * z32 @ self._sv32.T
+            K = np.exp(self._neg_gamma * np.maximum(d2, 0.0)).astype(np.float64)
             S = np.stack([K[:, sl] @ coef for sl, coef in self._blocks], axis=1)  # n, k, k-1
             i, j1, j, i2 = self._pair_index
             dec = S[:, i, j1] + S[:, j, i2] + a['intercept']
@@ -223,10 +227,8 @@ class SignClassifier:
 
     def _predictions(self, proba: np.ndarray) -> list[Prediction]:
         out = []
-        for row in proba:
-            best = int(np.argmax(row))
-            out.append(Prediction(self.classes[best], float(row[best]),
-                                  {c: float(v) for c, v in zip(self.classes, row)}))
+        for best, row in zip(proba.argmax(axis=1).tolist(), proba.tolist()):
+            out.append(Prediction(self.classes[best], row[best], dict(zip(self.classes, row))))
         return out
 
     def classify(self, crops: Sequence[np.ndarray]) -> list[Prediction]:

@@ -26,8 +26,8 @@ in the metadata.
 
 Example (the shipped model, docs/classifier.md)::
 
-    workzone-ros train classifier --synth 20 --synth-seeds 0 1 2 3 --synth-random 4 \
-        --data test/data/real_crops --features logpolar-centred+color+mirror
+    workzone-ros train classifier --synth 20 --synth-seeds 0 1 2 3 4 5 --synth-random 4 \
+        --data test/data/real_crops
 """
 from __future__ import annotations
 
@@ -313,7 +313,8 @@ def add_source_arguments(p: argparse.ArgumentParser, synth_default: int) -> None
                    help='render only random scenarios, not the library ones')
     p.add_argument('--size', type=int, default=64, help='rendered crop side (default 64)')
     p.add_argument('--cache', default=str(DEFAULT_CACHE),
-                   help=f'render cache folder (default {DEFAULT_CACHE})')
+                   help=f'render cache folder (default {DEFAULT_CACHE}; delete it after '
+                        'changing the simulator)')
     p.add_argument('--data', nargs='+', default=[], metavar='DIR',
                    help='folder-per-class datasets DIR/<class_key>/*.png')
     p.add_argument('--exclude-clip', nargs='+', default=[], metavar='NAME',

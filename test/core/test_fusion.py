@@ -189,7 +189,7 @@ def test_discounted_vote_corrects_a_wrong_latest_classification():
     def run(config):
         fusion = WorkzoneFusion(config)
         for k in range(6):                      # inside a zone already (approaching)
-            fusion.update(frame(k / FPS, [sign('road_work_ahead', track_id=1, dist=90.0 - k)]),
+            fusion.update(frame(k / FPS, [sign('road_work_ahead', track_id=1, dist=40.0 - k)]),
                           odom_distance_m=k * 1.5)
         for k, key in enumerate(seq, 6):
             st = fusion.update(frame(k / FPS, [sign(key, track_id=7, dist=80.0 - k)]),

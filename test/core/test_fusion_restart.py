@@ -34,3 +34,13 @@ def test_evidence_after_a_restart_rebuilds_the_state():
     fusion.hold_none('restarted while approaching')
     states = drive(fusion, [Placed('work_zone_begin', 200.0, 4)], 15.0)
     assert 'inside' in phases(states) and 'none' not in phases(states)
+
+
+def test_an_end_sign_where_another_sign_stands_is_part_of_its_assembly():
+    # the stand's flags above a lane-ends diamond classified END ROAD WORK: same place
+    placed = [Placed('road_work_ahead', 300.0, 1), Placed('right_lane_ends', 500.0, 2),
+              Placed('end_road_work', 503.0, 3), Placed('work_zone_begin', 700.0, 4)]
+    states = drive(WorkzoneFusion(), placed, 40.0)
+    assert phases(states) == ['unknown', 'none', 'approaching', 'inside']
+    off = drive(WorkzoneFusion(FusionConfig(colocated_m=0.0)), placed, 40.0)
+    assert 'leaving' in phases(off)

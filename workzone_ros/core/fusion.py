@@ -167,6 +167,10 @@ class FusionConfig:
     channelizer_inside_density: float = _knob(2.0, 'devices per frame that support inside '
                                               'and keep an active zone alive', 0.0, 1000.0,
                                               True)
+    colocated_m: float = _knob(10.0, 'an END ROAD WORK placed within this of another '
+                               "confirmed sign of the zone is part of that sign's assembly "
+                               "(a plaque, a stand's flags), not an end: work-zone signs "
+                               'stand at least ~30 m apart (MUTCD 6F); 0 = off', 0.0, 1000.0)
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -516,6 +520,7 @@ class WorkzoneFusion:
         by_role: dict[str, list[_Track]] = {'advance': [], 'begin': [], 'end': []}
         for t in live:
             by_role[role_of(t.evidence_class)].append(t)
+        by_role['end'] = [t for t in by_role['end'] if not self._colocated(t, live)]
         ends_ahead = [t for t in by_role['end'] if s < t.x]
         ends_passed = [t for t in by_role['end'] if s >= t.x]
         begins_reached = [t for t in by_role['begin'] if s >= t.x]
@@ -555,6 +560,12 @@ class WorkzoneFusion:
                 and not self._hold_none \
                 and (self._ns - self._first_ns) * 1e-9 >= self._config.warmup_s:
             self._go('none', [], 'no work-zone evidence')
+
+    def _colocated(self, end: _Track, live: list[_Track]) -> bool:
+        """Whether an END ROAD WORK stands where another confirmed sign does."""
+        d = self._config.colocated_m
+        return d > 0 and any(u is not end and role_of(u.evidence_class) != 'end'
+                             and abs(u.x - end.x) < d for u in live)
 
     def _timed_out(self) -> bool:
         cfg = self._config

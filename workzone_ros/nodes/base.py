@@ -697,6 +697,17 @@ def _section_matches(pattern: str, fqn: str) -> bool:
     return re.fullmatch(regex, fqn) is not None
 
 
+def _one_thread() -> None:
+    """One OpenCV thread per node process (BLAS/OpenMP: the launcher sets their variables
+    before the interpreter starts): the graph runs one process per node on a few cores, where
+    each library's own thread pool only adds contention."""
+    try:
+        import cv2
+        cv2.setNumThreads(1)
+    except ImportError:
+        pass
+
+
 def run_node(node_factory: Callable[[], Node], args: Optional[list[str]] = None) -> int:
     """The Jazzy ``main()``: init, build the node, spin, shut down cleanly.
 
@@ -710,6 +721,7 @@ def run_node(node_factory: Callable[[], Node], args: Optional[list[str]] = None)
     """
     global _GLOBAL_ARGS
     _GLOBAL_ARGS = list(args) if args is not None else list(sys.argv)
+    _one_thread()
     rclpy.init(args=args)
     node = None
     code = 0

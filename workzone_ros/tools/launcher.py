@@ -345,6 +345,8 @@ class ReportCollector:
             for status in msg.status:
                 drops = {}
                 for kv in status.values:
+                    if kv.key.startswith('stamp to state latency'):
+                        self.diag.setdefault(status.name, {'worst': 0})[kv.key] = kv.value
                     if kv.key.endswith(' dropped'):
                         try:
                             drops[kv.key[: -len(' dropped')]] = int(kv.value)
@@ -396,6 +398,11 @@ class ReportCollector:
                 lines.append('  dropped inputs (diagnostics): ' + '; '.join(parts))
             else:
                 lines.append('  dropped inputs (diagnostics): no /diagnostics received')
+            for name, d in sorted(self.diag.items()):
+                lat = [f"{k.rsplit(' ', 2)[1]} {v} ms" for k, v in d.items()
+                       if k.startswith('stamp to state latency') and v]
+                if lat:
+                    lines.append(f'  {name}: sensor stamp to /workzone/state ' + ', '.join(lat))
             gt = self.topics.get('/groundtruth/signs')
             if gt is not None and gt.count:
                 truth = gt.nonempty_stamps
@@ -482,6 +489,9 @@ class Launcher:
             import tempfile
             self._run_dir = tempfile.mkdtemp(prefix='workzone_run_')
         env = dict(os.environ, PYTHONUNBUFFERED='1', WORKZONE_RUN_DIR=self._run_dir)
+        for var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS',
+                    'NUMBA_NUM_THREADS'):
+            env.setdefault(var, '1')      # one thread per node process (--nodes sets more)
         if sys.stdout.isatty():
             env.setdefault('RCUTILS_COLORIZED_OUTPUT', '1')
         parent = os.getpid()

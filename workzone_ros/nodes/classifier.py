@@ -17,16 +17,15 @@ banner with the phase of ``/workzone/state``; ``debug_image: false`` turns it of
 from __future__ import annotations
 
 import collections
-import math
 from typing import Any, Optional
 
 from sensor_msgs.msg import CameraInfo, CompressedImage, Image
 from std_msgs.msg import String
 
 from workzone_ros import interfaces as I
-from workzone_ros.core import signs as catalogue
 from workzone_ros.core.overlay import draw_debug
-from workzone_ros.core.sign_distance import estimate_distance, focal_from_fov
+from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
+from workzone_ros.core.sign_distance import focal_from_fov
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
 from workzone_ros.resources import config_path
@@ -180,78 +179,19 @@ class ClassifierNode(WorkzoneNode):
     def _classify(self, frame, items, rois) -> tuple[list[I.Sign], list[I.Box]]:
         """Signs of one frame, and the boxes rejected as background."""
         p = self.params
-        h_img, w_img = frame.shape[:2]
-        ok, unknown = [], []
-        for item in items:
-            reason = _unclassifiable(item.box, w_img, h_img, p.min_size, p.min_visible)
-            (unknown if reason else ok).append((item, reason))
-        boxes = [(it.box.x, it.box.y, it.box.w, it.box.h) for it, _ in ok]
-        preds = self._model.classify_boxes(frame, boxes, margin=p.margin) if boxes else []
-        signs = [_unknown_sign(it, reason) for it, reason in unknown]
-        rejected = []
-        focal = self._focal_px(w_img)
-        for (item, _), pred in zip(ok, preds):
-            if pred is None:
-                signs.append(_unknown_sign(item, 'nothing of the box is inside the image'))
-            elif pred.class_key == 'background' or pred.class_key not in catalogue.BY_KEY:
-                rejected.append(item.box)
-            else:
-                signs.append(self._sign(frame, item, pred, focal, rois))
+        recognizer = SignRecognizer(self._model, RecognitionConfig(
+            margin=p.margin, min_size=p.min_size, min_visible=p.min_visible,
+            read_speed=p.read_speed))
+        signs, rejected = recognizer.recognize(frame, items, self._focal_px(frame.shape[1]),
+                                               rois)
         self.counts['signs'] += sum(1 for s in signs if s.category != 'unknown')
         self.counts['unknown'] += sum(1 for s in signs if s.category == 'unknown')
         self.counts['rejected'] += len(rejected)
         return signs, rejected
 
-    def _sign(self, frame, item, pred, focal: float, rois) -> I.Sign:
-        c = catalogue.get(pred.class_key)
-        speed, speed_conf = None, None
-        if c.key == 'work_zone_speed_limit' and self.params.read_speed:
-            speed, speed_conf = self._read_speed(frame, item.box)
-        dist, source = estimate_distance(item.box, c.key, focal, rois)
-        return I.Sign(box=item.box, class_key=c.key, code=c.code, category=c.category,
-                      score=_unit(pred.score), track_id=getattr(item, 'track_id', None),
-                      speed_limit_mph=speed, speed_limit_confidence=speed_conf,
-                      probabilities={k: round(float(v), 4)
-                                     for k, v in pred.probabilities.items()},
-                      distance_m=None if dist is None else round(dist, 2),
-                      distance_source=source)
-
-    def _read_speed(self, frame, box: I.Box) -> tuple[Optional[int], Optional[float]]:
-        from workzone_ros.core.digits import read_speed_limit
-        from workzone_ros.core.features import crop_sign
-        crop, _ = crop_sign(frame, (box.x, box.y, box.w, box.h), self.params.margin)
-        if crop is None:
-            return None, None
-        reading = read_speed_limit(crop)
-        if reading.value is None:
-            return None, None
-        return int(reading.value), _unit(reading.confidence)
-
     def extra_diagnostics(self) -> list[tuple[str, str]]:
         """Counts of published, unknown and rejected boxes."""
         return [(f'boxes {k}', str(v)) for k, v in sorted(self.counts.items())]
-
-
-def _unit(x: float) -> float:
-    return float(min(1.0, max(0.0, x))) if math.isfinite(x) else 0.0
-
-
-def _unclassifiable(box: I.Box, width: int, height: int, min_size: int,
-                    min_visible: float) -> str:
-    """Why ``box`` cannot be classified ('' when it can)."""
-    if min(box.w, box.h) < min_size:
-        return f'box {box.w:.0f}x{box.h:.0f} px is below min_size {min_size}'
-    iw = max(0.0, min(box.x2, width) - max(box.x, 0.0))
-    ih = max(0.0, min(box.y2, height) - max(box.y, 0.0))
-    visible = iw * ih / box.area if box.area > 0 else 0.0
-    if visible < min_visible:
-        return f'only {visible:.0%} of the box is inside the image'
-    return ''
-
-
-def _unknown_sign(item: Any, reason: str) -> I.Sign:
-    return I.Sign(box=item.box, class_key='unknown', code='-', category='unknown', score=0.0,
-                  track_id=getattr(item, 'track_id', None), reason=reason)
 
 
 NODE_CLASS = ClassifierNode

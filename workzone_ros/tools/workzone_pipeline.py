@@ -24,12 +24,11 @@ images.
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 from typing import Optional
 
-from workzone_ros.interfaces import Box, GtSigns, Sign, Signs, decode, encode
+from workzone_ros.interfaces import GtSigns, Sign, Signs, decode, encode
 
 __all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN_VISIBLE',
            'MARGIN']
@@ -124,11 +123,14 @@ class PipelineSource:
 
     def __init__(self, opts) -> None:
         from workzone_ros.core.classifier import load_model
+        from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
         from workzone_ros.core.tracking import MultiTracker, TrackerConfig
         from workzone_ros.tools.eval_tracker import _ColorDetector
         self.detector = _ColorDetector(opts.color_model)
         self.tracker = MultiTracker(TrackerConfig())
         self.model = load_model(_classifier_path(opts))
+        self.recognizer = SignRecognizer(self.model, RecognitionConfig(
+            margin=MARGIN, min_size=MIN_SIZE, min_visible=MIN_VISIBLE))
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:
@@ -140,63 +142,5 @@ class PipelineSource:
         return self.classify(image, tracks, focal), channel
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
-        """As ``nodes/classifier.py``: unknown for unclassifiable boxes, background dropped."""
-        from workzone_ros.core import signs as catalogue
-        h_img, w_img = frame.shape[:2]
-        out, ok = [], []
-        for item in items:
-            reason = _unclassifiable(item.box, w_img, h_img)
-            if reason:
-                out.append(Sign(box=item.box, class_key='unknown', code='-', category='unknown',
-                                score=0.0, track_id=getattr(item, 'track_id', None),
-                                reason=reason))
-            else:
-                ok.append(item)
-        boxes = [(it.box.x, it.box.y, it.box.w, it.box.h) for it in ok]
-        preds = self.model.classify_boxes(frame, boxes, margin=MARGIN) if boxes else []
-        for item, pred in zip(ok, preds):
-            if pred is None or pred.class_key not in catalogue.BY_KEY \
-                    or pred.class_key == 'background':
-                continue
-            out.append(self._sign(frame, item, pred, focal))
-        return out
-
-    def _sign(self, frame, item, pred, focal: Optional[float]) -> Sign:
-        from workzone_ros.core import signs as catalogue
-        from workzone_ros.core.sign_distance import estimate_distance
-        c = catalogue.get(pred.class_key)
-        speed, conf = (_read_speed(frame, item.box) if c.key == 'work_zone_speed_limit'
-                       else (None, None))
-        dist, source = estimate_distance(item.box, c.key, focal, ())
-        return Sign(box=item.box, class_key=c.key, code=c.code, category=c.category,
-                    score=_unit(pred.score), track_id=getattr(item, 'track_id', None),
-                    speed_limit_mph=speed, speed_limit_confidence=conf,
-                    probabilities={k: round(float(v), 4) for k, v in pred.probabilities.items()},
-                    distance_m=None if dist is None else round(dist, 2), distance_source=source)
-
-
-def _read_speed(frame, box: Box) -> tuple[Optional[int], Optional[float]]:
-    from workzone_ros.core.digits import read_speed_limit
-    from workzone_ros.core.features import crop_sign
-    crop, _ = crop_sign(frame, (box.x, box.y, box.w, box.h), MARGIN)
-    if crop is None:
-        return None, None
-    reading = read_speed_limit(crop)
-    if reading.value is None:
-        return None, None
-    return int(reading.value), _unit(reading.confidence)
-
-
-def _unit(x: float) -> float:
-    return float(min(1.0, max(0.0, x))) if math.isfinite(x) else 0.0
-
-
-def _unclassifiable(box: Box, width: int, height: int) -> str:
-    if min(box.w, box.h) < MIN_SIZE:
-        return f'box {box.w:.0f}x{box.h:.0f} px is below min_size {MIN_SIZE}'
-    iw = max(0.0, min(box.x2, width) - max(box.x, 0.0))
-    ih = max(0.0, min(box.y2, height) - max(box.y, 0.0))
-    visible = iw * ih / box.area if box.area > 0 else 0.0
-    if visible < MIN_VISIBLE:
-        return f'only {visible:.0%} of the box is inside the image'
-    return ''
+        """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""
+        return self.recognizer.recognize(frame, items, focal)[0]

@@ -95,6 +95,7 @@ from workzone_ros.bagio import BagError
 from workzone_ros.core import signs as catalogue
 from workzone_ros.core.fusion import ACTIVE_PHASES, FusionConfig, WorkzoneFusion
 from workzone_ros.interfaces import Box, GtSigns, GtWorkzone, PayloadError, Sign, Signs, decode
+from workzone_ros.tools.eval_tracker import _iou, _xywh
 
 __all__ = ['main', 'evaluate_bag', 'EvalOptions', 'EvalError', 'GtSignSource', 'truth_phases',
            'score', 'legible', 'PHASES_ORDER']
@@ -158,17 +159,6 @@ def legible(s, min_px: float) -> bool:
     return min(s.box.w, s.box.h) >= min_px and s.visible_fraction >= 0.5
 
 
-def _xywh(b: Box) -> tuple:
-    return (float(b.x), float(b.y), float(b.w), float(b.h))
-
-
-def _iou(a: tuple, b: tuple) -> float:
-    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
-    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
-    if iw <= 0 or ih <= 0:
-        return 0.0
-    inter = iw * ih
-    return inter / (a[2] * a[3] + b[2] * b[3] - inter)
 
 
 # --- sign sources ---------------------------------------------------------------------------

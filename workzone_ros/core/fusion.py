@@ -45,7 +45,8 @@ Algorithm (docs/fusion.md has the parameters, the rules and measured numbers):
      W20-5 are often classified as them;
    * ``leaving`` on a confirmed END ROAD WORK still ahead while approaching or inside (from
      ``none`` an end sign starts nothing: it is never a zone's first evidence); ``none``
-     once it is passed;
+     once it is passed.  An END placed within ``colocated_m`` of another confirmed sign is
+     part of that sign's assembly (a stand's flags, a plaque boxed alone), not an end;
    * back to ``none`` from approaching, inside or leaving when no evidence was seen for
      ``timeout_m`` metres (``timeout_s`` seconds when there is no odometry);
    * with ``stale_inputs`` no transition ever goes to ``none`` (timeouts and passed end

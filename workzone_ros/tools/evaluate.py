@@ -17,6 +17,7 @@ EVALUATIONS: dict[str, str] = {
     'classifier': 'sign classifier, seed 000 Table III; mirror pairs, background, real clips',
     'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
+    'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
 }
 
 

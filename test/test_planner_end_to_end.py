@@ -133,6 +133,7 @@ def test_a_planner_sees_the_zone_come_and_go_and_a_late_planner_gets_it_at_once(
     states = [s for _, s in planner.states]
     inside = [s for s in states if s.phase == 'inside']
     assert all(s.active for s in inside) and inside[0].lanes_closed == ['right']
+    assert inside[-1].speed_limit_mph == 45, [s.speed_limit_mph for s in inside][-3:]
     assert any(e.class_key == 'work_zone_begin' for e in inside[0].evidence)
     begin = _bag_s(inside[0])
     assert 14.2 <= begin <= 16.2, begin                  # truth: the begin sign at 15.2 s

@@ -678,6 +678,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--json', help='write every figure here')
     p.add_argument('--report', help='write DIR/README.md with timelines (PNG)')
     p.add_argument('--workers', type=int, default=1, help='bags in parallel (default 1)')
+    p.add_argument('--live', action='store_true', help='through the launcher, every node '
+                   'and the player at --rate instead (workzone_ros.tools.live_score)')
+    p.add_argument('--rate', type=float, default=1.0, help='--live: replay rate (default 1)')
     return p
 
 
@@ -751,7 +754,11 @@ def main(argv: Optional[list[str]] = None) -> int:
         if problem:
             print(f'workzone-ros evaluate workzone: {problem}', file=sys.stderr)
             return 2
-    results = _run_all(args.bags, opts, args.workers)
+    if args.live:
+        from workzone_ros.tools.live_score import evaluate_live
+        results = [evaluate_live(b, args.rate) for b in args.bags]
+    else:
+        results = _run_all(args.bags, opts, args.workers)
     for r in results:
         print_bag(r)
     summary = summarise(results)

@@ -449,6 +449,7 @@ class Launcher:
         self._player_error: Optional[str] = None
         self.report: Optional[ReportCollector] = None
         self.recorder = None
+        self.score_result: Optional[dict] = None
         self._inproc_nodes: list = []
         self._run_dir: Optional[str] = None
         self._t_start = time.monotonic()
@@ -778,7 +779,8 @@ class Launcher:
     def _score(self) -> None:
         from workzone_ros.tools.live_score import score_live
         try:
-            if score_live(self.args.bag, self.recorder, self.args.score) is None:
+            self.score_result = score_live(self.args.bag, self.recorder, self.args.score)
+            if self.score_result is None:
                 self.log('no /groundtruth/workzone in the bag: nothing to score')
         except Exception as exc:  # noqa: BLE001 - a scoring problem never hides the run
             self.log(f'scoring failed: {type(exc).__name__}: {exc}')

@@ -15,7 +15,7 @@ import bisect
 import threading
 from typing import Any, Optional
 
-__all__ = ['LiveRecorder', 'score_live']
+__all__ = ['LiveRecorder', 'score_live', 'evaluate_live']
 
 
 class LiveRecorder:
@@ -110,3 +110,25 @@ def score_live(bag: str, recorder: LiveRecorder, report_dir: Optional[str] = Non
                             ev.summarise([result]), opts, ['(live run of the launcher)'])
         print(f'   report: {path}')
     return result
+
+
+def evaluate_live(bag: str, rate: float = 1.0, params: Optional[str] = None,
+                  report_dir: Optional[str] = None) -> dict:
+    """``evaluate workzone --live``: the whole graph on ``bag`` through the launcher and the
+    player at ``rate``; the figures of :func:`score_live` (``{'bag', 'error'}`` on failure)."""
+    import tempfile
+    from pathlib import Path
+
+    from workzone_ros.tools import launcher as lch
+    argv = ['--bag', bag, '--rate', str(rate), '--quiet-play', '--log-file', '',
+            '--score', report_dir or tempfile.mkdtemp(prefix='workzone_live_')]
+    args = lch.build_parser().parse_args(argv + (['--params', params] if params else []))
+    path = Path(params) if params else lch.default_params_file()
+    if path is None or not path.is_file():
+        return {'bag': bag, 'error': f'params file not found: {path}'}
+    args.dds_profile_file = lch.apply_dds_profile(args.dds_profile)
+    run = lch.Launcher(args, lch.resolve_nodes(None), path.resolve())
+    code = run.run()
+    if run.score_result is None:
+        return {'bag': bag, 'error': f'live run gave no score (launcher exit code {code})'}
+    return run.score_result

@@ -255,3 +255,17 @@ def test_quaternion_helpers():
     assert matrix_to_quat(quat_to_matrix(q)) == pytest.approx(q)
     a, b = _yaw_quat(0.0), _yaw_quat(np.pi / 2)
     assert slerp(a, b, 0.5) == pytest.approx(_yaw_quat(np.pi / 4))
+
+
+def test_frame_gaps_count_the_frames_a_busy_node_never_saw():
+    from workzone_ros.core.sync import FrameGaps
+    gaps = FrameGaps()
+    period = 66_666_667
+    got = [k for k in range(40) if k % 5 != 3]        # frames 3, 8, ..., 38 overwritten
+    for k in got:
+        gaps.add(1_000_000_000 + k * period)
+    # the first gap comes before three steps have given the period: 7 of the 8 are counted
+    assert gaps.frames == 32 and gaps.skipped == 7
+    gaps.add(0)                                        # a looping bag: no gap counted
+    gaps.add(period)
+    assert gaps.skipped == 7 and gaps.frames == 34

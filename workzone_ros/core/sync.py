@@ -26,7 +26,7 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 
 __all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'PoseBuffer',
-           'quat_to_matrix', 'matrix_to_quat', 'slerp', 'pose_matrix']
+           'FrameGaps', 'quat_to_matrix', 'matrix_to_quat', 'slerp', 'pose_matrix']
 
 
 class SyncError(ValueError):
@@ -498,3 +498,39 @@ class PoseBuffer:
         p = self._p[a] + f * (self._p[b] - self._p[a])
         q = slerp(self._q[a], self._q[b], f)
         return pose_matrix(p, q)
+
+
+class FrameGaps:
+    """Camera frames that never reached a node: gaps in the stamps of the frames it got.
+
+    A node that keeps only the newest frame while it is busy (latest-frame-wins, depth 1)
+    never sees the frames it skipped; this counts them from the stamps it does see, against
+    the camera's period (the median of the recent stamp steps), so ``/diagnostics`` can say
+    how many frames went unprocessed.  A stamp that goes backwards (a looping bag) restarts.
+
+    Args:
+        window: recent steps the period is taken from.
+    """
+
+    def __init__(self, window: int = 30) -> None:
+        import collections
+        self._steps: collections.deque = collections.deque(maxlen=window)
+        self._last: Optional[int] = None
+        self.frames = 0
+        self.skipped = 0
+
+    def add(self, stamp_ns: int) -> int:
+        """Count the frame of ``stamp_ns``; returns the frames skipped just before it."""
+        gap = 0
+        if self._last is not None and stamp_ns <= self._last:
+            self._steps.clear()
+        elif self._last is not None:
+            step = stamp_ns - self._last
+            if len(self._steps) >= 3:
+                period = float(np.median(self._steps))
+                gap = max(0, int(round(step / period)) - 1) if period > 0 else 0
+            self._steps.append(step / (gap + 1))
+        self._last = stamp_ns
+        self.frames += 1
+        self.skipped += gap
+        return gap

@@ -29,6 +29,7 @@ from workzone_ros import interfaces
 from workzone_ros.core import kernels
 from workzone_ros.core.color_model import ModelError, default_model, load_model
 from workzone_ros.core.detection import METHODS, ColorDetector, DetectorConfig, RgbLpModel
+from workzone_ros.core.sync import FrameGaps
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
 from workzone_ros.resources import config_path
@@ -168,6 +169,7 @@ class ColorDetectorNode(WorkzoneNode):
         self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
             collections.OrderedDict()
         self._frames = 0
+        self._gaps = FrameGaps()      # camera frames overwritten while the detector was busy
         self._held_counts = collections.Counter()
         # images waiting for their ROIs: stamp ns -> (deadline monotonic s, image, header)
         self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
@@ -247,6 +249,7 @@ class ColorDetectorNode(WorkzoneNode):
 
     def _hold_or_process(self, msg: Any, header: Any) -> None:
         stamp = conv.stamp_to_time(header.stamp).to_ns()
+        self._gaps.add(stamp)
         if stamp in self._rois or not self._waiting_for_rois():
             self._detect(msg, header)
             return
@@ -282,6 +285,13 @@ class ColorDetectorNode(WorkzoneNode):
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
             header=head, detections=dets, channelizers=len(self._detector.channelizers))))
         self._frames += 1
+
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """Camera frames that never reached the detector (it keeps the newest when busy)."""
+        g = self._gaps
+        return [('camera frames received', str(g.frames)),
+                ('camera frames skipped while busy', str(g.skipped))]
 
 
 NODE_CLASS = ColorDetectorNode

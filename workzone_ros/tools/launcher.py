@@ -345,7 +345,8 @@ class ReportCollector:
             for status in msg.status:
                 drops = {}
                 for kv in status.values:
-                    if kv.key.startswith('stamp to state latency'):
+                    if kv.key.startswith('stamp to state latency') \
+                            or kv.key.startswith('camera frames '):
                         self.diag.setdefault(status.name, {'worst': 0})[kv.key] = kv.value
                     if kv.key.endswith(' dropped'):
                         try:
@@ -399,6 +400,11 @@ class ReportCollector:
             else:
                 lines.append('  dropped inputs (diagnostics): no /diagnostics received')
             for name, d in sorted(self.diag.items()):
+                skipped = int(d.get('camera frames skipped while busy', 0))
+                if skipped:
+                    total = skipped + int(d.get('camera frames received', 0))
+                    lines.append(f'  {name}: {skipped} of {total} camera frames skipped while '
+                                 'busy (it keeps the newest frame)')
                 lat = [f"{k.rsplit(' ', 2)[1]} {v} ms" for k, v in d.items()
                        if k.startswith('stamp to state latency') and v]
                 if lat:

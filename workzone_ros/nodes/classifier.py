@@ -75,6 +75,7 @@ class ClassifierNode(WorkzoneNode):
         super().__init__('classifier', **kwargs)
         p = self.params
         self._model = self._load_model(p.model_path)
+        self._recognizer = SignRecognizer(self._model, self._recognition_config())
         if p.read_speed:
             from workzone_ros.core.digits import warm_up
             warm_up()       # the digit classifier and templates, before the first frame
@@ -101,6 +102,15 @@ class ClassifierNode(WorkzoneNode):
         self._state_sub = (self.reliable_subscription(String, p.state_topic, self._on_state,
                                                       depth=1, transient_local=True)
                            if p.state_topic else None)
+
+    def _recognition_config(self) -> RecognitionConfig:
+        p = self.params
+        return RecognitionConfig(margin=p.margin, min_size=p.min_size,
+                                 min_visible=p.min_visible, read_speed=p.read_speed)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Apply live changes of margin, min_size, min_visible and read_speed."""
+        self._recognizer.config = self._recognition_config()
 
     def _load_model(self, path: str):
         from workzone_ros.core import classifier as core
@@ -178,12 +188,8 @@ class ClassifierNode(WorkzoneNode):
 
     def _classify(self, frame, items, rois) -> tuple[list[I.Sign], list[I.Box]]:
         """Signs of one frame, and the boxes rejected as background."""
-        p = self.params
-        recognizer = SignRecognizer(self._model, RecognitionConfig(
-            margin=p.margin, min_size=p.min_size, min_visible=p.min_visible,
-            read_speed=p.read_speed))
-        signs, rejected = recognizer.recognize(frame, items, self._focal_px(frame.shape[1]),
-                                               rois)
+        signs, rejected = self._recognizer.recognize(frame, items,
+                                                     self._focal_px(frame.shape[1]), rois)
         self.counts['signs'] += sum(1 for s in signs if s.category != 'unknown')
         self.counts['unknown'] += sum(1 for s in signs if s.category == 'unknown')
         self.counts['rejected'] += len(rejected)

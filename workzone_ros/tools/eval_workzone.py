@@ -759,7 +759,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         results = [evaluate_live(b, args.rate) for b in args.bags]
     else:
         results = _run_all(args.bags, opts, args.workers)
-    for r in results:
+    for r in results if not args.live else ():      # a live run printed its own block
         print_bag(r)
     summary = summarise(results)
     print_summary(summary)

@@ -4,10 +4,12 @@ import pytest
 
 from workzone_ros.core.lidar_clustering import (
     CANDIDATE_DTYPE,
+    SIZED_CANDIDATE_DTYPE,
     Candidates,
     CandidateTracker,
     ClusterParams,
     LidarClusterError,
+    PersistenceError,
     candidates_to_array,
     cluster_cloud,
     region_grow,
@@ -71,7 +73,7 @@ def test_sparse_far_sign_on_one_ring():
     # The PJLab guide board: 12 points on one ring at ~97 m, ~0.3 m apart.
     y = np.linspace(2.4, -1.4, 12)
     far = np.column_stack([np.full(12, 97.0), y, np.full(12, 5.2), np.full(12, 180.0)])
-    res = cluster_cloud(cloud(far, ground()), ClusterParams(center_left=4.0))
+    res = cluster_cloud(cloud(far, ground()))
     assert len(res.candidates) == 1
     assert res.candidates.count[0] == 12
     assert res.candidates.center[0, 0] == pytest.approx(97.0)
@@ -80,7 +82,8 @@ def test_sparse_far_sign_on_one_ring():
 def test_empty_cloud():
     res = cluster_cloud(cloud())
     assert len(res.candidates) == 0 and res.n_clusters == 0
-    assert candidates_to_array(res.candidates).dtype == CANDIDATE_DTYPE
+    assert candidates_to_array(res.candidates).dtype == SIZED_CANDIDATE_DTYPE
+    assert set(CANDIDATE_DTYPE.names) < set(SIZED_CANDIDATE_DTYPE.names)
 
 
 def test_all_nan_cloud():
@@ -109,11 +112,14 @@ def test_prefilter_region_height_and_intensity():
         plate(20, -7, 0.8, 1.2, 1.2, intensity=60.0),     # too dull
         plate(20, -7, -1.5, 1.2, 0.4),                    # plate height: below the band
         plate(-20, -7, 0.8, 1.2, 1.2),                    # behind
-        plate(20, 9.0, 0.8, 1.2, 1.2),                    # left side, off by default
+        plate(20, 9.0, 0.8, 1.2, 1.2),                    # left side, on by default
     ]
-    assert len(cluster_cloud(cloud(*parts), params).candidates) == 0
-    left = cluster_cloud(cloud(*parts), params.with_(include_left=True)).candidates
+    res = cluster_cloud(cloud(*parts, ground()), params)
+    left = res.candidates
     assert len(left) == 1 and left.center[0, 1] == pytest.approx(9.0, abs=0.05)
+    # Where each bright point went: 4 plates bright, 3 in the region, 2 in the band.
+    assert res.funnel['bright'] == sum(len(p) for p in parts[1:])
+    assert len(cluster_cloud(cloud(*parts), params.with_(left_max=4.0)).candidates) == 0
 
 
 def test_range_dependent_threshold():
@@ -217,7 +223,8 @@ def test_low_sign_on_a_stand_is_a_candidate_and_drums_are_not():
     assert c.extent[0, 2] > 1.0                       # the whole face, not its top corner
     assert res.rejected['too_low'] == 4
     # The seed's per-point band keeps only the top corner of the face, if anything.
-    seed = cluster_cloud(cloud(sign, *drums, car_plate, ground()), ClusterParams(z_min=-0.4))
+    seed = cluster_cloud(cloud(sign, *drums, car_plate, ground()),
+                         ClusterParams(min_point_height=1.55))
     assert len(seed.candidates) == 0 or seed.candidates.extent[0, 2] < 0.2
 
 
@@ -276,7 +283,7 @@ def test_track_is_forgotten_after_n_misses():
 
 
 def test_bad_parameters():
-    with pytest.raises(LidarClusterError):
-        ClusterParams(z_min=2.0, z_max=1.0)
-    with pytest.raises(LidarClusterError):
+    with pytest.raises(LidarClusterError, match='min_point_height'):
+        ClusterParams(min_point_height=2.0, max_point_height=1.0)
+    with pytest.raises(PersistenceError, match='persistence_k'):
         CandidateTracker(k=4, n=3)

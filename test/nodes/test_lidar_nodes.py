@@ -104,7 +104,8 @@ def test_cloud_camera_info_image_in_candidates_and_rois_out(ros):
     assert ros.spin_until(lambda: got_rois and got_cands, each=each), \
         (len(got_cands), len(got_rois))
     arr = pointcloud2_to_array(got_cands[0])
-    assert set(arr.dtype.names) == {'x', 'y', 'z', 'radius', 'intensity', 'count', 'id'}
+    assert set(arr.dtype.names) == {'x', 'y', 'z', 'radius', 'intensity', 'count', 'id',
+                                   'half_w', 'half_h', 'dz'}
     assert len(arr) == 1 and arr['count'][0] == 96
     assert (arr['x'][0], arr['y'][0], arr['z'][0]) == pytest.approx(SIGN, abs=0.05)
     rois = interfaces.decode(got_rois[0].data, interfaces.Rois)
@@ -252,3 +253,45 @@ def test_nearest_policy_gives_every_image_the_nearest_scan_and_reuses_scans(ros)
         nearest = min(sets, key=lambda s: (abs(s + 50 - img), s))
         assert used == nearest and abs(img - used - 50) <= 100
     assert len(set(pairs.values())) < len(pairs)        # some scan served two images
+
+
+def test_single_scan_user_is_told_why_nothing_is_published(ros):
+    """Default persistence (2 of 3): one scan gives a candidate that is held, and the node
+    says so in /diagnostics; a second scan publishes it."""
+    t = _topics()
+    node = ros.add(LidarClusterNode(context=ros.context, parameter_overrides=[
+        Parameter('points_topic', value=t['points']),
+        Parameter('candidates_topic', value=t['cands']),
+        Parameter('odom_topic', value='')], **FAST))
+    io = ros.add(rclpy.create_node('io_single', context=ros.context))
+    pub_pts = io.create_publisher(PointCloud2, t['points'], 10)
+    got = []
+    io.create_subscription(PointCloud2, t['cands'], got.append, 10)
+    stamp = interfaces.Time.from_ns(1_700_000_000_000_000_000)
+    assert ros.spin_until(lambda: got, each=lambda: None if node._stream.scans else
+                          pub_pts.publish(array_to_pointcloud2(_sign_cloud(), stamp=stamp)))
+    assert len(pointcloud2_to_array(got[0])) == 0
+    values = dict((v.key, v.value) for v in node.diagnostic_status().values)
+    assert 'held for persistence' in values['why nothing published']
+    assert values['last scan held for persistence'].startswith('1 ')
+    assert values['last scan bright in height band'] == '96'
+    node._stream.process(_sign_cloud())                # the same sign again: confirmed
+    assert node._stream.why_nothing() == ''
+
+
+def test_bad_and_renamed_parameters_are_one_line_errors(ros):
+    from workzone_ros.nodes.base import ConfigError
+    t = _topics()
+    with pytest.raises(ConfigError, match='lidar_in_base needs 6 values'):
+        LidarClusterNode(context=ros.context, parameter_overrides=[
+            Parameter('points_topic', value=t['points']),
+            Parameter('lidar_in_base', value=[1.0, 0.0, 1.95])], **FAST)
+    node = ros.add(LidarClusterNode(context=ros.context, parameter_overrides=[
+        Parameter('points_topic', value=t['points']),
+        Parameter('z_min', value=-1.7)], **FAST))
+    assert any('min_point_height' in line for line in node.renamed_params)
+    bad = node.set_parameters([Parameter('min_point_height', value=12.0)])[0]
+    assert not bad.successful and 'max_point_height' in bad.reason
+    ok = node.set_parameters([Parameter('lidar_in_base',
+                                        value=[0.0, 0.0, 1.84, 0.0, 0.0, -1.5708])])[0]
+    assert ok.successful and node._stream.params.mount.height == pytest.approx(1.84)

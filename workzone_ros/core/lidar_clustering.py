@@ -1,42 +1,47 @@
-"""LiDAR sign candidates: pre-filter, region growing, check-to-add filters, persistence.
+"""LiDAR sign candidates: pre-filter, region growing, check-to-add filters (seed 004 s1.3).
 
-Implements seed 004 section 1.3 (Velodyne sign detection) with its future work done:
+Implements seed 004 section 1.3 (Velodyne sign detection) with its future work done, for any
+sensor on any vehicle:
 
+0. **Where the sensor is** (:mod:`workzone_ros.core.lidar_geometry`): the points are taken
+   to the *level frame* with the mounting ``lidar_in_base`` (axes from its rotation, never an
+   assumed convention; origin on the road under the sensor), and every height threshold is a
+   height above the road: the mounting height, corrected per scan by a robust ground-plane
+   fit where the ground is visible (slopes, pitch, a mounting height a few dm off).
+   Intensities are brought to 0-255 units (:mod:`workzone_ros.core.lidar_intensity`: from
+   the field's datatype and values, or ``intensity_scale``).
 1. **Pre-clustering filter** (seed 004 s1.3): keep points that are bright enough
-   (intensity), high enough (height band), far enough and not too far (range band), in front
-   of the car and on the right-hand side (plus, optionally, the left side).
-2. **Clustering** (seed 004 s1.3): region growing where two points join the same cluster when
-   their distance is below a threshold that grows with range, ``d(r) = d0 + k * r``.  The
-   seed's O(N^2) seed-and-grow loop is replaced by an equivalent graph formulation: the
-   clusters are the connected components of the "closer than d" graph (single linkage).
-   The graph is built on a voxel grid of side ``d0 / sqrt(3)`` -- points sharing a voxel are
-   always closer than ``d0`` -- so dense sign faces collapse to a few voxels; voxel pairs are
-   then decided by bounds on their centroid distance, and only the ambiguous pairs are checked
-   point against point.  With ``k = 0`` the partition is exactly DBSCAN's with
-   ``min_samples=1`` and ``eps = d0`` (the bench checks it); with ``k > 0`` the threshold of a
-   voxel pair is ``d(r)`` at the pair's mean range.
+   (intensity), above the road paint (``min_point_height``), far enough and not too far
+   (range band), ahead, and within ``right_max`` / ``left_max`` of the sensor (left-side
+   signs included: medians and left-lane closures carry them).
+2. **Clustering** (seed 004 s1.3): region growing, two points join when closer than
+   ``d(r) = d0 + k * r`` (:mod:`workzone_ros.core.lidar_region_grow`: the connected
+   components of that graph on a voxel grid, DBSCAN's partition for ``k = 0``).  On a sensor
+   whose rings are further apart than ``d(r)`` (16 or 32 beams) heights are shrunk so the
+   rings of one face join (:func:`_rings_closer`, from the ``ring`` field's beam spacing).
 3. **Check-to-add filters** (seed 004 s1.3): a cluster is added only when it has enough points
    and its bounding box fits the sign sizes.  Beyond the seed (its s1.5 future work): the
-   cluster's top must reach sign height (``min_top``), a flatness test (a sign is a thin
-   vertical plate: PCA of the cluster), a "hollow" test (a sign face is filled: no row of
-   returns has a wide gap, unlike a truck's rear outlined with reflective tape), and a
-   "reflectors underneath" test that rejects bright clusters with more bright returns below
-   them in the same footprint (plates, tail reflectors, bumper tape): a sign stands on a
-   dull post or stand.
+   cluster's top must reach sign height (``min_top_height`` above the road); a pole test; a
+   sign is *retroreflective*, not just bright: a thin plate (PCA flatness), vertical, facing
+   the sensor (``max_incidence``: walls and fences along the road are seen edge-on), whose
+   returns are far brighter than their own surroundings (``min_contrast``: the cluster's
+   median intensity over the 90th percentile of the dull returns around it -- bright
+   foliage, walls, painted poles and window frames sit among returns nearly as bright,
+   a sign among a dull post, its own black legend, or nothing); not hollow (a truck's rear
+   outlined with tape); no reflectors underneath (plates, tail lights, bumper tape).
 
-   The seed's height band is a per-point pre-filter at sign height (z_min 1.55 m above the
-   road).  Temporary signs on portable stands start 0.3 m above the ground (MUTCD 6F.03), so
-   a per-point band either cuts their lower half (and the reflectors test then rejects the
-   sign because of its own lower half) or lets drums, cones and plates in.  We therefore
-   keep every bright point above the road paint (``z_min`` 0.25 m above the road), cluster,
-   and apply the seed's height to the *cluster*: its top must reach ``min_top`` (the seed's
-   band, 1.55 m above the road: above drums, cones, tubular markers, plates and car tail
-   lights -- on the real PJLab scenes sedan rears reach 1.3 m; a 36-in warning diamond on a
-   stand reaches 1.6 m).  Setting ``z_min`` back to -0.4 gives the seed's per-point band.
-4. **Persistence** (seed 004 s1.4 proposal: "requiring an object to be present in 3 or so
-   frames"): a candidate is published when it was seen in ``k`` of the last ``n`` scans.
-   With odometry the candidates are matched in the odometry frame, so a static sign keeps its
-   id while the car moves; ids are stable across scans.
+   The seed's height band is a per-point pre-filter at sign height.  Temporary signs on
+   portable stands start 0.3 m above the ground (MUTCD 6F.03), so a per-point band cuts
+   their lower half.  We keep every bright point above the road paint, cluster, and apply
+   the seed's height to the *cluster's top* (1.55 m above the road: above drums, cones,
+   tubular markers, plates and car tail lights; a 36-in diamond on a stand reaches 1.6 m).
+
+Each accepted cluster also carries its measured size for the camera ROI (``half_w``,
+``half_h``: half its width across the line of sight and half its height, each plus one
+beam spacing at its range, where the sign may extend unseen; 0 when the cluster lies on a
+single ring and its height cannot be measured).  :class:`ClusterResult` says where the points
+went (the funnel: bright, in the region, in the height band) and why each cluster was
+rejected.  Persistence over scans is :mod:`workzone_ros.core.lidar_persistence`.
 
 No rclpy here; the node ``nodes/lidar_cluster.py`` is a thin wrapper.
 """
@@ -47,22 +52,61 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Optional
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
+
+from workzone_ros.core.lidar_geometry import (
+    GroundPlane,
+    LidarGeometryError,
+    Mount,
+    beam_spacing,
+    fit_ground,
+)
+from workzone_ros.core.lidar_intensity import ENCODINGS, finite_max, infer_encoding
+from workzone_ros.core.lidar_measure import cluster_stats, contrast, rows, widest_row_gap
+from workzone_ros.core.lidar_persistence import CandidateTracker, PersistenceError
+from workzone_ros.core.lidar_region_grow import region_grow
 
 __all__ = [
-    'LidarClusterError', 'ClusterParams', 'Candidates', 'ClusterResult', 'prefilter',
-    'region_grow', 'cluster_cloud', 'CandidateTracker', 'REJECT_REASONS', 'CANDIDATE_DTYPE',
-    'candidates_to_array',
+    'LidarClusterError', 'ClusterParams', 'Candidates', 'ClusterResult', 'Prefiltered',
+    'prefilter', 'region_grow', 'cluster_cloud', 'CandidateTracker', 'PersistenceError',
+    'REJECT_REASONS', 'CANDIDATE_DTYPE', 'SIZED_CANDIDATE_DTYPE', 'RENAMED',
+    'candidates_to_array', 'scan_geometry', 'auto_scale',
 ]
 
 REJECT_REASONS = ('few_points', 'too_large', 'too_small', 'too_low', 'too_thin', 'not_flat',
-                  'not_vertical', 'hollow', 'reflectors_below')
+                  'not_vertical', 'not_facing', 'hollow', 'reflectors_below',
+                  'not_retroreflective')
 
-#: Layout of the published candidates (PointCloud2 fields x, y, z, radius, intensity, count, id).
+#: The candidate fields every consumer reads (x, y, z, radius, intensity, count, id).
 CANDIDATE_DTYPE = np.dtype([('x', '<f4'), ('y', '<f4'), ('z', '<f4'), ('radius', '<f4'),
                             ('intensity', '<f4'), ('count', '<u4'), ('id', '<u4')])
+#: What ``lidar_cluster`` publishes: :data:`CANDIDATE_DTYPE` plus ``half_w`` / ``half_h``,
+#: the measured half width (across the line of sight) and half height in metres, each with
+#: one beam spacing added, and ``dz``, how far above the candidate the ROI's centre lies (a
+#: face cut by the top of the sensor's field of view); all 0 when the cluster is too sparse
+#: to measure (one ring): then size its ROI from ``radius`` with a minimum.
+SIZED_CANDIDATE_DTYPE = np.dtype(CANDIDATE_DTYPE.descr + [('half_w', '<f4'),
+                                                          ('half_h', '<f4'), ('dz', '<f4')])
+
+#: Parameters that no longer exist, with what replaced them (one-line errors).
+RENAMED = {
+    'z_min': 'min_point_height (metres above the road, not lidar z: z_min - ground_z)',
+    'z_max': 'max_point_height (metres above the road, not lidar z: z_max - ground_z)',
+    'min_top': 'min_top_height (metres above the road, not lidar z: min_top - ground_z)',
+    'ground_z': 'lidar_in_base (its z is the sensor height above the road) and ground_fit',
+    'include_left': 'left_max (left-side signs are on by default; left_max 4 keeps only '
+                    'the ego and next lane)',
+    'center_left': 'left_max',
+    'hollow_row': 'nothing: the hollow test compares the returns of each ring',
+}
+
+# Neighbourhood of the contrast test: the cluster's box grown by this much (plus per metre of
+# range: the next ring up or down is further away).
+_CONTRAST_MARGIN, _CONTRAST_MARGIN_K = 0.3, 0.01
+# The largest work-zone sign face (a 48-in diamond is 1.72 m point to point), m: what may
+# hide above the sensor's top ring.
+_LARGEST_FACE = 1.8
+# Ground-fit subsample of a scan (the fit uses at most this many points).
+_GROUND_SAMPLE = 6000
 
 
 class LidarClusterError(ValueError):
@@ -71,24 +115,30 @@ class LidarClusterError(ValueError):
 
 @dataclass(frozen=True)
 class ClusterParams:
-    """Every threshold of the LiDAR candidate stage (lidar frame: x forward, y left, z up).
+    """Every threshold of the LiDAR candidate stage.
+
+    Positions are in the level frame (x forward, y left, from the sensor), heights are above
+    the road, intensities in 0-255 units.
 
     Attributes:
-        min_intensity: pre-filter, intensity at least this (sensor units; retroreflective
-            sheeting returns ~200-240 of 255, paint and bodies < 100).
-        z_min, z_max: pre-filter height band in the lidar frame, metres (per point; the
-            default z_min keeps everything above the road paint, see ``min_top``).
-        min_top: check-to-add, the cluster's highest point must reach this z (lidar frame):
-            sign height, above drums, cones, plates and tail reflectors.
+        min_intensity: pre-filter, intensity at least this, 0-255 units (retroreflective
+            sheeting returns ~200-250, paint and car bodies < 100).
+        intensity_scale: raw intensity -> 0-255 units; 0 infers it from the field's datatype
+            and values (0-1 float x 255, 0-255 x 1, 0-65535 x 255/65535).
+        lidar_in_base: the sensor in base_link (on the road): x y z roll pitch yaw, metres
+            and radians; z is the mounting height, the rotation gives the axes.
+        ground_fit: correct the road under the sensor per scan by a plane fit where the
+            ground is visible (else the mounting alone).
+        min_point_height, max_point_height: pre-filter height band above the road, per
+            point (the default keeps everything above the lane paint, see ``min_top_height``).
+        min_top_height: check-to-add, the cluster's top must reach this height above the
+            road: sign height, above drums, cones, plates and tail lights.
         thin_height, max_aspect: a cluster taller than ``thin_height`` and more than
             ``max_aspect`` times taller than wide is a pole or post, not a sign face.
-        range_min, range_max: pre-filter range band, metres (horizontal distance).
-        x_min: pre-filter, only points at least this far ahead (the front).
-        right_max: pre-filter, how far to the right (-y) the region reaches.
-        center_left: without ``include_left``, how far left of the sensor the region reaches
-            (covers overhead signs above the ego and next lane).
-        include_left: also keep the left side, up to ``left_max``.
-        left_max: left reach when ``include_left``.
+        range_min, range_max: pre-filter range band, metres (horizontal, from the sensor).
+        x_min: pre-filter, only points at least this far ahead.
+        right_max, left_max: pre-filter, how far right / left of the sensor the region
+            reaches (``left_max`` 4 keeps only signs over the ego and next lane).
         cluster_d0, cluster_k: region-growing threshold ``d(r) = d0 + k r`` (seed 004 s1.3's
             dynamic distance threshold).
         min_points: check-to-add, at least this many points.
@@ -96,22 +146,25 @@ class ClusterParams:
             are the widest signs).
         max_height: check-to-add, vertical extent at most this.
         min_size: check-to-add, the largest bbox extent at least this.
-        flat_min_points: the flatness test needs at least this many points and a planar
-            spread (second PCA axis) of ``flat_min_spread``; sparser clusters (one ring at
-            long range) pass untested.
-        flat_min_spread: second-axis standard deviation that makes the test meaningful.
+        flat_min_points: the plate tests (flatness, vertical, facing) need at least this many
+            points and a planar spread (second PCA axis) of ``flat_min_spread``; sparser
+            clusters (one ring at long range) pass them untested.
+        flat_min_spread: second-axis standard deviation that makes the tests meaningful.
         flat_thickness, flat_thickness_k: the plate thickness (third-axis standard
             deviation) must be at most ``flat_thickness + flat_thickness_k * range``.
         max_normal_z: a sign is a vertical plate: |normal z| at most this.
+        max_incidence: a sign faces the sensor: the angle between its normal and the line
+            of sight at most this, degrees (retroreflection fades beyond ~60-70 deg).
+        min_contrast: retroreflective, not just bright: the cluster's median intensity must
+            be at least this many times the 90th percentile of the dull returns around it
+            (when there are at least 5 of them); 0 disables.
         hollow_gap, hollow_gap_k, hollow_frac: the hollow test rejects a cluster when one
-            row of returns (``hollow_row`` m of height) has an inner horizontal gap wider
+            ring of returns has an inner horizontal gap wider
             than both ``hollow_gap + hollow_gap_k * range`` and ``hollow_frac`` of the
             cluster's width (a tape outline; a filled face has only beam-spacing gaps).
             ``hollow_frac`` >= 1 disables the test.
-        hollow_row: row height of the hollow test, metres.
-        ground_z: road height in the lidar frame (minus the sensor's mounting height).
-        below_clearance: bright returns lower than this above ``ground_z`` (lane paint)
-            are ignored by the reflectors-underneath test.
+        below_clearance: bright returns lower than this above the road (lane paint) are
+            ignored by the reflectors-underneath test.
         below_margin: footprint margin of the reflectors-underneath test, metres.
         below_gap: a bright return counts as underneath when it is at least this much lower
             than the cluster's lowest point and not part of the cluster.
@@ -121,17 +174,18 @@ class ClusterParams:
     """
 
     min_intensity: float = 120.0
-    z_min: float = -1.7
-    z_max: float = 8.0
-    min_top: float = -0.4
+    intensity_scale: float = 0.0
+    lidar_in_base: tuple = (1.0, 0.0, 1.95, 0.0, 0.0, 0.0)
+    ground_fit: bool = True
+    min_point_height: float = 0.25
+    max_point_height: float = 10.0
+    min_top_height: float = 1.55
     thin_height: float = 0.4
     max_aspect: float = 4.0
     range_min: float = 3.0
     range_max: float = 110.0
     x_min: float = 1.0
     right_max: float = 25.0
-    center_left: float = 4.0
-    include_left: bool = False
     left_max: float = 25.0
     cluster_d0: float = 0.3
     cluster_k: float = 0.012
@@ -144,11 +198,11 @@ class ClusterParams:
     flat_thickness: float = 0.06
     flat_thickness_k: float = 0.002
     max_normal_z: float = 0.6
+    max_incidence: float = 85.0
+    min_contrast: float = 1.8
     hollow_gap: float = 0.6
     hollow_gap_k: float = 0.01
     hollow_frac: float = 0.5
-    hollow_row: float = 0.1
-    ground_z: float = -1.95
     below_clearance: float = 0.25
     below_margin: float = 0.4
     below_gap: float = 0.1
@@ -156,25 +210,57 @@ class ClusterParams:
     voxel: float = 0.0
 
     def __post_init__(self) -> None:
-        """Reject inconsistent thresholds with a message naming them."""
-        if not self.z_min < self.z_max:
-            raise LidarClusterError(f'z_min ({self.z_min}) must be below z_max ({self.z_max})')
+        """Reject inconsistent thresholds with a one-line message naming them."""
+        try:
+            Mount.from_list(self.lidar_in_base)
+        except LidarGeometryError as exc:
+            raise LidarClusterError(str(exc)) from None
+        object.__setattr__(self, 'lidar_in_base', tuple(float(v) for v in self.lidar_in_base))
+        if not self.min_point_height < self.max_point_height:
+            raise LidarClusterError(f'min_point_height ({self.min_point_height}) must be below '
+                                    f'max_point_height ({self.max_point_height})')
         if not 0 <= self.range_min < self.range_max:
-            raise LidarClusterError('need 0 <= range_min < range_max')
+            raise LidarClusterError(f'need 0 <= range_min ({self.range_min}) < range_max '
+                                    f'({self.range_max})')
         if self.cluster_d0 <= 0 or self.cluster_k < 0:
             raise LidarClusterError('need cluster_d0 > 0 and cluster_k >= 0')
         if self.min_points < 1:
             raise LidarClusterError('min_points must be at least 1')
+        if self.intensity_scale < 0 or not math.isfinite(self.intensity_scale):
+            raise LidarClusterError(f'intensity_scale must be 0 (auto) or a factor > 0, got '
+                                    f'{self.intensity_scale}')
+        if not 0 < self.max_incidence <= 90:
+            raise LidarClusterError(f'max_incidence must be in (0, 90] degrees, got '
+                                    f'{self.max_incidence}')
+        if self.min_contrast < 0:
+            raise LidarClusterError(f'min_contrast must be >= 0 (0 disables), got '
+                                    f'{self.min_contrast}')
+        if self.right_max < 0 or self.left_max < 0:
+            raise LidarClusterError('right_max and left_max must be >= 0 (distances from the '
+                                    'sensor to the right and to the left)')
 
     @classmethod
     def from_mapping(cls, values: dict) -> 'ClusterParams':
-        """Build from a dict, ignoring keys that are not thresholds (e.g. topic names)."""
+        """Build from a dict, ignoring keys that are not thresholds (e.g. topic names).
+
+        Raises:
+            LidarClusterError: a parameter that no longer exists (see :data:`RENAMED`).
+        """
+        old = [k for k in values if k in RENAMED]
+        if old:
+            raise LidarClusterError('; '.join(f'{k} no longer exists: use {RENAMED[k]}'
+                                              for k in old))
         names = {f.name for f in fields(cls)}
         return cls(**{k: v for k, v in values.items() if k in names})
 
     def with_(self, **changes) -> 'ClusterParams':
         """A copy with some thresholds changed."""
         return replace(self, **changes)
+
+    @property
+    def mount(self) -> Mount:
+        """The sensor's mounting (``lidar_in_base``)."""
+        return Mount.from_list(self.lidar_in_base)
 
 
 @dataclass
@@ -184,12 +270,17 @@ class Candidates:
     Attributes:
         center: (M, 3) bounding-box centres in the lidar frame.
         radius: (M,) half the bounding-box diagonal, metres.
-        intensity: (M,) mean intensity.
+        intensity: (M,) mean intensity, 0-255 units.
         count: (M,) points in the cluster.
-        extent: (M, 3) bounding-box size.
+        extent: (M, 3) bounding-box size in the level frame (x forward, y left, z up).
         ids: (M,) candidate ids (cluster index before tracking; stable track ids after).
         confirmed: (M,) persistence satisfied (all True before tracking).
         cluster: (M,) index of the cluster in ``ClusterResult.labels``.
+        half_size: (M, 3) measured half width (across the line of sight), half height (each
+            plus one beam spacing at the cluster's range) and how far the box centre lies above
+            the bounding-box centre (a face cut by the top of the sensor's field of view goes
+            on above it), metres; 0 when not measurable (a single ring).
+        rows: (M,) rings (rows of returns) the cluster spans.
     """
 
     center: np.ndarray
@@ -200,6 +291,15 @@ class Candidates:
     ids: np.ndarray
     confirmed: np.ndarray
     cluster: np.ndarray
+    half_size: Optional[np.ndarray] = None
+    rows: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        m = len(self.radius)
+        if self.half_size is None:
+            self.half_size = np.zeros((m, 3))
+        if self.rows is None:
+            self.rows = np.zeros(m, np.int64)
 
     @classmethod
     def empty(cls) -> 'Candidates':
@@ -227,14 +327,23 @@ class ClusterResult:
 
     Attributes:
         candidates: the accepted clusters (check-to-add passed).
-        points: (N, 3) pre-filtered points (float64).
-        intensity: (N,) their intensities.
+        points: (N, 3) pre-filtered points in the lidar frame (float64).
+        intensity: (N,) their intensities, 0-255 units.
         index: (N,) their indices in the input cloud.
         labels: (N,) cluster label per pre-filtered point (-1 none).
         n_clusters: clusters before the filters.
         rejected: reason -> number of clusters rejected for it.
         reason: (n_clusters,) index into :data:`REJECT_REASONS` of the first filter that
             rejected each cluster, -1 for accepted clusters (for diagnostics and RViz).
+        funnel: points in the cloud, bright enough, in the region, in the height band.
+        clusters: per cluster (n_clusters rows): 'center' (lidar frame), 'count', 'top'
+            (height above the road), 'width', 'height', 'intensity', 'contrast' and
+            'incidence' (NaN where not measured) -- what a user reads to see why.
+        scale: the intensity factor used (raw -> 0-255 units).
+        ground: the road used for the heights.
+        mount: the sensor's mounting.
+        beam_spacing: the sensor's vertical beam spacing, rad (NaN: no ring field).
+        top_elevation: the top of the sensor's field of view as far as seen, rad.
     """
 
     candidates: Candidates
@@ -245,12 +354,37 @@ class ClusterResult:
     n_clusters: int = 0
     rejected: dict = field(default_factory=dict)
     reason: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    funnel: dict = field(default_factory=dict)
+    clusters: dict = field(default_factory=dict)
+    scale: float = 1.0
+    ground: GroundPlane = field(default_factory=GroundPlane)
+    mount: Optional[Mount] = None
+    beam_spacing: float = float('nan')
+    top_elevation: float = float('nan')
 
     def clustered_mask(self) -> np.ndarray:
         """Mask over ``points`` of the points of accepted clusters."""
         keep = np.zeros(self.n_clusters + 1, bool)
         keep[self.candidates.cluster] = True
         return keep[np.where(self.labels >= 0, self.labels, self.n_clusters)]
+
+    def why_empty(self) -> str:
+        """One line saying where the points went when there is no candidate ('' otherwise)."""
+        if len(self.candidates):
+            return ''
+        f = self.funnel
+        if not f.get('points'):
+            return 'empty cloud'
+        if not f.get('bright'):
+            return (f'no point reached min_intensity (of {f["points"]} points; intensity '
+                    f'scale x{self.scale:.6g})')
+        if not f.get('region'):
+            return f'{f["bright"]} bright points, none in the region (ahead, range, left/right)'
+        if not f.get('height'):
+            return (f'{f["region"]} bright points in the region, none in the height band '
+                    f'({self.ground.describe()})')
+        why = ', '.join(f'{v} {k}' for k, v in self.rejected.items() if v)
+        return f'{self.n_clusters} clusters, all rejected: {why}'
 
 
 def _column(points: np.ndarray, name: str) -> np.ndarray:
@@ -262,182 +396,165 @@ def _column(points: np.ndarray, name: str) -> np.ndarray:
     return points[name]
 
 
-def prefilter(points: np.ndarray, params: ClusterParams) -> tuple[np.ndarray, np.ndarray,
-                                                                  np.ndarray, np.ndarray]:
+def scan_geometry(points: np.ndarray, params: ClusterParams,
+                  ground_prior: Optional[GroundPlane] = None,
+                  spacing: Optional[float] = None) -> tuple[Mount, GroundPlane, float, float]:
+    """The mounting, this scan's road (a plane fit on a subsample when ``ground_fit``), the
+    sensor's beam spacing in radians (``spacing`` when given, else estimated; NaN without a
+    ``ring`` field) and the highest elevation seen in the subsample (the top of the sensor's
+    field of view, as far as this scan shows it), radians."""
+    mount = params.mount
+    if points.shape[0] == 0:
+        return mount, ground_prior or GroundPlane(), float('nan'), float('nan')
+    step = max(1, points.shape[0] // _GROUND_SAMPLE)
+    sub = np.column_stack([_column(points, c)[::step] for c in 'xyz'])
+    if spacing is None:
+        rings = points['ring'][::step] if 'ring' in (points.dtype.names or ()) else None
+        spacing = beam_spacing(sub, rings)
+    el = np.arctan2(sub[:, 2], np.hypot(sub[:, 0], sub[:, 1]))
+    top = float(np.fmax.reduce(el)) if el.size else float('nan')
+    if not params.ground_fit:
+        return mount, ground_prior or GroundPlane(), spacing, top
+    return mount, fit_ground(mount.to_level(sub), ground_prior), spacing, top
+
+
+def auto_scale(inten: np.ndarray) -> float:
+    """The 0-255 factor of one scan's intensity column, from its datatype and values."""
+    return ENCODINGS[infer_encoding(inten.dtype, finite_max(inten))].scale
+
+
+@dataclass
+class Prefiltered:
+    """Output of :func:`prefilter`: the bright points in the band, and what the band cut.
+
+    Attributes:
+        xyz: (N, 3) lidar frame.  level: (N, 3) level frame.  height: (N,) above the road.
+        intensity: (N,) 0-255 units.  index: (N,) indices in the cloud.
+        below_level, below_height: bright points of the region under the band (for the
+            reflectors-underneath test).
+        funnel: counts (points, bright, region, height).
+    """
+
+    xyz: np.ndarray
+    level: np.ndarray
+    height: np.ndarray
+    intensity: np.ndarray
+    index: np.ndarray
+    below_level: np.ndarray
+    below_height: np.ndarray
+    funnel: dict
+
+
+def prefilter(points: np.ndarray, params: ClusterParams, scale: float, mount: Mount,
+              ground: GroundPlane) -> Prefiltered:
     """Seed 004 s1.3 pre-clustering filter, vectorised over a structured cloud.
 
     The intensity test runs first over the whole cloud on the field view (no copy); the
-    other tests run on the few bright survivors.
+    other tests run on the few bright survivors, in the level frame.
 
     Args:
         points: structured array with x, y, z and intensity (any float/int types).
         params: thresholds.
-
-    Returns:
-        ``(xyz, intensity, index, below)``: the kept points (N, 3) float64, their intensity,
-        their indices in ``points``, and (B, 3) bright points under the height band (for the
-        reflectors-underneath test).
+        scale: raw intensity -> 0-255 units.
+        mount, ground: the sensor's mounting and the road (see :func:`scan_geometry`).
 
     Raises:
         LidarClusterError: a missing x, y, z or intensity field.
     """
     inten = _column(points, 'intensity')
     xs, ys, zs = (_column(points, c) for c in 'xyz')
-    idx = np.flatnonzero(inten >= params.min_intensity)      # NaN compares False
-    x = xs[idx].astype(np.float64)
-    y = ys[idx].astype(np.float64)
-    z = zs[idx].astype(np.float64)
-    rng = np.hypot(x, y)
-    left = params.left_max if params.include_left else params.center_left
-    region = ((x >= params.x_min) & (y >= -params.right_max) & (y <= left)
-              & (rng >= params.range_min) & (rng <= params.range_max) & np.isfinite(z))
-    band = region & (z >= params.z_min) & (z <= params.z_max)
-    below = region & (z < params.z_min) & (z >= params.ground_z + params.below_clearance)
-    xyz = np.column_stack([x, y, z])
-    return xyz[band], inten[idx[band]].astype(np.float64), idx[band], xyz[below]
+    idx = np.flatnonzero(inten >= params.min_intensity / scale)      # NaN compares False
+    xyz = np.column_stack([xs[idx], ys[idx], zs[idx]]).astype(np.float64)
+    lvl = mount.to_level(xyz)
+    hgt = ground.height(lvl)
+    rng = np.hypot(lvl[:, 0], lvl[:, 1])
+    region = ((lvl[:, 0] >= params.x_min) & (lvl[:, 1] >= -params.right_max)
+              & (lvl[:, 1] <= params.left_max) & (rng >= params.range_min)
+              & (rng <= params.range_max) & np.isfinite(hgt))
+    band = region & (hgt >= params.min_point_height) & (hgt <= params.max_point_height)
+    below = region & (hgt < params.min_point_height) & (hgt >= params.below_clearance)
+    funnel = {'points': int(points.shape[0]), 'bright': int(idx.size),
+              'region': int(region.sum()), 'height': int(band.sum())}
+    return Prefiltered(xyz[band], lvl[band], hgt[band],
+                       inten[idx[band]].astype(np.float64) * scale, idx[band], lvl[below],
+                       hgt[below], funnel)
 
 
-def region_grow(xyz: np.ndarray, d0: float, k: float = 0.0,
-                voxel: float = 0.0) -> np.ndarray:
-    """Connected components of "closer than ``d(r) = d0 + k r``" (seed 004 s1.3 clustering).
+def _rings_closer(lvl: np.ndarray, params: ClusterParams, spacing: float) -> np.ndarray:
+    """Level-frame points with heights shrunk so that adjacent rings of one face join.
 
-    Args:
-        xyz: (N, 3) points.
-        d0: distance threshold at range 0 (the fixed radius when ``k == 0``).
-        k: growth of the threshold per metre of horizontal range.
-        voxel: voxel side; 0 or anything above ``d0 / sqrt(3)`` uses ``d0 / sqrt(3)``, the
-            side that guarantees that points sharing a voxel are connected.
-
-    Returns:
-        (N,) int64 labels 0..C-1, numbered in order of first appearance.
+    Region growing joins points closer than ``d(r) = d0 + k r``; on a sensor whose rings are
+    further apart than that (a VLP-16's 2 deg is 1 m at 30 m), a sign face breaks into one
+    cluster per ring, and each ring sees the one below as reflectors underneath.  Vertical
+    distances are therefore scaled by ``d(r) / (d0 + kv r)`` with ``kv`` 1.25 beam spacings:
+    adjacent rings join, a gap of two rings does not.  A no-op on dense sensors (HDL-64E:
+    ``kv`` < ``k``) and when the spacing is unknown.
     """
-    n = xyz.shape[0]
-    if n == 0:
-        return np.zeros(0, np.int64)
-    side = d0 / math.sqrt(3.0) * (1.0 - 1e-9)
-    if 0 < voxel < side:
-        side = voxel
-    keys = np.floor((xyz - xyz.min(axis=0)) / side).astype(np.int64)
-    span = keys.max(axis=0) + 1
-    flat = (keys[:, 0] * span[1] + keys[:, 1]) * span[2] + keys[:, 2]
-    uniq, vox = np.unique(flat, return_inverse=True)
-    m = uniq.size
-    order = np.argsort(vox, kind='stable')
-    counts = np.bincount(vox, minlength=m)
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    sp = xyz[order]
-    cen = np.add.reduceat(sp, start, axis=0) / counts[:, None]
-    rad = np.sqrt(np.maximum.reduceat(((sp - cen[np.repeat(np.arange(m), counts)]) ** 2)
-                                      .sum(axis=1), start))
-    vrange = np.hypot(cen[:, 0], cen[:, 1])
-    if m > 1:
-        reach = d0 + k * float(vrange.max()) + 2.0 * float(rad.max())
-        pairs = cKDTree(cen).query_pairs(reach, output_type='ndarray')
-    else:
-        pairs = np.zeros((0, 2), np.int64)
-    if pairs.size:
-        a, b = pairs[:, 0], pairs[:, 1]
-        dc = np.linalg.norm(cen[a] - cen[b], axis=1)
-        thr = d0 + k * 0.5 * (vrange[a] + vrange[b])
-        sure = dc + rad[a] + rad[b] <= thr
-        maybe = ~sure & (dc - rad[a] - rad[b] <= thr)
-        link = sure
-        if maybe.any():
-            link = sure.copy()
-            link[np.flatnonzero(maybe)] = _any_pair_within(
-                sp, start, counts, a[maybe], b[maybe], thr[maybe])
-        a, b = a[link], b[link]
-        graph = coo_matrix((np.ones(a.size, np.int8), (a, b)), shape=(m, m))
-        _, vlab = connected_components(graph, directed=False)
-    else:
-        vlab = np.arange(m)
-    labels = vlab[vox]
-    # Renumber by first appearance so labels do not depend on voxel order.
-    _, first = np.unique(labels, return_index=True)
-    rank = np.empty(first.size, np.int64)
-    rank[np.argsort(first)] = np.arange(first.size)
-    return rank[np.searchsorted(np.unique(labels), labels)]
-
-
-def _any_pair_within(sp: np.ndarray, start: np.ndarray, counts: np.ndarray, a: np.ndarray,
-                     b: np.ndarray, thr: np.ndarray, chunk: int = 1_000_000) -> np.ndarray:
-    """For voxel pairs (a, b): is any point of a within ``thr`` of any point of b (exact)."""
-    out = np.zeros(a.size, bool)
-    na, nb = counts[a], counts[b]
-    sizes = na * nb
-    bounds = np.concatenate([[0], np.cumsum(sizes)])
-    lo = 0
-    while lo < a.size:      # chunks of voxel pairs with at most ~chunk point pairs
-        hi = int(np.searchsorted(bounds, bounds[lo] + chunk, side='right'))
-        hi = min(max(hi - 1, lo + 1), a.size)
-        rep = sizes[lo:hi]
-        pid = np.repeat(np.arange(lo, hi), rep)
-        local = np.arange(int(rep.sum())) - np.repeat(bounds[lo:hi] - bounds[lo], rep)
-        ia = start[a[pid]] + local // nb[pid]
-        ib = start[b[pid]] + local % nb[pid]
-        d2 = ((sp[ia] - sp[ib]) ** 2).sum(axis=1)
-        hit = np.bincount(pid - lo, weights=(d2 <= thr[pid] ** 2), minlength=hi - lo)
-        out[lo:hi] = hit > 0
-        lo = hi
+    kv = 1.25 * spacing
+    if not np.isfinite(kv) or kv <= params.cluster_k:
+        return lvl
+    r = np.hypot(lvl[:, 0], lvl[:, 1])
+    out = lvl.copy()
+    out[:, 2] *= (params.cluster_d0 + params.cluster_k * r) / (params.cluster_d0 + kv * r)
     return out
 
 
-def _widest_row_gap(pts: np.ndarray, row: float) -> float:
-    """Widest inner gap along the face's horizontal axis within one row of ``row`` m height."""
-    if pts.shape[0] < 3:
-        return 0.0
-    xy = pts[:, :2] - pts[:, :2].mean(axis=0)
-    w, v = np.linalg.eigh(xy.T @ xy)
-    u = xy @ v[:, 1]
-    r = np.floor((pts[:, 2] - pts[:, 2].min()) / row).astype(np.int64)
-    o = np.lexsort((u, r))
-    same = r[o][1:] == r[o][:-1]
-    if not same.any():
-        return 0.0
-    return float(np.diff(u[o])[same].max())
-
-
-def _cluster_stats(xyz: np.ndarray, inten: np.ndarray, labels: np.ndarray, n: int):
-    """Bounding boxes, counts, mean intensity and 3x3 covariances per label (vectorised)."""
-    order = np.argsort(labels, kind='stable')
-    counts = np.bincount(labels, minlength=n)
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    sp = xyz[order]
-    lo = np.minimum.reduceat(sp, start, axis=0)
-    hi = np.maximum.reduceat(sp, start, axis=0)
-    mean = np.add.reduceat(sp, start, axis=0) / counts[:, None]
-    mi = np.add.reduceat(inten[order], start) / counts
-    d = sp - np.repeat(mean, counts, axis=0)
-    outer = d[:, :, None] * d[:, None, :]
-    cov = np.add.reduceat(outer, start, axis=0) / counts[:, None, None]
-    return lo, hi, mean, mi, counts, cov
-
-
-def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -> ClusterResult:
+def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *,
+                  intensity_scale: Optional[float] = None,
+                  ground_prior: Optional[GroundPlane] = None,
+                  beam: Optional[float] = None,
+                  top_elevation: Optional[float] = None) -> ClusterResult:
     """Pre-filter, cluster and check-to-add one scan (seed 004 s1.3 steps 1-3).
 
     Args:
-        points: structured cloud with x, y, z, intensity (more fields allowed, NaN allowed).
+        points: structured cloud with x, y, z, intensity (more fields allowed, NaN allowed; a
+            ``ring`` field is used to count rows).
         params: thresholds.
+        intensity_scale: raw -> 0-255 factor (a node's learned one); None uses
+            ``params.intensity_scale``, or infers it from this scan when that is 0.
+        ground_prior: the road to fall back on when this scan's ground fit is not plausible.
+        beam: the sensor's vertical beam spacing, rad (a node's from its first scans); None
+            estimates it from this scan's ``ring`` field.
+        top_elevation: the top of the sensor's vertical field of view, rad (a node's highest
+            elevation seen so far); None takes this scan's.
 
     Returns:
         The candidates (ids are cluster indices; run :class:`CandidateTracker` for
-        persistence and stable ids) and the per-point labels.
+        persistence and stable ids), the per-point labels and why clusters were rejected.
 
     Raises:
         LidarClusterError: the cloud has no x, y, z or intensity field.
     """
-    xyz, inten, index, below = prefilter(points, params)
+    raw = _column(points, 'intensity')
+    scale = float(intensity_scale or params.intensity_scale or auto_scale(raw))
+    mount, ground, sensor_spacing, top_el = scan_geometry(points, params, ground_prior, beam)
+    if top_elevation is not None and np.isfinite(top_elevation):
+        top_el = max(top_el, top_elevation) if np.isfinite(top_el) else top_elevation
+    pf = prefilter(points, params, scale, mount, ground)
     rejected = dict.fromkeys(REJECT_REASONS, 0)
-    if xyz.shape[0] == 0:
-        return ClusterResult(Candidates.empty(), xyz, inten, index, np.zeros(0, np.int64), 0,
-                             rejected)
-    labels = region_grow(xyz, params.cluster_d0, params.cluster_k, params.voxel)
+    extra = dict(funnel=pf.funnel, scale=scale, ground=ground, mount=mount,
+                 beam_spacing=sensor_spacing, top_elevation=top_el)
+    if pf.xyz.shape[0] == 0:
+        return ClusterResult(Candidates.empty(), pf.xyz, pf.intensity, pf.index,
+                             np.zeros(0, np.int64), 0, rejected, **extra)
+    lvl, hgt = pf.level, pf.height
+    labels = region_grow(_rings_closer(lvl, params, sensor_spacing), params.cluster_d0,
+                         params.cluster_k, params.voxel)
     n = int(labels.max()) + 1
-    lo, hi, mean, mi, counts, cov = _cluster_stats(xyz, inten, labels, n)
+    lo, hi, mean, mi, counts, cov, order, start = cluster_stats(lvl, pf.intensity, labels, n)
+    top = np.maximum.reduceat(hgt[order], start)
+    bottom = np.minimum.reduceat(hgt[order], start)
     ext = hi - lo
     center = 0.5 * (lo + hi)
     rng = np.hypot(center[:, 0], center[:, 1])
+    los = mean - np.array([0.0, 0.0, mount.height])           # sensor -> cluster
+    dist = np.linalg.norm(los, axis=1)
+    rings = points['ring'] if 'ring' in (points.dtype.names or ()) else None
+    row_key, n_rows, spacing, el_hi = rows(pf.xyz, labels, n,
+                                           None if rings is None else rings[pf.index])
+    # One beam spacing at the cluster's range: how far the face may extend beyond its
+    # outermost rows unseen (0 on a single row: unknown).
+    beam_m = np.nan_to_num(spacing * dist)
     width = np.hypot(ext[:, 0], ext[:, 1])
     ok = np.ones(n, bool)
     why = np.full(n, -1, np.int64)
@@ -454,10 +571,14 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
     reject((width > params.max_width) | (ext[:, 2] > params.max_height), 'too_large')
     reject(np.maximum(width, ext[:, 2]) < params.min_size, 'too_small')
     # Height on the cluster: its top must reach sign height (drums, cones, plates do not).
-    reject(hi[:, 2] < params.min_top, 'too_low')
-    reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width),
-           'too_thin')
-    # Flatness (seed 004 s1.5 future work): PCA eigenvalues, ascending.
+    # The face's top lies between the highest row and the next, on average half a beam
+    # spacing above the highest row (at 85 m on a 64-beam sensor, 0.3 m).
+    reject(top + 0.5 * beam_m < params.min_top_height, 'too_low')
+    # A pole: tall and narrow over 3+ rings (two rings of a sparse sensor across a diamond's
+    # tip are one beam spacing apart, not a measured height).
+    reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width)
+           & (n_rows >= 3), 'too_thin')
+    # A thin vertical plate facing the sensor (seed 004 s1.5 future work): PCA, ascending.
     evals, evecs = np.linalg.eigh(cov)
     evals = np.maximum(evals, 0.0)
     testable = (counts >= params.flat_min_points) & \
@@ -465,15 +586,16 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
     thick = np.sqrt(evals[:, 0])
     reject(testable & (thick > params.flat_thickness + params.flat_thickness_k * rng),
            'not_flat')
-    normal_z = np.abs(evecs[:, 2, 0])
-    reject(testable & (normal_z > params.max_normal_z), 'not_vertical')
-    order = np.argsort(labels, kind='stable')
-    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    normal = evecs[:, :, 0]
+    reject(testable & (np.abs(normal[:, 2]) > params.max_normal_z), 'not_vertical')
+    cos_i = np.abs((normal * los).sum(axis=1)) / np.maximum(np.linalg.norm(los, axis=1), 1e-9)
+    incidence = np.where(testable, np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))), np.nan)
+    reject(testable & (incidence > params.max_incidence), 'not_facing')
     if params.hollow_frac < 1.0 and ok.any():
         hollow = np.zeros(n, bool)
         for c in np.flatnonzero(ok):
-            pts = xyz[order[start[c]:start[c] + counts[c]]]
-            hollow[c] = _widest_row_gap(pts, params.hollow_row) > max(
+            sel = order[start[c]:start[c] + counts[c]]
+            hollow[c] = widest_row_gap(lvl[sel], row_key[sel]) > max(
                 params.hollow_gap + params.hollow_gap_k * rng[c], params.hollow_frac * width[c])
         reject(hollow, 'hollow')
     # Reflectors underneath (plates, tail reflectors, bumper tape): bright returns below the
@@ -481,137 +603,70 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams()) -
     if params.max_bright_below >= 0 and ok.any():
         idx = np.flatnonzero(ok)
         m = params.below_margin
-        pool = np.vstack([xyz, below])
-        plab = np.concatenate([labels, np.full(below.shape[0], -1)])
+        pool = np.vstack([lvl, pf.below_level])
+        pool_h = np.concatenate([hgt, pf.below_height])
+        plab = np.concatenate([labels, np.full(pf.below_level.shape[0], -1)])
         inside = ((pool[None, :, 0] >= lo[idx, 0, None] - m)
                   & (pool[None, :, 0] <= hi[idx, 0, None] + m)
                   & (pool[None, :, 1] >= lo[idx, 1, None] - m)
                   & (pool[None, :, 1] <= hi[idx, 1, None] + m)
-                  & (pool[None, :, 2] <= lo[idx, 2, None] - params.below_gap)
-                  & (pool[None, :, 2] >= params.ground_z + params.below_clearance)
+                  & (pool_h[None, :] <= bottom[idx, None] - params.below_gap)
+                  & (pool_h[None, :] >= params.below_clearance)
                   & (plab[None, :] != idx[:, None]))
         bad = np.zeros(n, bool)
         bad[idx] = inside.sum(axis=1) > params.max_bright_below
         reject(bad, 'reflectors_below')
+    # Retroreflective, not just bright: far brighter than the dull returns around it.
+    ratio = np.full(n, np.nan)
+    if params.min_contrast > 0 and ok.any():
+        idx = np.flatnonzero(ok)
+        sx = pf.xyz[order]
+        llo = np.minimum.reduceat(sx, start, axis=0)[idx]
+        lhi = np.maximum.reduceat(sx, start, axis=0)[idx]
+        sraw = pf.intensity[order] / scale
+        med = np.array([np.median(sraw[start[c]:start[c] + counts[c]]) for c in idx])
+        ratio[idx] = contrast(points, params.min_intensity / scale, llo, lhi,
+                                  _CONTRAST_MARGIN + _CONTRAST_MARGIN_K * rng[idx], med)
+        reject(np.nan_to_num(ratio, nan=np.inf) < params.min_contrast,
+               'not_retroreflective')
     keep = np.flatnonzero(ok)
+    half = np.zeros((keep.size, 3))
+    # A face reaching the sensor's top ring may go on above it, unseen (a sign close by,
+    # above a 64-beam sensor's +2 deg): the box grows upwards to the largest face.
+    edge = max(0.5 * np.nan_to_num(sensor_spacing), math.radians(0.1))
+    cut = el_hi >= top_el - edge if np.isfinite(top_el) else np.zeros(n, bool)
+    for j, c in enumerate(keep):
+        if n_rows[c] >= 2:
+            az = math.atan2(center[c, 1], center[c, 0])
+            across = lvl[order[start[c]:start[c] + counts[c]], :2] @ np.array(
+                [-math.sin(az), math.cos(az)])
+            hw, hh = 0.5 * np.ptp(across) + beam_m[c], 0.5 * ext[c, 2] + beam_m[c]
+            up = max(_LARGEST_FACE - ext[c, 2], beam_m[c]) if cut[c] else 0.0
+            if cut[c]:
+                hw = max(hw, 0.5 * _LARGEST_FACE)
+            half[j] = (hw, hh + 0.5 * up, 0.5 * up)
+    center_lidar = mount.to_lidar(center)
     cands = Candidates(
-        center=center[keep], radius=0.5 * np.linalg.norm(ext[keep], axis=1),
+        center=center_lidar[keep], radius=0.5 * np.linalg.norm(ext[keep], axis=1),
         intensity=mi[keep], count=counts[keep].astype(np.int64), extent=ext[keep],
         ids=keep.astype(np.int64), confirmed=np.ones(keep.size, bool),
-        cluster=keep.astype(np.int64))
-    return ClusterResult(cands, xyz, inten, index, labels, n, rejected, why)
-
-
-class CandidateTracker:
-    """Persistence k of n with stable ids (seed 004 s1.4's proposed object tracking).
-
-    Candidates are matched to tracks by nearest neighbour (greedy, closest pairs first)
-    within a gate.  With a pose (4x4 odom <- lidar at the scan time) matching happens in the
-    odometry frame, so a static sign keeps its position while the car moves; without one
-    the match is in the lidar frame with the wider ``gate_no_odom`` gate.
-
-    Args:
-        k: scans with a detection needed among the last ``n``.
-        n: window length, scans.
-        gate: match distance at range 0, metres.
-        gate_k: growth of the gate per metre of range.
-        gate_no_odom: gate when no pose is given (car motion between scans).
-    """
-
-    def __init__(self, k: int = 2, n: int = 3, gate: float = 1.0, gate_k: float = 0.01,
-                 gate_no_odom: float = 3.5) -> None:
-        if not 1 <= k <= n:
-            raise LidarClusterError(f'persistence needs 1 <= k <= n, got k={k}, n={n}')
-        self.k, self.n = int(k), int(n)
-        self.gate, self.gate_k, self.gate_no_odom = float(gate), float(gate_k), \
-            float(gate_no_odom)
-        self._pos = np.zeros((0, 3))
-        self._hist = np.zeros((0, self.n), bool)
-        self._ids = np.zeros(0, np.int64)
-        self._framed = np.zeros(0, bool)        # position is in the odometry frame
-        self._next_id = 1
-
-    def reset(self) -> None:
-        """Forget every track (ids keep increasing)."""
-        self._pos = np.zeros((0, 3))
-        self._hist = np.zeros((0, self.n), bool)
-        self._ids = np.zeros(0, np.int64)
-        self._framed = np.zeros(0, bool)
-
-    @property
-    def n_tracks(self) -> int:
-        """Tracks currently remembered."""
-        return int(self._ids.size)
-
-    def update(self, cands: Candidates, pose: Optional[np.ndarray] = None) -> Candidates:
-        """Feed one scan's candidates; returns them with stable ids and ``confirmed`` set.
-
-        Args:
-            cands: this scan's candidates (lidar frame).
-            pose: 4x4 odom <- lidar at the scan time, or None.
-
-        Returns:
-            The same rows with ``ids`` replaced by track ids and ``confirmed`` true where the
-            track was seen in at least ``k`` of the last ``n`` scans (this one included).
-        """
-        c = cands.center
-        if pose is not None:
-            pos = c @ pose[:3, :3].T + pose[:3, 3]
-            framed = True
-        else:
-            pos = c.copy()
-            framed = False
-        if self._framed.size and np.any(self._framed != framed):
-            self.reset()                 # odometry appeared or vanished: frames differ
-        gate = (self.gate if framed else self.gate_no_odom) + self.gate_k * cands.range
-        t = self._ids.size
-        assign = np.full(len(cands), -1, np.int64)
-        if t and len(cands):
-            d = np.linalg.norm(pos[:, None, :] - self._pos[None, :, :], axis=2)
-            d[d > gate[:, None]] = np.inf
-            order = np.argsort(d, axis=None)
-            used_c, used_t = np.zeros(len(cands), bool), np.zeros(t, bool)
-            for flat in order[: int(np.isfinite(d).sum())]:
-                i, j = divmod(int(flat), t)
-                if used_c[i] or used_t[j]:
-                    continue
-                assign[i], used_c[i], used_t[j] = j, True, True
-        hist = np.zeros((t, self.n), bool)
-        hist[:, :-1] = self._hist[:, 1:]
-        matched = assign >= 0
-        hist[assign[matched], -1] = True
-        new_pos = self._pos.copy()
-        new_pos[assign[matched]] = pos[matched]
-        n_new = int((~matched).sum())
-        new_ids = np.arange(self._next_id, self._next_id + n_new)
-        self._next_id += n_new
-        new_hist = np.zeros((n_new, self.n), bool)
-        new_hist[:, -1] = True
-        ids = np.empty(len(cands), np.int64)
-        ids[matched] = self._ids[assign[matched]]
-        ids[~matched] = new_ids
-        self._pos = np.vstack([new_pos, pos[~matched]])
-        self._hist = np.vstack([hist, new_hist])
-        self._ids = np.concatenate([self._ids, new_ids])
-        self._framed = np.full(self._ids.size, framed)
-        alive = self._hist.any(axis=1)
-        self._pos, self._hist, self._ids = self._pos[alive], self._hist[alive], \
-            self._ids[alive]
-        self._framed = self._framed[alive]
-        hits = dict(zip(self._ids.tolist(), self._hist.sum(axis=1).tolist()))
-        confirmed = np.array([hits.get(int(i), 0) >= self.k for i in ids], bool)
-        out = replace(cands, ids=ids, confirmed=confirmed)
-        return out
+        cluster=keep.astype(np.int64), half_size=half, rows=n_rows[keep])
+    table = {'center': center_lidar, 'count': counts, 'rows': n_rows, 'top': top,
+             'width': width, 'height': ext[:, 2], 'intensity': mi, 'contrast': ratio,
+             'incidence': incidence}
+    return ClusterResult(cands, pf.xyz, pf.intensity, pf.index, labels, n, rejected, why,
+                         clusters=table, **extra)
 
 
 def candidates_to_array(cands: Candidates, only_confirmed: bool = True) -> np.ndarray:
-    """Pack candidates into :data:`CANDIDATE_DTYPE` rows for a PointCloud2."""
+    """Pack candidates into :data:`SIZED_CANDIDATE_DTYPE` rows for a PointCloud2."""
     c = cands.subset(cands.confirmed) if only_confirmed else cands
-    out = np.zeros(len(c), CANDIDATE_DTYPE)
+    out = np.zeros(len(c), SIZED_CANDIDATE_DTYPE)
     if len(c):
         out['x'], out['y'], out['z'] = c.center[:, 0], c.center[:, 1], c.center[:, 2]
         out['radius'] = c.radius
         out['intensity'] = c.intensity
         out['count'] = c.count
         out['id'] = c.ids
+        out['half_w'], out['half_h'], out['dz'] = c.half_size.T
     return out

@@ -1,71 +1,92 @@
 """``lidar_cluster`` node: ``/lidar/points`` -> ``/workzone/lidar/candidates`` (seed 004 s1).
 
-Thin wrapper around :mod:`workzone_ros.core.lidar_clustering`: view the cloud without copies,
-pre-filter, region-grow, check-to-add, then persistence k of n with stable ids (matched in
-the odometry frame when ``/odom`` is available).  Publishes the confirmed candidates as a
-PointCloud2 with fields x, y, z, radius, intensity (float32), count, id (uint32), stamped
-like the scan, and optionally the clustered points (x, y, z, intensity, label) for RViz.
+Thin wrapper around :class:`workzone_ros.core.lidar_stream.LidarStream`: view the cloud
+without copies, then the intensity scale (learned from the field's datatype and values, or
+``intensity_scale``; logged), the sensor's mounting and the road (``lidar_in_base`` plus a
+per-scan ground-plane fit), pre-filter, region-grow, check-to-add, and persistence k of n with
+stable ids (matched in the odometry frame when ``/odom`` is available).  Publishes the
+confirmed candidates as a PointCloud2 with fields x, y, z, radius, intensity (float32,
+0-255 units), count, id (uint32), half_w, half_h (float32: the measured half size for the
+camera ROI, 0 when the cluster is too sparse to measure), stamped like the scan, and
+optionally the clustered points (x, y, z, intensity, label) for RViz.
+
+What it says when nothing comes out: the log names the intensity encoding it chose, warns
+with the observed intensity range when no point is bright enough for 20 scans, and says once
+that candidates are held for persistence; ``/diagnostics`` carries the last scan's funnel
+(bright, in region, in height band), the clusters rejected per reason, the candidates held
+for persistence and a one-line "why nothing published".
 """
 from __future__ import annotations
 
+import re
 from dataclasses import fields
 from typing import Any, Optional
 
 import numpy as np
 from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import SetParametersResult
 from sensor_msgs.msg import PointCloud2
 
 from workzone_ros.core.lidar_clustering import (
-    CandidateTracker,
+    RENAMED,
     ClusterParams,
     LidarClusterError,
+    PersistenceError,
     candidates_to_array,
-    cluster_cloud,
 )
+from workzone_ros.core.lidar_stream import LidarStream
 from workzone_ros.core.pointcloud import make_points
 from workzone_ros.core.projection import euler_matrix
 from workzone_ros.core.sync import PoseBuffer, SyncError
-from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import array_to_pointcloud2, pointcloud2_to_array
 
 __all__ = ['LidarClusterNode', 'NODE_CLASS', 'main', 'CORE_PARAMS']
 
 _D = ClusterParams()
 _HELP = {
-    'min_intensity': ('pre-filter: minimum intensity (sensor units)', 0.0, 65535.0),
-    'z_min': ('pre-filter: lowest z in the lidar frame, m (per point)', -20.0, 20.0),
-    'min_top': ('check-to-add: the cluster top must reach this z (sign height), m', -20.0,
-                50.0),
+    'min_intensity': ('pre-filter: minimum intensity, 0-255 units (after intensity_scale)',
+                      0.0, 255.0),
+    'intensity_scale': ('raw intensity -> 0-255 units; 0 = learned from the datatype and '
+                        'values (0-1 float x255, 0-255 x1, 0-65535 x255/65535)', 0.0, 1e6),
+    'lidar_in_base': ('the sensor in base_link (on the road, x forward, y left, z up): x y z '
+                      'roll pitch yaw, m and rad; z = height above the road, the rotation '
+                      'gives the axes (x right / y forward: yaw -1.5708)', None, None),
+    'ground_fit': ('fit the road plane per scan where it is visible (slopes, pitch)', None,
+                   None),
+    'min_point_height': ('pre-filter: lowest point height above the road, m', -5.0, 20.0),
+    'max_point_height': ('pre-filter: highest point height above the road, m', -5.0, 50.0),
+    'min_top_height': ('check-to-add: the cluster top must reach this height above the road '
+                       '(sign height), m', -5.0, 50.0),
     'thin_height': ('check-to-add: clusters taller than this are tested for poles, m', 0.0,
                     100.0),
     'max_aspect': ('check-to-add: a pole is taller than max_aspect x its width', 0.0, 1000.0),
-    'z_max': ('pre-filter: highest z in the lidar frame, m', -20.0, 50.0),
     'range_min': ('pre-filter: nearest horizontal range, m', 0.0, 500.0),
     'range_max': ('pre-filter: farthest horizontal range, m', 0.0, 500.0),
     'x_min': ('pre-filter: only points at least this far ahead, m', -500.0, 500.0),
     'right_max': ('pre-filter: reach of the region to the right, m', 0.0, 500.0),
-    'center_left': ('pre-filter: reach to the left without include_left (overhead), m',
-                    -500.0, 500.0),
-    'include_left': ('pre-filter: also keep left-side signs', None, None),
-    'left_max': ('pre-filter: reach to the left with include_left, m', 0.0, 500.0),
+    'left_max': ('pre-filter: reach of the region to the left, m (4 = ego and next lane '
+                 'only)', 0.0, 500.0),
     'cluster_d0': ('region growing: distance threshold at range 0, m', 0.01, 10.0),
     'cluster_k': ('region growing: threshold growth per metre of range', 0.0, 1.0),
     'min_points': ('check-to-add: minimum points per cluster', 1, 100000),
     'max_width': ('check-to-add: maximum horizontal bbox diagonal, m', 0.0, 100.0),
     'max_height': ('check-to-add: maximum vertical extent, m', 0.0, 100.0),
     'min_size': ('check-to-add: minimum of the largest extent, m', 0.0, 100.0),
-    'flat_min_points': ('flatness: points needed to test', 3, 100000),
-    'flat_min_spread': ('flatness: second PCA axis std needed to test, m', 0.0, 10.0),
+    'flat_min_points': ('plate tests: points needed to test', 3, 100000),
+    'flat_min_spread': ('plate tests: second PCA axis std needed to test, m', 0.0, 10.0),
     'flat_thickness': ('flatness: max plate thickness (third-axis std) at range 0, m', 0.0,
                        10.0),
     'flat_thickness_k': ('flatness: thickness allowance per metre of range', 0.0, 1.0),
     'max_normal_z': ('flatness: max |normal z| of a (vertical) sign plate', 0.0, 1.0),
-    'hollow_gap': ('hollow test: widest inner gap in a row at range 0, m', 0.0, 100.0),
+    'max_incidence': ('facing: max angle between the plate normal and the line of sight, deg',
+                      1.0, 90.0),
+    'min_contrast': ('retroreflective: median intensity / p90 of the dull returns around '
+                     'the cluster at least this (0 disables)', 0.0, 100.0),
+    'hollow_gap': ('hollow test: widest inner gap in a ring at range 0, m', 0.0, 100.0),
     'hollow_gap_k': ('hollow test: gap growth per metre of range', 0.0, 1.0),
     'hollow_frac': ('hollow test: gap must also exceed this fraction of the width '
                     '(>= 1 disables)', 0.0, 10.0),
-    'hollow_row': ('hollow test: row height, m', 0.01, 10.0),
-    'ground_z': ('road height in the lidar frame, m', -20.0, 20.0),
     'below_clearance': ('reflectors test: ignore bright returns this close to the road, m',
                         0.0, 10.0),
     'below_margin': ('reflectors test: footprint margin, m', 0.0, 10.0),
@@ -75,9 +96,16 @@ _HELP = {
                          'cluster (-1 disables)', -1, 100000),
     'voxel': ('voxel side of the clustering graph (0 = d0/sqrt(3))', 0.0, 10.0),
 }
+
+
+def _default(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value
+
+
 CORE_PARAMS = tuple(
-    Param(f.name, getattr(_D, f.name), _HELP[f.name][0], min=_HELP[f.name][1],
+    Param(f.name, _default(getattr(_D, f.name)), _HELP[f.name][0], min=_HELP[f.name][1],
           max=_HELP[f.name][2]) for f in fields(ClusterParams))
+_UNDECLARED = re.compile(r"'(\w+)' is not a parameter")
 
 
 class LidarClusterNode(WorkzoneNode):
@@ -88,10 +116,8 @@ class LidarClusterNode(WorkzoneNode):
         Param('candidates_topic', '/workzone/lidar/candidates', 'output candidates'),
         Param('clustered_topic', '', 'optional clustered points for RViz ("" = off)'),
         Param('odom_topic', '/odom', 'odometry for persistence while moving ("" = off)'),
-        Param('lidar_in_base', [1.0, 0.0, 1.95, 0.0, 0.0, 0.0],
-              'lidar pose in base_link: x y z roll pitch yaw'),
-        Param('persistence_k', 2, 'a candidate is published when seen in k ...', min=1,
-              max=50),
+        Param('persistence_k', 2, 'a candidate is published when seen in k ... (1 publishes '
+              'single scans)', min=1, max=50),
         Param('persistence_n', 3, '... of the last n scans', min=1, max=50),
         Param('track_gate', 1.0, 'persistence match distance with odometry, m', min=0.0,
               max=50.0),
@@ -100,12 +126,21 @@ class LidarClusterNode(WorkzoneNode):
               max=100.0),
         Param('match_time_offset', 0.05, 'pose time for matching after the scan stamp, s '
               '(half a spin: the forward points)', min=-1.0, max=1.0),
+        Param('silent_scans', 20, 'warn when this many non-empty scans in a row have no point '
+              'at min_intensity', min=1, max=100000),
     ) + CORE_PARAMS
     INPUT_TOPICS = ('points_topic', 'odom_topic')
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('lidar_cluster', **kwargs)
-        self._configure()
+        self._renamed_keys()
+        try:
+            self._configure(self.params)
+        except (LidarClusterError, PersistenceError) as exc:
+            name = self.get_fully_qualified_name()
+            self.destroy_node()
+            raise ConfigError(f'node {name}: {exc}') from None
+        self.add_on_set_parameters_callback(self._check_together)
         self._poses = PoseBuffer()
         self._cand_pub = self.reliable_publisher(PointCloud2, self.params.candidates_topic,
                                                  depth=5)
@@ -120,25 +155,53 @@ class LidarClusterNode(WorkzoneNode):
             self._odom_sub = self.reliable_subscription(Odometry, self.params.odom_topic,
                                                         self._on_odom, depth=50)
 
-    def _configure(self) -> None:
-        p = self.params
-        self._core = ClusterParams.from_mapping(
-            {f.name: getattr(p, f.name) for f in fields(ClusterParams)})
-        if p.persistence_k > p.persistence_n:
-            self.get_logger().error(f'persistence_k {p.persistence_k} > persistence_n '
-                                    f'{p.persistence_n}: using k = n')
-        self._tracker = CandidateTracker(min(p.persistence_k, p.persistence_n),
-                                         p.persistence_n, p.track_gate, p.track_gate_k,
-                                         p.track_gate_no_odom)
-        lb = list(p.lidar_in_base) + [0.0] * 6
-        self._base_to_lidar = euler_matrix(tuple(lb[:3]), tuple(lb[3:6]))
+    def _renamed_keys(self) -> None:
+        """Parameters of an older release: say what replaced them (the base only warns)."""
+        self.renamed_params: list[str] = []
+        for text in list(self.config_warnings):
+            m = _UNDECLARED.search(text)
+            if m and m.group(1) in RENAMED:
+                line = (f'parameter {m.group(1)!r} no longer exists and is ignored: use '
+                        f'{RENAMED[m.group(1)]}')
+                self.renamed_params.append(line)
+                self.get_logger().error(line)
+
+    def _configure(self, p: Any) -> None:
+        """Build the stage from parameters (raises LidarClusterError / PersistenceError)."""
+        core = ClusterParams.from_mapping({f.name: getattr(p, f.name)
+                                           for f in fields(ClusterParams)})
+        self._stream = LidarStream(core, p.persistence_k, p.persistence_n, p.track_gate,
+                                   p.track_gate_k, p.track_gate_no_odom, p.silent_scans)
+        self._base_to_lidar = euler_matrix(tuple(core.lidar_in_base[:3]),
+                                           tuple(core.lidar_in_base[3:]))
+        self.get_logger().info(f'LiDAR: {core.mount.describe()}; ground fit '
+                               f'{"on" if core.ground_fit else "off"}; intensity scale '
+                               f'{core.intensity_scale or "learned from the first scans"}')
+
+    def _check_together(self, parameters: list) -> SetParametersResult:
+        """Reject a live change that makes the thresholds inconsistent, with the reason."""
+        values = {f.name: getattr(self.params, f.name) for f in fields(ClusterParams)}
+        values.update({x.name: x.value for x in parameters if x.name in values})
+        try:
+            ClusterParams.from_mapping(values)
+        except LidarClusterError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        k = next((x.value for x in parameters if x.name == 'persistence_k'),
+                 self.params.persistence_k)
+        n = next((x.value for x in parameters if x.name == 'persistence_n'),
+                 self.params.persistence_n)
+        if k > n:
+            return SetParametersResult(successful=False,
+                                       reason=f'persistence_k {k} > persistence_n {n}')
+        return SetParametersResult(successful=True)
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        """Rebuild the thresholds and the tracker after a live change."""
-        try:
-            self._configure()
-        except LidarClusterError as exc:
-            self.get_logger().error(f'parameters not applied: {exc}')
+        """Rebuild the stage after an accepted live change (the learned state restarts)."""
+        self._configure(self.params)
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """The last scan's funnel, rejections, persistence and why nothing was published."""
+        return self._stream.status()
 
     def _on_odom(self, msg: Odometry) -> None:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
@@ -156,14 +219,19 @@ class LidarClusterNode(WorkzoneNode):
 
     def _on_points(self, msg: PointCloud2) -> None:
         points = pointcloud2_to_array(msg)
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         try:
-            res = cluster_cloud(points, self._core)
+            out = self._stream.process(points, self._lidar_pose(stamp_ns))
         except LidarClusterError as exc:
             raise InputError(str(exc)) from None
-        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-        cands = self._tracker.update(res.candidates, self._lidar_pose(stamp_ns))
-        self._cand_pub.publish(array_to_pointcloud2(candidates_to_array(cands), msg.header))
+        for line in out.info:
+            self.get_logger().info(line)
+        for line in out.warnings:
+            self.warn_throttled(line[:25], line, period_s=30.0)
+        self._cand_pub.publish(array_to_pointcloud2(candidates_to_array(out.candidates),
+                                                    msg.header))
         if self._clustered_pub is not None:
+            res = out.result
             mask = res.clustered_mask()
             xyz = res.points[mask].astype(np.float32)
             pts = make_points(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2],

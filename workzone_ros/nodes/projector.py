@@ -35,6 +35,7 @@ from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2
 from std_msgs.msg import String
 
 from workzone_ros import interfaces
+from workzone_ros.core.lidar_rois import size_rois
 from workzone_ros.core.projection import (
     CameraModel,
     ProjectionError,
@@ -308,6 +309,7 @@ class ProjectorNode(WorkzoneNode):
         pose_fn = self._lidar_pose if self._odom_sub is not None else None
         rois, compensated = candidates_to_rois(arr, lidar_ns, img_ns, self._camera,
                                                self._extrinsics, pose_fn, self._roi_params)
+        rois = size_rois(rois, arr, self._camera)     # each measured sign's own size
         if pose_fn is not None and len(arr) and not compensated:
             self._counts['not compensated (no odometry at those times)'] += 1
             self.warn_throttled('odom', f'no odometry around {img_ns * 1e-9:.3f} s: ROIs are '

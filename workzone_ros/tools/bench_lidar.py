@@ -2,11 +2,12 @@
 
 Per scan of ~130k points (a simulator scan of a work-zone scenario, ``sim.lidar.cast_scan``,
 or a synthetic cloud with ``--synthetic``): the PointCloud2 message bytes are viewed as a
-structured array (zero copy, ``core.pointcloud.cloud_view``), pre-filtered, clustered
-(region growing on the voxel graph) and filtered (check-to-add, flatness, reflectors),
-then packed into the candidates layout.  Reported: p50 / p99 ms over ``--repeat`` runs of
-every scan, wall clock and process CPU time (on a shared machine the wall clock includes
-waiting for the core).
+structured array (zero copy, ``core.pointcloud.cloud_view``) and run through the node's path
+(``core.lidar_stream.LidarStream``: intensity scale, ground-plane fit, pre-filter, region
+growing on the voxel graph, check-to-add with the plate, contrast, hollow and reflectors
+tests, persistence), then packed into the candidates layout.  Reported: p50 / p99 ms over
+``--repeat`` runs of every scan, wall clock and process CPU time (on a shared machine the
+wall clock includes waiting for the core).
 
 In the same run, clustering alone with a fixed radius against scikit-learn's DBSCAN (same
 radius, ``min_samples=1``, same pre-filtered points): the two partitions are checked to be
@@ -107,27 +108,27 @@ def _same_partition(a: np.ndarray, b: np.ndarray) -> bool:
 def run(args) -> dict:
     """Measure and return the figures."""
     from workzone_ros.core.lidar_clustering import (
-        CandidateTracker,
         ClusterParams,
         candidates_to_array,
-        cluster_cloud,
         prefilter,
         region_grow,
+        scan_geometry,
     )
+    from workzone_ros.core.lidar_stream import LidarStream
     from workzone_ros.core.pointcloud import cloud_view
     params = ClusterParams()
     scans, source = make_scans(args.scenario, args.scans, args.synthetic)
     msgs = [_to_message_bytes(s) for s in scans]
-    tracker = CandidateTracker()
+    stream = LidarStream(params)          # the node's path: scale, ground fit, persistence
     times, cpu = [], []
     n_points, n_filtered, n_cands = [], [], []
     for data, fields, step, n in msgs:
         for _ in range(args.repeat):
             t0, c0 = time.perf_counter(), time.process_time()
             pts = cloud_view(data, fields, step, n, 1, n * step)
-            res = cluster_cloud(pts, params)
-            cands = tracker.update(res.candidates, None)
-            candidates_to_array(cands, only_confirmed=False)
+            out = stream.process(pts)
+            res = out.result
+            candidates_to_array(out.candidates, only_confirmed=False)
             times.append(time.perf_counter() - t0)
             cpu.append(time.process_time() - c0)
         n_points.append(n)
@@ -140,11 +141,12 @@ def run(args) -> dict:
     # The pre-filter is opened up (lower intensity, no region limit) so the comparison runs
     # on a few thousand points, dense sign faces included.
     from sklearn.cluster import DBSCAN
-    wide = params.with_(min_intensity=60.0, include_left=True, z_min=-1.7)
+    wide = params.with_(min_intensity=60.0)
     ours_t, sk_t, same, sizes = [], [], True, []
     for data, fields, step, n in msgs:
         pts = cloud_view(data, fields, step, n, 1, n * step)
-        xyz = prefilter(pts, wide)[0]
+        mount, ground, _, _ = scan_geometry(pts, wide)
+        xyz = prefilter(pts, wide, 1.0, mount, ground).level
         sizes.append(len(xyz))
         if len(xyz) < 2:
             continue

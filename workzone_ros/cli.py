@@ -21,6 +21,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     'evaluate': ('workzone_ros.tools.evaluate', 'accuracy reports against ground truth'),
     'bench': ('workzone_ros.tools.bench', 'benchmarks (transport, lidar, color, tracker)'),
     'bag-from-video': ('workzone_ros.tools.bag_from_video', 'a video file -> camera-only bag'),
+    'mine-background': ('workzone_ros.tools.mine_background',
+                        'hard-negative crops for the classifier from real video'),
+    'real-pixels': ('workzone_ros.tools.real_pixels',
+                    'colour-training images and masks from labelled video frames'),
 }
 
 

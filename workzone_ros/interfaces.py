@@ -133,7 +133,12 @@ Kind = Literal['warning', 'regulatory', 'general', 'unknown']
 
 
 class Detection(msgspec.Struct, frozen=True, **_STRUCT):
-    """One sign detection in the image."""
+    """One sign detection in the image.
+
+    ``proposal``: a recall-first colour candidate (``core.proposals``) that no shape rule
+    has checked; only the classifier can say whether it is a sign.  ``confidence`` is then the
+    candidate's rank score.
+    """
 
     box: Box
     confidence: Unit
@@ -141,6 +146,7 @@ class Detection(msgspec.Struct, frozen=True, **_STRUCT):
     kind: Kind = 'unknown'
     sources: list[Literal['color', 'lidar']] = msgspec.field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
+    proposal: bool = False
 
 
 class Detections(msgspec.Struct, frozen=True, tag='workzone_ros/Detections/1',

@@ -1,11 +1,46 @@
-"""core.detection: a synthetic sign at a known box, the regulatory extension, LiDAR fusion,
+"""core.detect: a synthetic sign at a known box, the regulatory extension, LiDAR fusion,
 degenerate frames, and the seed 002 / seed 004 alternatives."""
 import cv2
 import numpy as np
 import pytest
 
 from workzone_ros.core import color_model as cm
-from workzone_ros.core import detection as dt
+from workzone_ros.core.detect import (
+    Candidate,
+    ColorDetector,
+    DetectorConfig,
+    box_metrics,
+    estimate_horizon,
+    fit_rgb_lp,
+    nms,
+    relative_measure,
+    rgb_histograms,
+)
+from workzone_ros.core.detect.common import _components, _lookup, _median, _mode, pixel_box
+from workzone_ros.core.detect.diamond import (
+    _RHOMBUS_SIGNS,
+    diamond_pixel_box,
+    fit_diamond,
+    fit_rhombus,
+    refine_diamond,
+    refine_shifted,
+)
+from workzone_ros.core.detect.diamond_search import (
+    _blurred_diamond,
+    diamond_holds,
+    diamond_starts,
+    fit_blurred_diamond,
+)
+from workzone_ros.core.detect.edges import _taper
+from workzone_ros.core.detect.mask import _clipped_growth
+from workzone_ros.core.detect.rectangle import (
+    RECT_TOP_STRETCHES,
+    rectangle_lean,
+    refine_rectangle,
+    white_beyond,
+    white_part_ends,
+)
+from workzone_ros.core.profiles import banded_rows, row_taper, white_cap
 from workzone_ros.interfaces import Box, Roi
 
 ORANGE = (0, 110, 245)
@@ -83,7 +118,7 @@ def model():
 
 @pytest.fixture(scope='module')
 def detector(model):
-    return dt.ColorDetector(model, dt.DetectorConfig(use_prior=False))
+    return ColorDetector(model, DetectorConfig(use_prior=False))
 
 
 def _near(dets, gt, iou=0.2):
@@ -118,13 +153,13 @@ def test_diamond_at_known_box(detector, r):
     d = _one(dets, gt, 0.85)
     assert d.color == 'orange' and d.kind == 'warning' and d.sources == ['color']
     assert 0.5 <= d.confidence <= 1.0
-    _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
+    _, precision, recall = box_metrics(d.box, Box(*map(float, gt)))
     # the orange hull's box grows by border_frac (4 %) per side for the border / outer margin
     # that renders and cameras blend away; this drawn sign is sharp to its edge
     assert recall > 0.97 and precision > 0.8
     assert len(dets) == 1
     exact = _one(detector.with_config(border_frac=0.0).detect(img), gt, 0.85)
-    _, precision, recall = dt.box_metrics(exact.box, Box(*map(float, gt)))
+    _, precision, recall = box_metrics(exact.box, Box(*map(float, gt)))
     assert precision > 0.9 and recall > 0.9
 
 
@@ -190,7 +225,7 @@ def test_lidar_roi_raises_the_prior(model):
     prior = cm.fit_prior([(380, 60, 80, 80)] * 5, (640, 480), floor=0.2)
     # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
     # which the brightness refinement assumes: boxes here come from the orange mask
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5,
+    det = ColorDetector(model.with_prior(prior), DetectorConfig(threshold=0.5,
                                                                       diamond_refine=False))
     img = _background()
     gt = _diamond(img, 120, 330, 25)
@@ -230,7 +265,7 @@ def test_lidar_only_detection_needs_sign_colour(model):
     are, with the in-ROI threshold out of reach) gives a lidar-only detection with its own
     box when the ROI holds a sign-coloured region; an ROI with no sign colour gives nothing."""
     prior = cm.fit_prior([(380, 60, 80, 80)] * 5, (640, 480), floor=0.2)
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(roi_threshold=0.99,
+    det = ColorDetector(model.with_prior(prior), DetectorConfig(roi_threshold=0.99,
                                                                         roi_prior=0.2))
     img = _background()
     gt = _catalogue_diamond(img, 120.3, 330.6, 25.2)
@@ -259,7 +294,7 @@ def test_lidar_roi_relaxes_the_height_filter(model):
     alone; a LiDAR ROI on it lifts that test."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
+    det = ColorDetector(geo, DetectorConfig(use_prior=False, use_geometry=True))
     img = _background()
     low = _diamond(img, 300, 400, 30)
     assert det.detect(img) == []
@@ -270,7 +305,7 @@ def test_lidar_roi_relaxes_the_height_filter(model):
 
 def test_prior_suppresses_unlikely_locations(model):
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2)
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(threshold=0.5))
+    det = ColorDetector(model.with_prior(prior), DetectorConfig(threshold=0.5))
     img = _background()
     sign = _diamond(img, 420, 140, 25)
     cone = _diamond(img, 100, 430, 20)           # an orange thing low on the road
@@ -280,14 +315,14 @@ def test_prior_suppresses_unlikely_locations(model):
 
 
 def test_nms_keeps_separate_boxes():
-    c = [dt.Candidate(0, 0, 10, 10, 'orange', 0.9), dt.Candidate(1, 1, 8, 8, 'orange', 0.9),
-         dt.Candidate(50, 50, 10, 10, 'orange', 0.5)]
-    kept = dt.nms(c, 0.3, 0.7)
+    c = [Candidate(0, 0, 10, 10, 'orange', 0.9), Candidate(1, 1, 8, 8, 'orange', 0.9),
+         Candidate(50, 50, 10, 10, 'orange', 0.5)]
+    kept = nms(c, 0.3, 0.7)
     assert [(k.x, k.y) for k in kept] == [(0, 0), (50, 50)]
 
 
 def test_box_metrics_seed_000_definitions():
-    iou, p, r = dt.box_metrics(Box(0, 0, 10, 10), Box(0, 0, 10, 20))
+    iou, p, r = box_metrics(Box(0, 0, 10, 10), Box(0, 0, 10, 20))
     assert iou == pytest.approx(0.5) and p == pytest.approx(1.0) and r == pytest.approx(0.5)
 
 
@@ -310,29 +345,29 @@ def test_rgb_lp_thresholds_and_mser(model):
         mask = np.zeros(img.shape[:2], np.uint8)
         _diamond(img, int(rng.integers(100, 540)), int(rng.integers(60, 200)), 30,
                  tuple(c * rng.uniform(0.6, 1.0) for c in ORANGE), mask)
-        p, n = dt.rgb_histograms(img, mask)
+        p, n = rgb_histograms(img, mask)
         pos += p
         neg += n
-    lp = dt.fit_rgb_lp(pos, neg, w=1.0, max_thresholds=4, time_limit=20)
+    lp = fit_rgb_lp(pos, neg, w=1.0, max_thresholds=4, time_limit=20)
     assert 1 <= len(lp.thresholds) <= 4
     assert lp.metadata['fn_rate'] < 0.2 and lp.metadata['fp_rate'] < 0.2
-    det = dt.ColorDetector(model, dt.DetectorConfig(method='rgb_lp', use_prior=False, scale=1),
+    det = ColorDetector(model, DetectorConfig(method='rgb_lp', use_prior=False, scale=1),
                            rgb_lp=lp)
     img = _background(9)
     gt = _diamond(img, 420, 150, 30)
     dets = det.detect(img)
     assert max(d.box.iou(Box(*map(float, gt))) for d in dets) > 0.7
     with pytest.raises(cm.ModelError):
-        dt.ColorDetector(model, dt.DetectorConfig(method='rgb_lp'))
+        ColorDetector(model, DetectorConfig(method='rgb_lp'))
 
 
 def test_config_validation():
     with pytest.raises(ValueError):
-        dt.DetectorConfig(method='cnn')
+        DetectorConfig(method='cnn')
     with pytest.raises(ValueError):
-        dt.DetectorConfig(colors=('blue',))
+        DetectorConfig(colors=('blue',))
     with pytest.raises(ValueError):
-        dt.DetectorConfig(threshold=1.5)
+        DetectorConfig(threshold=1.5)
     for bad, name in (({'diamond_max_change': 0.0}, 'diamond_max_change'),
                       ({'diamond_hold': 1.5}, 'diamond_hold'),
                       ({'peel_levels': (0.8, 1.2)}, 'peel_levels'),
@@ -367,7 +402,7 @@ def test_config_validation():
                       ({'clip_grow': -0.5}, 'clip_grow'),
                       ({'rect_clip_bias': -0.3}, 'rect_clip_bias')):
         with pytest.raises(ValueError, match=name):
-            dt.DetectorConfig(**bad)
+            DetectorConfig(**bad)
 
 
 def test_regulatory_extension_under_overcast_light(detector):
@@ -393,7 +428,7 @@ def test_geometry_rejects_orange_things_on_the_road(model):
     (a drum, a cone) is not a sign; the same blob up at sign height is."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
+    det = ColorDetector(geo, DetectorConfig(use_prior=False, use_geometry=True))
     img = _background()
     low = _diamond(img, 300, 400, 30)
     high = _diamond(img, 500, 150, 30)
@@ -408,7 +443,7 @@ def test_soft_mounting_limit_keeps_low_sign_faces(model):
     portable stands) a clear diamond face passes, a vehicle-like orange block does not."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 1.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True))
+    det = ColorDetector(geo, DetectorConfig(use_prior=False, use_geometry=True))
     img = _background()
     low = _diamond(img, 200, 290, 30)
     cv2.rectangle(img, (420, 250), (500, 320), ORANGE, -1)          # a truck's rear
@@ -433,12 +468,12 @@ def test_saturation_norm_finds_hazy_signs_and_ignores_warm_grey():
     hazy = cv2.add(hazy, np.random.default_rng(3).integers(0, 6, hazy.shape, dtype=np.uint8))
     pale = (120, 150, 200)                                       # orange, S ~ 102
     gt = _diamond(hazy, 420, 150, 40, pale)
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False)
-    _one(dt.ColorDetector(normed, cfg).detect(hazy), gt, iou=0.6)
-    assert dt.ColorDetector(plain, cfg).detect(hazy) == []
+    cfg = DetectorConfig(colors=('orange',), use_prior=False)
+    _one(ColorDetector(normed, cfg).detect(hazy), gt, iou=0.6)
+    assert ColorDetector(plain, cfg).detect(hazy) == []
     vivid = _background(4)                                        # blue sky, grass, asphalt
     vivid[300:420, 100:500] = (95, 130, 165)                     # dry lawn, S ~ 108
-    assert dt.ColorDetector(normed, cfg).detect(vivid) == []
+    assert ColorDetector(normed, cfg).detect(vivid) == []
 
 
 def _road(horizon, seed=0, shape=(480, 640)):
@@ -458,20 +493,20 @@ def _road(horizon, seed=0, shape=(480, 640)):
 
 @pytest.mark.parametrize('horizon', [200, 240, 300])
 def test_horizon_from_lane_lines(horizon):
-    row = dt.estimate_horizon(_road(horizon))
+    row = estimate_horizon(_road(horizon))
     assert row is not None and abs(row - horizon) < 8, row
 
 
 def test_horizon_unreliable_frames():
     """No lane lines, or lines that do not meet in one point: no estimate (the detector
     then switches the mounting-height test off)."""
-    assert dt.estimate_horizon(np.full((480, 640, 3), 90, np.uint8)) is None
+    assert estimate_horizon(np.full((480, 640, 3), 90, np.uint8)) is None
     img = _background()
-    assert dt.estimate_horizon(img) is None
+    assert estimate_horizon(img) is None
     for x in range(40, 640, 90):                  # parallel slanted stripes: no single point
         cv2.line(img, (x, 479), (x + 120, 250), (240, 240, 240), 4)
-    assert dt.estimate_horizon(img) is None
-    assert dt.estimate_horizon(np.zeros((8, 8, 3), np.uint8)) is None
+    assert estimate_horizon(img) is None
+    assert estimate_horizon(np.zeros((8, 8, 3), np.uint8)) is None
 
 
 def test_geometry_measured_from_the_estimated_horizon(model):
@@ -483,14 +518,14 @@ def test_geometry_measured_from_the_estimated_horizon(model):
                         {'geometry': np.array([0.5, 0.26])})
     # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
     # which the brightness refinement assumes: boxes here come from the orange mask
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False, use_geometry=True,
+    cfg = DetectorConfig(colors=('orange',), use_prior=False, use_geometry=True,
                             diamond_refine=False)
     img = _road(330)
     sign = _diamond(img, 540, 290, 30)             # bottom 0.1 sign heights below 330
     drum = _diamond(img, 150, 420, 20)             # far below the horizon: on the road
-    fixed = dt.ColorDetector(geo, cfg)
+    fixed = ColorDetector(geo, cfg)
     assert not [d for d in fixed.detect(img) if d.box.iou(Box(*map(float, sign))) > 0.3]
-    hz = dt.ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
+    hz = ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
     dets = hz.detect(img)
     assert hz.horizon() is not None and abs(hz.horizon() - 330) < 10
     _one(dets, sign)
@@ -499,22 +534,22 @@ def test_geometry_measured_from_the_estimated_horizon(model):
     flat = _background()
     s2 = _diamond(flat, 540, 290, 30)
     d2 = _diamond(flat, 150, 420, 20)
-    hz2 = dt.ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
+    hz2 = ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
     dets = hz2.detect(flat)
     assert hz2.horizon() is None
     _one(dets, s2)
     _one(dets, d2)
     with pytest.raises(ValueError):
-        dt.DetectorConfig(geometry_reference='sky')
+        DetectorConfig(geometry_reference='sky')
 
 
 def test_horizon_history_is_smoothed_and_reset(model):
-    det = dt.ColorDetector(model, dt.DetectorConfig(colors=('orange',), use_prior=False,
+    det = ColorDetector(model, DetectorConfig(colors=('orange',), use_prior=False,
                                                     geometry_reference='horizon',
                                                     horizon_every=1, horizon_window=5))
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 0.26])})
-    det = dt.ColorDetector(geo, det.config)
+    det = ColorDetector(geo, det.config)
     for h in (240, 240, 300, 240, 240):
         det.detect(_road(h))
     assert abs(det.horizon() - 240) < 8            # one outlier frame does not move it
@@ -532,7 +567,7 @@ def test_regulatory_extension_under_a_blue_sky_with_gray_world(model):
     white bottom is still found (white as the camera saw it or after the gains)."""
     gw = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior,
                        {'gray_world': True}, {})
-    det = dt.ColorDetector(gw, dt.DetectorConfig(colors=('orange',), use_prior=False))
+    det = ColorDetector(gw, DetectorConfig(colors=('orange',), use_prior=False))
     img = _background()
     img[:400] = (235, 150, 95)                       # deep blue sky over most of the frame
     gt = _regulatory(img, 400, 80, 72, 90)
@@ -562,35 +597,35 @@ def test_relative_measurement_keeps_boxes_tight_on_smooth_tables():
     gt = Box(*map(float, _diamond(img, 420, 150, 25)))
     img = cv2.GaussianBlur(img, (0, 0), 2.0)
     # the hull path (a diamond's box from the fitted diamond is tight either way, below)
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False, diamond_scale=0.0)
-    old = dt.ColorDetector(_smooth_model(), cfg).detect(img)
-    new = dt.ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.5,
+    cfg = DetectorConfig(colors=('orange',), use_prior=False, diamond_scale=0.0)
+    old = ColorDetector(_smooth_model(), cfg).detect(img)
+    new = ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.5,
                                           'blur_rel': 0.5}), cfg).detect(img)
     assert len(old) == 1 and len(new) == 1
-    _, p_old, _ = dt.box_metrics(old[0].box, gt)
-    _, p_new, r_new = dt.box_metrics(new[0].box, gt)
+    _, p_old, _ = box_metrics(old[0].box, gt)
+    _, p_new, r_new = box_metrics(new[0].box, gt)
     assert p_old < 0.9 and p_new > 0.95 and r_new > 0.95
     # absolute mode in the metadata is the old behaviour
-    same = dt.ColorDetector(_smooth_model({'mode': 'absolute'}), cfg).detect(img)
+    same = ColorDetector(_smooth_model({'mode': 'absolute'}), cfg).detect(img)
     assert same[0].box == old[0].box
     # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
     # which the brightness refinement assumes: boxes here come from the orange mask
-    fitted = dt.ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07,
+    fitted = ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07,
                                                            diamond_refine=False)).detect(img)
-    assert len(fitted) == 1 and min(dt.box_metrics(fitted[0].box, gt)[1:]) > 0.95
+    assert len(fitted) == 1 and min(box_metrics(fitted[0].box, gt)[1:]) > 0.95
 
 
 def test_relative_measure_metadata():
-    assert dt.relative_measure({}) is None
-    assert dt.relative_measure({'measure': {'mode': 'absolute'}}) is None
-    assert dt.relative_measure({'measure': {'mode': 'relative', 'edge_rel': 0.4,
+    assert relative_measure({}) is None
+    assert relative_measure({'measure': {'mode': 'absolute'}}) is None
+    assert relative_measure({'measure': {'mode': 'relative', 'edge_rel': 0.4,
                                             'blur_rel': 0.2}}) == (0.4, 0.2)
     for bad in ({'mode': 'relative'}, {'mode': 'relative', 'edge_rel': 2, 'blur_rel': 0.1},
                 {'mode': 'peak'}, 'relative'):
         with pytest.raises(cm.ModelError, match='measure'):
-            dt.relative_measure({'measure': bad})
+            relative_measure({'measure': bad})
     with pytest.raises(cm.ModelError, match='measure'):
-        dt.ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 'x',
+        ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 'x',
                                         'blur_rel': 0.1}))
 
 
@@ -604,9 +639,9 @@ def test_relative_measurement_does_not_grow_over_an_inside_border_line():
     dark[8:52, 8:52] = True
     dark[14:46, 14:46] = False             # the black line straddles the hull's edge
     like = np.where(hmask > 0, 0.95, 0.0).astype(np.float32)
-    cfg = dt.DetectorConfig(colors=('orange',), use_prior=False)
-    old = dt.ColorDetector(_smooth_model(), cfg)._border_growth(hmask, dark, like, 40)[0]
-    rel = dt.ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.75,
+    cfg = DetectorConfig(colors=('orange',), use_prior=False)
+    old = ColorDetector(_smooth_model(), cfg)._border_growth(hmask, dark, like, 40)[0]
+    rel = ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.75,
                                           'blur_rel': 0.5}), cfg)
     assert old == pytest.approx(cfg.border_frac)
     assert rel._border_growth(hmask, dark, like, 40, 0.5)[0] == 0.0
@@ -619,7 +654,7 @@ def test_other_camera_does_not_get_the_fixed_camera_prior(model):
     640x480 camera) is not stretched over it; a sign where that map is at its floor is
     found.  The model's own camera still gets the heat map."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(colors=('orange',)))
+    det = ColorDetector(model.with_prior(prior), DetectorConfig(colors=('orange',)))
     img = _background(shape=(406, 722))
     low = _diamond(img, 150, 300, 30)             # on a sidewalk, low left: heat at its floor
     _one(det.detect(img), low)
@@ -638,7 +673,7 @@ def test_other_camera_has_no_fixed_row_mounting_test(model):
                        'cy': 240}}
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta,
                         {'geometry': np.array([0.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(colors=('orange',), use_prior=False))
+    det = ColorDetector(geo, DetectorConfig(colors=('orange',), use_prior=False))
     img = _background(shape=(406, 722))
     low = _diamond(img, 300, 340, 30)
     _one(det.detect(img), low)
@@ -681,7 +716,7 @@ def test_sign_in_front_of_a_brick_wall_is_separated():
     its own, not merged with the brick behind it (with the stretched heat map, or with no
     prior, the wall joins the blob, and the sign is then peeled out of it)."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
-    det = dt.ColorDetector(_step_model(prior), dt.DetectorConfig(colors=('orange',)))
+    det = ColorDetector(_step_model(prior), DetectorConfig(colors=('orange',)))
     img = _background(shape=(406, 722))
     _brick_wall(img, 360, 30, 640, 250)
     sign = _diamond(img, 474, 130, 36)
@@ -716,8 +751,8 @@ def test_diamond_paler_at_its_tips_is_grown_whole(r):
     lut[4:22, 48:100] = 0.75                       # brick, lawns, beige fronts
     lut[4:22, 100:170] = 0.90                      # the paler sheeting
     lut[4:22, 170:] = 0.98                         # the sheeting
-    det = dt.ColorDetector(cm.default_model(lut, 60, prior),
-                           dt.DetectorConfig(colors=('orange',)))
+    det = ColorDetector(cm.default_model(lut, 60, prior),
+                           DetectorConfig(colors=('orange',)))
     img = _background(shape=(406, 722))
     _brick_wall(img, 520, 60, 700, 330)
     cx, cy = 380, 200
@@ -740,13 +775,13 @@ def test_foreign_prior_config_and_default(model):
     """foreign_prior 0 takes the model prior's ROI mean relative to the orange table's peak;
     an explicit value is used as is; out-of-range values are refused."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
-    det = dt.ColorDetector(model.with_prior(prior), dt.DetectorConfig(colors=('orange',)))
+    det = ColorDetector(model.with_prior(prior), DetectorConfig(colors=('orange',)))
     peak = float(model.lut('orange').max())
     assert det.foreign_prior() == pytest.approx(min(1.0, prior.expected() / peak))
     assert det.with_config(foreign_prior=0.7).foreign_prior() == pytest.approx(0.7)
     for bad in (-0.1, 1.5):
         with pytest.raises(ValueError, match='foreign_prior'):
-            dt.DetectorConfig(foreign_prior=bad)
+            DetectorConfig(foreign_prior=bad)
 
 def _aa_diamond_mask(cx, cy, a, b, shape=(120, 120), ss=8):
     """Coverage of a diamond at sub-pixel centre / half-diagonals, thresholded at 0.5."""
@@ -761,7 +796,7 @@ def _aa_diamond_mask(cx, cy, a, b, shape=(120, 120), ss=8):
                                           (58.4, 61.9, 41.0, 44.3)])
 def test_fit_diamond_recovers_a_diamond_with_flags_on_top(cx, cy, a, b):
     mask = _aa_diamond_mask(cx, cy, a, b)
-    fit = dt.fit_diamond(mask)
+    fit = fit_diamond(mask)
     assert fit is not None
     assert abs(fit[0] - cx) < 0.5 and abs(fit[1] - cy) < 0.75
     assert abs(fit[2] - a) < 1.0 and abs(fit[3] - b) < 1.0 and fit[4] > 0.8
@@ -775,7 +810,7 @@ def test_fit_diamond_recovers_a_diamond_with_flags_on_top(cx, cy, a, b):
                            1)
     ys = np.nonzero(flags.any(axis=1))[0]
     assert ys[0] < cy - b - 2                 # the blob's box reaches over the flags
-    fit = dt.fit_diamond(flags)
+    fit = fit_diamond(flags)
     assert fit is not None
     assert abs(fit[1] - cy) < 1.0 and abs(fit[2] - a) < 1.0 and abs(fit[3] - b) < 1.5
 
@@ -783,10 +818,10 @@ def test_fit_diamond_recovers_a_diamond_with_flags_on_top(cx, cy, a, b):
 def test_fit_diamond_rejects_what_is_no_diamond():
     rect = np.zeros((60, 60), np.uint8)
     rect[10:40, 12:50] = 1
-    fit = dt.fit_diamond(rect)
+    fit = fit_diamond(rect)
     assert fit is None or fit[4] < 0.5
-    assert dt.fit_diamond(np.zeros((10, 10), np.uint8)) is None
-    assert dt.fit_diamond(rect[:3]) is None
+    assert fit_diamond(np.zeros((10, 10), np.uint8)) is None
+    assert fit_diamond(rect[:3]) is None
 
 
 def _flagged_diamond(img, cx, cy, r):
@@ -806,7 +841,7 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     img = _background()
     gt = _flagged_diamond(img, 420, 150, r)
     d = _one(detector.detect(img), gt, 0.5)
-    _, precision, recall = dt.box_metrics(d.box, Box(*map(float, gt)))
+    _, precision, recall = box_metrics(d.box, Box(*map(float, gt)))
     assert d.kind == 'warning'
     assert precision > 0.8 and recall > 0.9
     assert d.box.y >= gt[1] - 0.15 * gt[3] - 1      # the top edge at the top corner
@@ -814,7 +849,7 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     old = [c for c in detector.with_config(diamond_trim=-1.0, diamond_scale=0.0).detect(img)
            if c.box.iou(Box(*map(float, gt))) > 0.3]
     assert old and old[0].box.y < gt[1] - 0.2 * gt[3]
-    assert dt.box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
+    assert box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
 
 
 def _plain(bgr, noise, seed, shape=(480, 640)):
@@ -892,7 +927,7 @@ def test_regulatory_extension_ends_at_the_bottom_border_over_snow(detector, size
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert d.color == 'orange'
-    assert abs(d.box.y2 - g.y2) <= 2.0 and dt.box_metrics(d.box, g)[0] > 0.8
+    assert abs(d.box.y2 - g.y2) <= 2.0 and box_metrics(d.box, g)[0] > 0.8
     old = [c for c in detector.with_config(ext_frame=False).detect(img)
            if c.box.iou(g) > 0.2]
     assert not old or old[0].box.iou(g) < 0.5
@@ -908,7 +943,7 @@ def test_bold_legend_row_over_snow_is_not_the_bottom_border(detector, key, size)
     img, gt = _render_art_sign(_snow(), 400.3, 190.4, size, key=key)
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
-    assert abs(d.box.y2 - g.y2) <= 1.0 and dt.box_metrics(d.box, g)[0] > 0.9
+    assert abs(d.box.y2 - g.y2) <= 1.0 and box_metrics(d.box, g)[0] > 0.9
     first = [c for c in detector.with_config(ext_ratio_tol=0.0).detect(img)
              if c.box.iou(g) > 0.2]
     if key == 'work_zone_begin' or size < 26:
@@ -928,7 +963,7 @@ def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, si
                                key='work_zone_begin', orange=(0, 66, 150))
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
-    assert abs(d.box.y2 - g.y2) <= 1.5 and dt.box_metrics(d.box, g)[1] > 0.9
+    assert abs(d.box.y2 - g.y2) <= 1.5 and box_metrics(d.box, g)[1] > 0.9
     # (the white part judged against its own level, ``white_own_rel``, ends it too)
     old = [c for c in detector.with_config(ext_band_long=100.0, white_own_rel=0.0).detect(img)
            if c.box.iou(g) > 0.2]
@@ -1022,16 +1057,16 @@ def test_banded_rows_cone_drum_and_two_colour_sign():
         return o, wh, d
     # cone: tip, band, then the blob (rows 10-19)
     o, wh, d = strip('...oooowww' + 'o' * 10 + '.....')
-    assert dt.banded_rows(o, wh, d, 10, 20, 2, 2, 10)
+    assert banded_rows(o, wh, d, 10, 20, 2, 2, 10)
     # drum bridged into one blob (rows 3-17) by the closing: bands inside
     o, wh, d = strip('...' + 'ooowwwooowwwooo' + '...')
-    assert dt.banded_rows(o, wh, d, 3, 18, 2, 2, 15)
+    assert banded_rows(o, wh, d, 3, 18, 2, 2, 15)
     # two-colour sign: orange top (the blob, rows 3-7), white part, black border, orange dirt
     o, wh, d = strip('...' + 'ooooo' + 'wwwwwwww' + 'dd' + 'ooo')
-    assert not dt.banded_rows(o, wh, d, 3, 8, 1, 2, 10)
+    assert not banded_rows(o, wh, d, 3, 8, 1, 2, 10)
     # a plain face with a pale sky above and road below
     o, wh, d = strip('wwwww' + 'o' * 10 + '.....')
-    assert not dt.banded_rows(o, wh, d, 5, 15, 1, 2, 10)
+    assert not banded_rows(o, wh, d, 5, 15, 1, 2, 10)
 
 
 @pytest.mark.parametrize('h', [50, 80])
@@ -1057,14 +1092,14 @@ def test_row_taper_and_white_cap():
     band right over a blob is a cap, one further away is not."""
     img = np.zeros((120, 120), np.uint8)
     cv2.fillConvexPoly(img, np.array([[60, 10], [110, 60], [60, 110], [10, 60]]), 1)
-    assert 0.9 < dt.row_taper(img) < 1.1
+    assert 0.9 < row_taper(img) < 1.1
     cone = np.zeros((120, 120), np.uint8)
     cv2.fillConvexPoly(cone, np.array([[45, 20], [75, 20], [95, 110], [25, 110]]), 1)
-    assert dt.row_taper(cone) < 0.8
+    assert row_taper(cone) < 0.8
     white = np.zeros((30, 10), bool)
     white[10:16] = True
-    assert dt.white_cap(white, 17, 3, 2)
-    assert not dt.white_cap(white, 25, 3, 2)
+    assert white_cap(white, 17, 3, 2)
+    assert not white_cap(white, 25, 3, 2)
 
 
 def test_cone_with_white_top_rejected(detector):
@@ -1128,7 +1163,7 @@ def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
     not sign-coloured), as is a diamond in front of a brick wall (warm, but not at the
     face's level: test_sign_in_front_of_a_brick_wall_is_separated)."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
-    det = dt.ColorDetector(_step_model(prior), dt.DetectorConfig(colors=('orange',)))
+    det = ColorDetector(_step_model(prior), DetectorConfig(colors=('orange',)))
     img = _background(shape=(406, 722))
     patch = _dirt(img, 60, 60, 300, 300)
     sign = _diamond(img, 520, 130, 36)
@@ -1147,7 +1182,7 @@ def test_orange_patch_without_border_edges_is_dropped_sign_with_them_kept(detect
     sign: a dirt patch that the surround test lets through is dropped; an orange END ROAD
     WORK rectangle with its black border line is kept."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
-    det = dt.ColorDetector(_step_model(prior), dt.DetectorConfig(colors=('orange',),
+    det = ColorDetector(_step_model(prior), DetectorConfig(colors=('orange',),
                                                                  max_surround_like=1.0))
     img = _background(shape=(406, 722))
     patch = _dirt(img, 60, 60, 300, 300)
@@ -1214,7 +1249,7 @@ def test_refine_diamond_finds_the_face_edges_to_a_fraction_of_a_pixel(a_face, ga
     3-9 % with a hot spot."""
     cx, cy = 45.3, 44.8
     img = _sign_value(cx, cy, a_face, gain=gain)
-    got = dt.refine_diamond(img, (cx + 0.6, cy - 0.6, 1.06 * a_face, 0.94 * a_face))
+    got = refine_diamond(img, (cx + 0.6, cy - 0.6, 1.06 * a_face, 0.94 * a_face))
     assert got is not None
     assert abs(got[0] - cx) < 0.25 and abs(got[1] - cy) < 0.25
     assert abs(got[2] / a_face - 1) < 0.02 and abs(got[3] / a_face - 1) < 0.02
@@ -1231,31 +1266,31 @@ def test_refine_from_shifted_starts_finds_a_large_face(dx, dy):
     cx, cy, a_face = 75.4, 74.7, 46.0
     img = _sign_value(cx, cy, a_face, shape=(150, 150), blur=0.8)
     start = (cx + dx, cy + dy, a_face / 0.8876, a_face / 0.8876)
-    assert dt.refine_diamond(img, start) is None
+    assert refine_diamond(img, start) is None
     fits = []
 
     def refine(st):
-        fit = dt.refine_diamond(img, st)
+        fit = refine_diamond(img, st)
         if fit is not None:
             fits.append(fit)
         return fit
-    got, verdict = dt.refine_shifted([start], refine, lambda f: (f, 'holds'))
+    got, verdict = refine_shifted([start], refine, lambda f: (f, 'holds'))
     assert verdict == 'holds'
     assert abs(got[0] - cx) < 0.3 and abs(got[1] - cy) < 0.3
     assert abs(got[2] / a_face - 1) < 0.02 and abs(got[3] / a_face - 1) < 0.02
     assert max(f[2] for f in fits) > a_face + 1.5        # an outer edge fitted too
     flat = np.full((150, 150), 120, np.float32)
-    assert dt.refine_shifted([start], lambda st: dt.refine_diamond(flat, st)) is None
+    assert refine_shifted([start], lambda st: refine_diamond(flat, st)) is None
 
 
 def test_refine_diamond_gives_up_without_an_edge():
     """A flat patch, and a diamond cut by the window's edge, give None (the caller keeps its
     mask-based box)."""
     flat = np.full((60, 60), 120, np.float32)
-    assert dt.refine_diamond(flat, (30, 30, 12, 12)) is None
+    assert refine_diamond(flat, (30, 30, 12, 12)) is None
     img = _sign_value(10.0, 45.0, 18.0)
-    assert dt.refine_diamond(img, (10.0, 45.0, 18.0, 18.0)) is None
-    assert dt.refine_diamond(img, (45.0, 45.0, 2.0, 2.0)) is None
+    assert refine_diamond(img, (10.0, 45.0, 18.0, 18.0)) is None
+    assert refine_diamond(img, (45.0, 45.0, 2.0, 2.0)) is None
 
 
 def _catalogue_diamond(img, cx, cy, outer, ss=8):
@@ -1328,14 +1363,14 @@ def test_refine_rectangle_finds_the_orange_face_edges(w, gain, tol):
     x, y, h = 20.3, 15.6, 1.4 * w
     img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 80), gain=gain)
     face = 0.045 * w
-    got = dt.refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w,
+    got = refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w,
                               bottom=float(int(y + h - face)))
     assert got is not None
     left, right, top, low = got
     assert abs(left - (x + face)) < tol and abs(right - (x + w - face)) < tol
     assert abs(top - (y + face)) < tol and abs(low - (y + h - face)) < tol
-    assert dt.refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w)[3] is None
-    assert dt.refine_rectangle(np.full((60, 60), 90, np.float32), (10, 10, 30, 12), 30) is None
+    assert refine_rectangle(img, (x - 1.5, y - 1.0, w + 1.5, 0.4 * w), w)[3] is None
+    assert refine_rectangle(np.full((60, 60), 90, np.float32), (10, 10, 30, 12), 30) is None
 
 
 def test_refine_rectangle_side_without_a_step_measured_on_the_white_part():
@@ -1349,10 +1384,10 @@ def test_refine_rectangle_side_without_a_step_measured_on_the_white_part():
     face = 0.045 * w
     img[:int(y + 0.4 * w) + 1, :int(x + 3 * face)] = 200.0      # no step beside the orange
     box = (x - 1.0, y - 1.0, w + 2.0, 0.4 * w)
-    got = dt.refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
+    got = refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
     assert got is not None
     assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
-    assert dt.refine_rectangle(img, box, w, free_top=True) is None
+    assert refine_rectangle(img, box, w, free_top=True) is None
 
 
 @pytest.mark.parametrize('w, short', [(24.0, 3.0), (30.0, 3.5), (40.0, 4.0)])
@@ -1367,10 +1402,10 @@ def test_refine_rectangle_hull_short_of_a_pale_side(w, short):
     img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 80))
     face = 0.045 * w
     box = (x + short, y - 1.0, w - short + 1.0, 0.4 * w)
-    got = dt.refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
+    got = refine_rectangle(img, box, w, bottom=float(int(y + h - face)), free_top=True)
     assert got is not None
     assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
-    assert dt.refine_rectangle(img, box, w, free_top=True) is None
+    assert refine_rectangle(img, box, w, free_top=True) is None
 
 
 def test_refine_rectangle_hull_wider_than_the_sign():
@@ -1384,10 +1419,10 @@ def test_refine_rectangle_hull_wider_than_the_sign():
     face = 0.045 * w
     box = (x - 1.8, y - 1.0, w + 3.6, w)
     size = box[2] / 0.91                # as the detector derives it from the hull
-    got = dt.refine_rectangle(img, box, size, max_change=0.3)
+    got = refine_rectangle(img, box, size, max_change=0.3)
     assert got is not None
     assert abs(got[0] - (x + face)) < 0.4 and abs(got[1] - (x + w - face)) < 0.4
-    assert dt.refine_rectangle(img, box, size, max_change=0.2) is None
+    assert refine_rectangle(img, box, size, max_change=0.2) is None
 
 
 def test_refine_rectangle_side_at_the_image_edge():
@@ -1398,7 +1433,7 @@ def test_refine_rectangle_side_at_the_image_edge():
     h = 1.4 * w
     img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, int(x + w) + 1))
     face = 0.045 * w
-    got = dt.refine_rectangle(img, (x - 1.0, y - 1.0, img.shape[1] - x + 1.0, 0.4 * w), w)
+    got = refine_rectangle(img, (x - 1.0, y - 1.0, img.shape[1] - x + 1.0, 0.4 * w), w)
     assert got is not None and got[1] is None
     assert abs(got[0] - (x + face)) < 0.4 and abs(got[2] - (y + face)) < 0.4
 
@@ -1424,7 +1459,7 @@ def test_soft_mounting_limit_keeps_symbol_and_flag_diamonds(model):
     still do not."""
     geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
                         {'geometry': np.array([0.5, 1.5, 0.26])})
-    det = dt.ColorDetector(geo, dt.DetectorConfig(use_prior=False, use_geometry=True,
+    det = ColorDetector(geo, DetectorConfig(use_prior=False, use_geometry=True,
                                                   band_test=False))
     img = _background()
     arrow = _diamond(img, 150, 290, 30)
@@ -1495,7 +1530,7 @@ def test_sign_cut_by_the_bottom_of_an_odd_sized_frame(model, height, method):
     pts = np.array([[120, height - 30], [150, height - 1], [120, height + 29],
                     [90, height - 1]], np.int32)
     cv2.fillConvexPoly(img, pts, ORANGE)
-    det = dt.ColorDetector(model, dt.DetectorConfig(method=method, use_prior=False))
+    det = ColorDetector(model, DetectorConfig(method=method, use_prior=False))
     dets = det.detect(img)
     assert all(np.isfinite([d.box.x, d.box.y, d.box.w, d.box.h]).all() for d in dets)
 
@@ -1518,14 +1553,14 @@ def test_pixel_boxes_are_the_pixels_a_label_holds():
         ys, xs = np.nonzero(cover > 0.5)
         centres = (np.abs(cols[None, :] - cx) / a + np.abs(cols[:, None] - cy) / b) <= 1.0
         yc, xc = np.nonzero(centres)
-        got = dt.diamond_pixel_box(cx, cy, a, b)
+        got = diamond_pixel_box(cx, cy, a, b)
         if xs.size:
             assert got == (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1), (cx, cy, a, b)
             inner += got != (xc.min(), yc.min(), xc.max() + 1, yc.max() + 1)
         x, y = cx - a, cy - b
         xs = np.nonzero((cols >= x) & (cols <= x + 2 * a))[0]
         ys = np.nonzero((cols >= y) & (cols <= y + 2 * b))[0]
-        assert dt.pixel_box(x, y, 2 * a, 2 * b) == (xs.min(), ys.min(), xs.max() + 1 - xs.min(),
+        assert pixel_box(x, y, 2 * a, 2 * b) == (xs.min(), ys.min(), xs.max() + 1 - xs.min(),
                                                     ys.max() + 1 - ys.min())
     assert inner > 40           # the corner rule takes a pixel less on a third of them
 
@@ -1545,7 +1580,7 @@ def test_refined_warning_boxes_match_whole_pixel_labels(detector):
         img = _background(k % 8)
         cx, cy, outer = rng.uniform(300, 500), rng.uniform(120, 170), rng.uniform(9, 30)
         _catalogue_diamond(img, cx, cy, outer)
-        label = dt.diamond_pixel_box(cx, cy, outer, outer)
+        label = diamond_pixel_box(cx, cy, outer, outer)
         b = _one(detector.detect(img), (cx - outer, cy - outer, 2 * outer, 2 * outer), 0.7).box
         err = np.abs(np.array([b.x, b.y, b.x2, b.y2]) - np.array(label))
         assert err.max() <= 1.0, (outer, b, label)
@@ -1558,20 +1593,20 @@ def test_fit_rhombus_drops_a_stroke_taken_for_an_edge():
     to the edge): the fit drops it and returns the diamond; with four points off by 2.5-3 px
     in and out it gives up rather than guess."""
     cx, cy, a, b = 40.3, 35.8, 14.0, 12.5
-    signs = np.repeat(dt._RHOMBUS_SIGNS, 2, axis=0)
+    signs = np.repeat(_RHOMBUS_SIGNS, 2, axis=0)
     t = np.tile([0.3, 0.7], 4)[:, None]
     # points along each edge from its x-axis corner to its y-axis corner
     pts = np.column_stack([cx + signs[:, 0] * a * (1 - t[:, 0]), cy + signs[:, 1] * b * t[:, 0]])
-    got = dt.fit_rhombus(pts, signs)
+    got = fit_rhombus(pts, signs)
     assert np.allclose(got, (cx, cy, a, b), atol=1e-6)
     bad = pts.copy()
     bad[3] -= 3.0 * signs[3] / np.sqrt(2)
-    assert np.allclose(dt.fit_rhombus(bad, signs), (cx, cy, a, b), atol=1e-6)
-    assert dt.fit_rhombus(bad, signs, max_drop=0) is None
+    assert np.allclose(fit_rhombus(bad, signs), (cx, cy, a, b), atol=1e-6)
+    assert fit_rhombus(bad, signs, max_drop=0) is None
     worse = pts.copy()
     for i, shift in ((0, 3.0), (3, -3.0), (4, 3.0), (7, -2.5)):
         worse[i] -= shift * signs[i] / np.sqrt(2)
-    assert dt.fit_rhombus(worse, signs) is None
+    assert fit_rhombus(worse, signs) is None
 
 
 def test_diamond_holds_judges_the_layout_not_stray_orange():
@@ -1581,12 +1616,12 @@ def test_diamond_holds_judges_the_layout_not_stray_orange():
     yy, xx = np.mgrid[0:80, 0:80] + 0.5
     face = (40.0, 42.0, 16.0, 16.0)
     sign = (np.abs(xx - 40) + np.abs(yy - 42) <= 16 * 1.1266).astype(np.uint8)
-    assert dt.diamond_holds(sign, face, 1.1266, 0.97)
+    assert diamond_holds(sign, face, 1.1266, 0.97)
     flags = sign.copy()
     flags[2:14, 30:50] = 1
-    assert dt.diamond_holds(flags, face, 1.1266, 0.97)
+    assert diamond_holds(flags, face, 1.1266, 0.97)
     wide = (np.abs(xx - 40) + np.abs(yy - 42) <= 16 * 1.35).astype(np.uint8)
-    assert not dt.diamond_holds(wide, face, 1.1266, 0.97)
+    assert not diamond_holds(wide, face, 1.1266, 0.97)
 
 
 def test_refine_diamond_tolerates_a_stretch_hidden_by_a_symbol():
@@ -1602,11 +1637,11 @@ def test_refine_diamond_tolerates_a_stretch_hidden_by_a_symbol():
     normal = ((xx - cx) - (yy - cy)) / a_face     # 1 on the upper-right edge
     img[(np.abs(along + 0.4 * a_face) < 0.3 * a_face) & (normal > 0.55) & (normal < 1.3)] = 20.0
     fit = (cx + 0.5, cy - 0.4, 1.05 * a_face, 0.95 * a_face)
-    got = dt.refine_diamond(img, fit)
+    got = refine_diamond(img, fit)
     assert got is not None
     assert abs(got[0] - cx) < 0.4 and abs(got[1] - cy) < 0.4
     assert abs(got[2] / a_face - 1) < 0.03 and abs(got[3] / a_face - 1) < 0.03
-    assert dt.refine_diamond(img, fit, max_lost=0) is None
+    assert refine_diamond(img, fit, max_lost=0) is None
 
 
 def _lane_ends_value(cx, cy, a_face, seed, ss=8, blur=0.6):
@@ -1647,17 +1682,17 @@ def test_refine_diamond_leaves_out_stretches_a_stroke_runs_into():
     on, off = [], []
     for seed in range(10):
         img = _lane_ends_value(cx, cy, a_face, seed)
-        on.append(error(dt.refine_diamond(img, start, stroke_steps=2)))
-        off.append(error(dt.refine_diamond(img, start, stroke_steps=0)))
+        on.append(error(refine_diamond(img, start, stroke_steps=2)))
+        off.append(error(refine_diamond(img, start, stroke_steps=0)))
         plain = _sign_value(cx, cy, a_face, seed=seed)
-        assert dt.refine_diamond(plain, start, stroke_steps=2) == \
-            dt.refine_diamond(plain, start, stroke_steps=0)
+        assert refine_diamond(plain, start, stroke_steps=2) == \
+            refine_diamond(plain, start, stroke_steps=0)
     assert sum(e < 0.3 for e in on) >= 8
     assert sum(e < 0.3 for e in off) <= 3
     with pytest.raises(ValueError, match='diamond_stroke_steps'):
-        dt.DetectorConfig(diamond_stroke_steps=7)
+        DetectorConfig(diamond_stroke_steps=7)
     with pytest.raises(ValueError, match='diamond_stroke_steps'):
-        dt.DetectorConfig(diamond_stroke_steps=-1)
+        DetectorConfig(diamond_stroke_steps=-1)
 
 
 @pytest.mark.parametrize('dtype', [np.float32, np.float64, np.uint8])
@@ -1671,16 +1706,16 @@ def test_fast_median_and_mode_equal_numpy(dtype):
             v = rng.integers(0, 256, n).astype(np.uint8)
         else:
             v = (rng.integers(0, 21, n) / 20.0).astype(dtype)       # on the bin edges
-        assert dt._median(v) == np.median(v)
-        assert np.asarray(dt._median(v)).dtype == np.asarray(np.median(v)).dtype
+        assert _median(v) == np.median(v)
+        assert np.asarray(_median(v)).dtype == np.asarray(np.median(v)).dtype
         if dtype != np.uint8:
             for w in (v, rng.random(n).astype(dtype), edges[rng.integers(0, 21, n)]):
                 hist, e = np.histogram(w, bins=20, range=(0.0, 1.0))
                 i = int(np.argmax(hist))
-                assert dt._mode(w) == float(0.5 * (e[i] + e[i + 1]))
+                assert _mode(w) == float(0.5 * (e[i] + e[i + 1]))
     cube = rng.random((7, 9, 24)).astype(np.float32)
     for axis in range(3):
-        assert np.array_equal(dt._median(cube, axis=axis), np.median(cube, axis=axis))
+        assert np.array_equal(_median(cube, axis=axis), np.median(cube, axis=axis))
 
 
 def test_components_equal_the_default_labelling():
@@ -1688,7 +1723,7 @@ def test_components_equal_the_default_labelling():
     for _ in range(20):
         mask = cv2.dilate((rng.random((61, 97)) > 0.97).astype(np.uint8) * 255,
                           np.ones((3, 3), np.uint8))
-        got, ref = dt._components(mask), cv2.connectedComponentsWithStats(mask, connectivity=8)
+        got, ref = _components(mask), cv2.connectedComponentsWithStats(mask, connectivity=8)
         assert got[0] == ref[0]
         assert all(np.array_equal(a, b) for a, b in zip(got[1:], ref[1:]))
 
@@ -1698,9 +1733,9 @@ def test_table_lookup_equals_two_index_lookup():
     table = rng.random((180, 256)).astype(np.float32)
     hue = rng.integers(0, 180, (13, 17)).astype(np.uint8)
     sat = rng.integers(0, 256, (13, 17)).astype(np.uint8)
-    assert np.array_equal(dt._lookup(table, hue, sat), table[hue, sat])
+    assert np.array_equal(_lookup(table, hue, sat), table[hue, sat])
     h, s = hue[:, 3:9], sat[:, 3:9]                  # strided views, as HSV channels are
-    assert np.array_equal(dt._lookup(table, h, s), table[h, s])
+    assert np.array_equal(_lookup(table, h, s), table[h, s])
 
 
 @pytest.mark.parametrize('width', [20, 24, 30])
@@ -1808,11 +1843,11 @@ def test_diamond_starts_in_a_merged_region():
     cx, cy, a_face = 45.3, 50.2, 14.5
     img = _sign_value(cx, cy, a_face, shape=(90, 90), bg=60.0)
     img[20:45, 25:66] = np.maximum(img[20:45, 25:66], 150.0)      # the surface above
-    starts = dt.diamond_starts(img, (25, 20, 41, 48), 0.3 * 41, 0.6 * 48)
+    starts = diamond_starts(img, (25, 20, 41, 48), 0.3 * 41, 0.6 * 48)
     assert starts
     sx, sy, sa, sb, score = starts[0]
     assert abs(sx - cx) <= 1.5 and abs(sy - cy) <= 1.5 and abs(sa / a_face - 1) <= 0.12
-    assert dt.diamond_starts(np.full((60, 60), 120, np.float32), (10, 10, 40, 40), 8, 20) == []
+    assert diamond_starts(np.full((60, 60), 120, np.float32), (10, 10, 40, 40), 8, 20) == []
 
 
 @pytest.mark.parametrize('size', [32, 46])
@@ -1949,7 +1984,7 @@ def test_small_refined_diamond_taken_as_square(detector):
     for bad in (dict(diamond_square_px=-1.0), dict(diamond_square_max=-2.0),
                 dict(diamond_box_bias=3.0)):
         with pytest.raises(ValueError, match='diamond_square|diamond_box_bias'):
-            dt.DetectorConfig(**bad)
+            DetectorConfig(**bad)
 
 
 @pytest.mark.parametrize('size, face_share', [(s, f) for s in (30, 36, 48, 56)
@@ -2210,7 +2245,7 @@ def test_fit_blurred_diamond_recovers_a_blurred_sign(a, b, sigma, stroke):
     down its middle at 1 px blur; its blur within 0.35 px."""
     cx, cy = 37.4, 34.7
     img = _blurred_chroma(cx, cy, a, b, sigma, stroke=stroke)
-    fit = dt.fit_blurred_diamond(img, (cx + 1.0, cy - 0.8, 0.85 * a, 0.85 * b))
+    fit = fit_blurred_diamond(img, (cx + 1.0, cy - 0.8, 0.85 * a, 0.85 * b))
     assert fit is not None
     fcx, fcy, fa, fb, fs, face, bg = fit
     assert max(abs(fcx - cx), abs(fcy - cy), abs(fa - a), abs(fb - b)) < 0.25, fit
@@ -2222,7 +2257,7 @@ def test_fit_blurred_diamond_of_the_catalogue_art_lies_between_face_and_outline(
     between the face's and the sign's outline (the detector scales it by
     ``blur_fit_ratio``)."""
     cx, cy, a = 37.4, 34.7, 12.0
-    fit = dt.fit_blurred_diamond(_blurred_chroma(cx, cy, a, a, 1.5, art=True, stroke=False),
+    fit = fit_blurred_diamond(_blurred_chroma(cx, cy, a, a, 1.5, art=True, stroke=False),
                                  (cx, cy, 0.85 * a, 0.85 * a))
     assert fit is not None
     assert 0.8876 * a < fit[2] < a and 0.8876 * a < fit[3] < a, fit
@@ -2231,10 +2266,10 @@ def test_fit_blurred_diamond_of_the_catalogue_art_lies_between_face_and_outline(
 def test_fit_blurred_diamond_gives_none_without_a_coloured_sign():
     """A flat image, or a 'sign' less coloured than its surround, gives no diamond."""
     flat = np.random.default_rng(0).normal(20.0, 3.0, (60, 60)).astype(np.float32)
-    assert dt.fit_blurred_diamond(flat, (30.0, 30.0, 10.0, 10.0)) is None
+    assert fit_blurred_diamond(flat, (30.0, 30.0, 10.0, 10.0)) is None
     hole = -_blurred_chroma(30.0, 30.0, 10.0, 10.0, 1.5, shape=(60, 60), stroke=False)
-    assert dt.fit_blurred_diamond(hole, (30.0, 30.0, 10.0, 10.0)) is None
-    assert dt.fit_blurred_diamond(flat[:3, :3], (1.5, 1.5, 1.0, 1.0)) is None
+    assert fit_blurred_diamond(hole, (30.0, 30.0, 10.0, 10.0)) is None
+    assert fit_blurred_diamond(flat[:3, :3], (1.5, 1.5, 1.0, 1.0)) is None
 
 
 def test_blurred_diamond_jacobian_matches_finite_differences():
@@ -2242,9 +2277,9 @@ def test_blurred_diamond_jacobian_matches_finite_differences():
     ys, xs = np.mgrid[0:40, 0:44]
     xs, ys = xs.ravel() + 0.5, ys.ravel() + 0.5
     p = np.array([21.3, 19.8, 9.2, 10.4, 1.4, 150.0, 12.0, 0.3, -0.2])
-    _, jac = dt._blurred_diamond(p, xs, ys, jac=True)
+    _, jac = _blurred_diamond(p, xs, ys, jac=True)
     eps = 1e-5
-    num = np.stack([(dt._blurred_diamond(p + e, xs, ys)[0] - dt._blurred_diamond(p - e, xs, ys)[0])
+    num = np.stack([(_blurred_diamond(p + e, xs, ys)[0] - _blurred_diamond(p - e, xs, ys)[0])
                     / (2 * eps) for e in np.eye(9) * eps], axis=1)
     assert np.abs(jac - num).max() < 1e-5 * np.abs(num).max()
 
@@ -2258,13 +2293,13 @@ def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):
     infos = []
     for img in (sharp, soft):
         info = {}
-        assert dt.refine_diamond(img, (cx, cy, a_face, a_face), max_change=0.4,
+        assert refine_diamond(img, (cx, cy, a_face, a_face), max_change=0.4,
                                  info=info) is not None
         infos.append(info['blur'])
     assert infos[0] < 1.0 <= infos[1], infos
     cfg = detector.config
     for img, bias in ((sharp, cfg.diamond_edge_bias), (soft, cfg.diamond_blur_bias)):
-        raw = dt.refine_diamond(img, (cx, cy, a_face, a_face), cfg.diamond_border_rel,
+        raw = refine_diamond(img, (cx, cy, a_face, a_face), cfg.diamond_border_rel,
                                 cfg.diamond_margin_rel, cfg.diamond_max_change)
         got = detector._refine(img, (cx, cy, a_face, a_face))
         assert got[2] == pytest.approx(raw[2] - bias) and got[3] == pytest.approx(raw[3] - bias)
@@ -2384,9 +2419,9 @@ def test_rectangle_top_measured_beside_the_legend():
             img, _ = _render_art_sign(img, x, y, size, key='work_zone_speed_limit', blur=0.8)
             face_top = y + 0.045 * size                 # inside the border line and margin
             hull = (x + 0.5, y + 0.5, size - 1.0, 0.25 * 1.75 * size - 1.0)
-            for name, at in (('corner', dt.RECT_TOP_STRETCHES),
+            for name, at in (('corner', RECT_TOP_STRETCHES),
                              ('middle', ((0.2, 0.45), (0.55, 0.8)))):
-                r = dt.refine_rectangle(img.max(axis=2), hull, size, free_top=True, top_at=at)
+                r = refine_rectangle(img.max(axis=2), hull, size, free_top=True, top_at=at)
                 assert r is not None and r[2] is not None
                 errs[name].append(r[2] - face_top)
     corner, middle = np.array(errs['corner']), np.array(errs['middle'])
@@ -2446,7 +2481,7 @@ def test_leaning_two_colour_sign_boxed_to_its_turned_face(detector, key, size, a
     face_out = (0.03 + 0.015) * size
     d = _one(detector.with_config(rect_lean=False).detect(img), gt, 0.6)
     face = (d.box.x + face_out, d.box.y + face_out, d.box.x2 - face_out, d.box.y2 - face_out)
-    slopes = dt.rectangle_lean(img.max(axis=2), face, size)
+    slopes = rectangle_lean(img.max(axis=2), face, size)
     assert slopes is not None
     assert np.allclose(slopes, -np.tan(c), atol=0.012)
 
@@ -2466,9 +2501,9 @@ def test_rectangle_lean_rejects_what_it_cannot_measure():
     """A face under 12 px high, or one whose stretches leave the image, gives None."""
     value = np.full((60, 60), 100.0, np.float32)
     value[10:50, 10:40] = 200.0
-    assert dt.rectangle_lean(value, (10, 10, 40, 20), 30) is None
-    assert dt.rectangle_lean(value, (-5, 10, 40, 50), 30) is None
-    assert dt.rectangle_lean(np.full((60, 60), 100.0, np.float32), (10, 10, 40, 50), 30) is None
+    assert rectangle_lean(value, (10, 10, 40, 20), 30) is None
+    assert rectangle_lean(value, (-5, 10, 40, 50), 30) is None
+    assert rectangle_lean(np.full((60, 60), 100.0, np.float32), (10, 10, 40, 50), 30) is None
 
 
 def test_split_winter_plaque_boxed_to_the_white_part():
@@ -2518,10 +2553,10 @@ def test_white_part_ends_past_the_face_and_white_beside_the_sign():
     img[100:120, 200:230] = (0, 110, 245)                  # plaque
     img[120:150, 200:230] = (235, 235, 235)                # white part
     img[100:150, 198:200] = img[100:150, 230:232] = (20, 20, 20)   # side lines
-    assert dt.white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 14.0) == (200.0, None)
-    assert dt.white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 11.0) == (None, None)
-    assert dt.white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 12.0) == (None, None)
-    assert dt.white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 3.0, 4.0) == (None, None)
+    assert white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 14.0) == (200.0, None)
+    assert white_part_ends(img, (212.0, 230.0), (120.0, 150.0), 11.0) == (None, None)
+    assert white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 12.0) == (None, None)
+    assert white_part_ends(img, (200.0, 230.0), (120.0, 150.0), 3.0, 4.0) == (None, None)
     # a sign with a white panel beside its white part, ending in a dark edge
     img, gt = _render_art_sign(_plain((60, 75, 70), 6, 40), 400.3, 150.4, 40,
                                key='work_zone_speed_limit')
@@ -2562,26 +2597,26 @@ def test_neck_trim_flags_over_a_diamond_and_a_plain_diamond():
     flagged[18:27, 19:30] = 1                       # flag
     flagged[18:27, 31:42] = 1                       # flag
     flagged[27:29, 28:33] = 1                       # their join down to the corner
-    out = dt.ColorDetector._neck_trim(flagged)
+    out = ColorDetector._neck_trim(flagged)
     assert out is not None
     rows = np.nonzero(out.any(axis=1))[0]
     assert 27 <= rows[0] <= 29 and rows[-1] == np.nonzero(diamond.any(axis=1))[0][-1]
-    assert dt.ColorDetector._neck_trim(diamond) is None
+    assert ColorDetector._neck_trim(diamond) is None
     bars = np.zeros((60, 60), np.uint8)
     bars[10:20, 10:40] = 1
     bars[20:23, 24:27] = 1
     bars[23:50, 15:35] = 1                          # a tall block, no diamond
-    assert dt.ColorDetector._neck_trim(bars) is None
+    assert ColorDetector._neck_trim(bars) is None
 
 
 def test_bright_shift_tapers_with_the_border_line():
     """The shift for a background brighter than the face (:func:`_taper`): full on a border
     line up to ``line0`` px wide, none from ``line1``, linear between; 0 px turns it off."""
     bb = (0.3, 0.5, 1.0)
-    assert dt._taper(bb, 0.3) == pytest.approx(0.3)
-    assert dt._taper(bb, 0.75) == pytest.approx(0.15)
-    assert dt._taper(bb, 1.0) == 0.0 and dt._taper(bb, 2.0) == 0.0
-    assert dt._taper((0.0, 0.5, 1.0), 0.3) == 0.0
+    assert _taper(bb, 0.3) == pytest.approx(0.3)
+    assert _taper(bb, 0.75) == pytest.approx(0.15)
+    assert _taper(bb, 1.0) == 0.0 and _taper(bb, 2.0) == 0.0
+    assert _taper((0.0, 0.5, 1.0), 0.3) == 0.0
 
 
 def _art_diamond(size, bg, rng, blur=0.6):
@@ -2616,8 +2651,8 @@ def test_small_diamond_against_a_brighter_background_taken_further_out(bg):
     for _ in range(12):
         luma, true = _art_diamond(14, bg, rng)
         start = (true[0] + 0.3, true[1] - 0.3, true[2] / 1.1266 * 1.03, true[3] / 1.1266 * 1.03)
-        off = dt.refine_diamond(luma, start)
-        on = dt.refine_diamond(luma, start, bright_bias=(0.3, 0.47, 0.95))
+        off = refine_diamond(luma, start)
+        on = refine_diamond(luma, start, bright_bias=(0.3, 0.47, 0.95))
         if off is None or on is None:
             continue
         diffs.append(0.5 * (on[2] + on[3] - off[2] - off[3]))
@@ -2718,10 +2753,10 @@ def test_white_beyond_a_side_measured_inside_the_sign():
     cv2.rectangle(img, (49, 29), (91, 91), (0, 0, 0), -1)            # border line
     cv2.rectangle(img, (50, 30), (90, 90), (235, 235, 235), -1)      # white sheeting
     cv2.rectangle(img, (58, 55), (82, 62), (40, 40, 40), -1)         # legend
-    assert not dt.white_beyond(img, (50.0, 91.0), (30.0, 91.0), 2.0)
-    assert dt.white_beyond(img, (53.0, 91.0), (30.0, 91.0), 2.0)
-    assert dt.white_beyond(img, (50.0, 88.0), (30.0, 91.0), 2.0)
-    assert not dt.white_beyond(img[:, 51:], (0.0, 40.0), (30.0, 91.0), 2.0)
+    assert not white_beyond(img, (50.0, 91.0), (30.0, 91.0), 2.0)
+    assert white_beyond(img, (53.0, 91.0), (30.0, 91.0), 2.0)
+    assert white_beyond(img, (50.0, 88.0), (30.0, 91.0), 2.0)
+    assert not white_beyond(img[:, 51:], (0.0, 40.0), (30.0, 91.0), 2.0)
 
 
 def test_clipped_plaque_face_joins_its_core():
@@ -2749,14 +2784,14 @@ def test_clipped_growth_only_through_clipped_pixels():
     weak = np.zeros_like(strong)
     weak[10:20, 14:36] = 1
     bgr[10:20, 14:20, 2] = 255                      # clipped on the left of the core only
-    got = dt._clipped_growth(bgr, weak, strong, 0.5)
+    got = _clipped_growth(bgr, weak, strong, 0.5)
     assert got[10:20, 14:20].all() and not got[10:20, 30:36].any()
     bgr[10:20, 30:36, 2] = 255
     bgr[10:20, 30:36, 1] = 255                      # red and green clipped: white, not orange
-    assert not dt._clipped_growth(bgr, weak, strong, 0.5)[10:20, 30:36].any()
+    assert not _clipped_growth(bgr, weak, strong, 0.5)[10:20, 30:36].any()
     weak[5:35, 0:60] = 1
     bgr[5:35, 0:60, 2], bgr[5:35, 0:60, 1] = 255, 120   # a clipped surface around the core
-    assert not dt._clipped_growth(bgr, weak, strong, 0.5).any()
+    assert not _clipped_growth(bgr, weak, strong, 0.5).any()
 
 
 def test_clipped_plaque_edges_moved_in():

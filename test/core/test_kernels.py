@@ -3,8 +3,17 @@ import cv2
 import numpy as np
 import pytest
 
-from workzone_ros.core import detection as dt
 from workzone_ros.core import kernels as k
+from workzone_ros.core.detect.common import _lookup
+from workzone_ros.core.detect.diamond import (
+    _RHOMBUS_SIGNS,
+    _STRETCH_SIGNS,
+    _SUBPIXEL,
+    _tip_pixel,
+    fit_diamond,
+    fit_rhombus,
+)
+from workzone_ros.core.detect.edges import _PROFILE_SIG, _PROFILE_U0, _edge_profile
 
 
 @pytest.mark.parametrize('n', [0, 1, 5, 7, 8, 9, 15, 16, 17, 24, 31, 64, 127, 128, 129, 200,
@@ -51,7 +60,7 @@ def test_inverse4_and_singular():
 
 
 def _rhombus_points(cx, cy, a, b, ts):
-    signs = dt._STRETCH_SIGNS
+    signs = _STRETCH_SIGNS
     pts = np.array([(cx + s[0] * a * t, cy + s[1] * b * (1 - t)) for s, t in zip(signs, ts)])
     return pts, signs
 
@@ -98,7 +107,7 @@ def test_rhombus_fit_is_the_numpy_fit():
             pts[i] += rng.uniform(1, 8) * rng.choice([-1, 1]) * signs[i]
         for max_drop in (0, 1, 2, 3):
             want = _fit_rhombus_numpy(pts, signs, 1.0, max_drop)
-            got = dt.fit_rhombus(pts, signs, 1.0, max_drop)
+            got = fit_rhombus(pts, signs, 1.0, max_drop)
             assert (got is None) == (want is None)
             if want is not None:
                 np.testing.assert_allclose(got, want, rtol=1e-8, atol=1e-8)
@@ -115,14 +124,14 @@ def test_rhombus_fit_matches_numpy_least_squares():
         pts = pts + rng.normal(0, 0.05, pts.shape)
         mat = np.concatenate([signs * pts, -signs], axis=1)
         u, v, pu, rv = np.linalg.lstsq(mat, np.ones(8), rcond=None)[0]
-        got = dt.fit_rhombus(pts, signs, 5.0, 0)
+        got = fit_rhombus(pts, signs, 5.0, 0)
         np.testing.assert_allclose(got, (pu / u, rv / v, 1 / u, 1 / v), rtol=1e-9)
 
 
 def test_rhombus_fit_needs_every_edge():
     pts, signs = _rhombus_points(50, 50, 20, 20, np.full(8, 0.5))
-    keep = np.any(signs != dt._RHOMBUS_SIGNS[2], axis=1)       # no lower-right point
-    assert dt.fit_rhombus(pts[keep], signs[keep], 1.0, 2) is None
+    keep = np.any(signs != _RHOMBUS_SIGNS[2], axis=1)       # no lower-right point
+    assert fit_rhombus(pts[keep], signs[keep], 1.0, 2) is None
 
 
 @pytest.mark.parametrize('kind', ['uint8', 'uint8_255', 'bool', 'transposed', 'int32'])
@@ -130,7 +139,7 @@ def test_fit_diamond_takes_any_mask_layout(kind):
     yy, xx = np.mgrid[:41, :37]
     inside = np.abs(xx + 0.5 - 18.3) / 15.2 + np.abs(yy + 0.5 - 20.1) / 17.4 <= 1
     mask = inside.astype(np.uint8)
-    want = dt.fit_diamond(mask)
+    want = fit_diamond(mask)
     assert want is not None
     if kind == 'uint8_255':
         m = mask * 255
@@ -140,17 +149,17 @@ def test_fit_diamond_takes_any_mask_layout(kind):
         m = np.ascontiguousarray(mask.T).T          # a non-contiguous view, same pixels
     else:
         m = mask.astype(np.int32)
-    assert dt.fit_diamond(m) == want
+    assert fit_diamond(m) == want
 
 
 def test_tip_pixel_is_the_first_half_covered_pixel():
     """Against the coverage counted on the full 8 x 8 sub-pixel grid of every pixel."""
     rng = np.random.default_rng(5)
-    sub = dt._SUBPIXEL
+    sub = _SUBPIXEL
     for _ in range(300):
         c, c2 = rng.uniform(-20, 20, 2)
         r, r2 = rng.uniform(0.6, 12, 2)
-        got = dt._tip_pixel(c, r, c2, r2)
+        got = _tip_pixel(c, r, c2, r2)
         i0 = int(np.floor(c - r))
         cols = np.arange(i0, min(i0 + 4 + int(np.ceil(2.0 * r / r2)), int(np.floor(c)) + 1))
         rows = np.arange(int(np.floor(c2)) - 1, int(np.floor(c2)) + 2)
@@ -245,8 +254,8 @@ def test_edge_choice_is_the_numpy_choice():
     """Profiles of blurred face-line-background edges and of plain noise, through the real
     edge models: the same model, offset and stretches without a step."""
     rng = np.random.default_rng(7)
-    u, bases_t, ata_inv, valid = dt._edge_profile(16.0, 1.1, 0.35)
-    u0, ns = dt._PROFILE_U0, dt._PROFILE_SIG.size
+    u, bases_t, ata_inv, valid = _edge_profile(16.0, 1.1, 0.35)
+    u0, ns = _PROFILE_U0, _PROFILE_SIG.size
     n_lost = 0
     for t in range(200):
         n = 8
@@ -292,7 +301,7 @@ def test_table_lookups_are_numpys():
         hsv = np.dstack([rng.integers(0, 180, (30, 40)), rng.integers(0, 256, (30, 40)),
                          rng.integers(0, 256, (30, 40))]).astype(np.uint8)
         hue, sat = hsv[..., 0], hsv[..., 1]                     # strided channel views
-        assert np.array_equal(dt._lookup(table, hue, sat), table[hue, sat])
+        assert np.array_equal(_lookup(table, hue, sat), table[hue, sat])
         idx = cv2.merge([sat, hue]).view(np.uint16)[..., 0]     # hue * 256 + sat
         assert np.array_equal(k.flat_take(table.reshape(-1), idx), np.take(table, idx))
     # a hue past the table: numpy's error, not memory past the table

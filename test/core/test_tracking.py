@@ -12,8 +12,8 @@ import cv2
 import numpy as np
 import pytest
 
-from workzone_ros.core.detection import open_background_rows
-from workzone_ros.core.tracking import (
+from workzone_ros.core.profiles import open_background_rows
+from workzone_ros.core.track import (
     MultiTracker,
     TrackerConfig,
     TrackingError,
@@ -418,7 +418,7 @@ def tinted_patch(img, box):
 
 
 def test_saturation_contrast_tells_a_sign_face_from_a_tinted_patch():
-    from workzone_ros.core.tracking import saturation_contrast
+    from workzone_ros.core.track import saturation_contrast
     img = dusk_background()
     gt = draw_diamond(img, 320.0, 240.0, 40)
     tinted_patch(img, (100.0, 100.0, 40.0, 40.0))
@@ -428,7 +428,7 @@ def test_saturation_contrast_tells_a_sign_face_from_a_tinted_patch():
     assert patch.colored                                 # the detector's kind of false alarm
     assert abs(patch.saturation_contrast) < 0.1, patch.saturation_contrast
     # the function itself, on a window of the frame: same number as the model's
-    from workzone_ros.core.tracking import SearchWindow, _luts
+    from workzone_ros.core.track.meanshift import SearchWindow, _luts
     win = SearchWindow(img, 260, 180, 381, 301, 1, _luts(20, 20))
     cx, cy = center(gt)
     assert saturation_contrast(win, cx, cy, 20.0, 20.0) >= 0.3
@@ -528,7 +528,7 @@ def test_no_duplicate_track_on_the_orange_top_of_a_two_colour_sign(containment):
 
 
 def test_seed_config_keeps_the_seed_rule():
-    from workzone_ros.core.tracking import SCALES, seed_config
+    from workzone_ros.core.track import SCALES, seed_config
     s = seed_config()
     assert s.scales == SCALES and s.association == 'overwrite' and not s.use_velocity
     assert s.min_hits_to_coast == 2 and s.min_saturation_contrast == -1.0
@@ -666,7 +666,7 @@ def test_a_whole_face_anchor_is_not_extended_by_the_orange_band_relation(ratio):
 # --- size prediction from the detections' perspective trend --------------------------------
 
 def test_predicted_size_follows_the_inverse_size_trend_and_ignores_one_outlier():
-    from workzone_ros.core.tracking import predicted_size
+    from workzone_ros.core.track import predicted_size
     w = lambda t: 1.0 / (1 / 20.0 - 0.0015 * t)                      # noqa: E731
     hist = [(t, w(t), 0.8 * w(t)) for t in range(0, 8)]
     hist[5] = (5, 1.6 * w(5), 1.6 * 0.8 * w(5))                      # one too-wide detection
@@ -772,7 +772,7 @@ def test_sign_in_front_of_sunlit_trees_with_flags_runs_on_its_own():
     against upper decile, ``saturation_reference=90``) never let the sign run on its own;
     against the surroundings' median it does, and its chroma stands out (the test fails
     with the previous rule)."""
-    from workzone_ros.core.tracking import chroma_contrast
+    from workzone_ros.core.track import chroma_contrast
     results = {}
     for ref in (90.0, 50.0):
         cfg = TrackerConfig(saturation_reference=ref, max_coast_background_similarity=1.0)
@@ -793,7 +793,7 @@ def test_sign_in_front_of_sunlit_trees_with_flags_runs_on_its_own():
         assert target.chroma_contrast >= 1.5, target.chroma_contrast
     assert results[90.0] == 0 and results[50.0] == 5, results
     # the function on its own: a dark saturated patch of the same trees is not colourful
-    from workzone_ros.core.tracking import SearchWindow, _luts
+    from workzone_ros.core.track.meanshift import SearchWindow, _luts
     img = sunny_background(4)
     win = SearchWindow(img, 260, 180, 381, 301, 1, _luts(20, 20))
     assert chroma_contrast(win, 320.0, 240.0, 20.0, 20.0) < 1.3

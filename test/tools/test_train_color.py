@@ -96,7 +96,7 @@ def test_train_stores_relative_measurement(tmp_path, capsys):
     model metadata (old models lack it and keep the absolute thresholds)."""
     import pytest
 
-    from workzone_ros.core import detection as dt
+    from workzone_ros.core import detect as dt
 
     _folder(tmp_path / 'train', 3, 30, 0)
     out = tmp_path / 'm.npz'

@@ -1,6 +1,6 @@
 """Compiled inner loops of the colour detector (numba), with numpy's own arithmetic.
 
-A warning sign's measurement (:mod:`workzone_ros.core.detection`) runs fits on arrays of a few
+A warning sign's measurement (:mod:`workzone_ros.core.detect`) runs fits on arrays of a few
 dozen values.  In numpy each step is a call costing microseconds of dispatch, more than its
 arithmetic: a frame with a sign made some 2300 numpy calls, and a sign cost 2.3-2.7 ms.  The
 loops here (the diamond's row tent, its tip pixels, the edge model's choice per stretch, the
@@ -132,7 +132,7 @@ def median_inplace(v: np.ndarray, n: int) -> float:
 @njit(cache=True)
 def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: float,
                  s_hi: float) -> np.ndarray:
-    """:func:`workzone_ros.core.detection.fit_diamond` on a C-contiguous uint8 mask (non-zero:
+    """:func:`workzone_ros.core.detect.diamond.fit_diamond` on a C-contiguous uint8 mask (non-zero:
     the blob) with the tent slopes ``slopes`` (``s_lo``, ``s_hi``: their range): ``(cx, cy,
     a, b, inliers)``, all NaN for no fit.  The steps and their arithmetic are fit_diamond's
     (see there)."""
@@ -246,7 +246,7 @@ def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: floa
 
 @njit(cache=True)
 def tip_pixel(c: float, r: float, c2: float, r2: float, sub: np.ndarray) -> int:
-    """:func:`workzone_ros.core.detection._tip_pixel` (``sub``: the sub-pixel sample offsets);
+    """:func:`workzone_ros.core.detect.diamond._tip_pixel` (``sub``: the sub-pixel sample offsets);
     :data:`NO_PIXEL` for none."""
     i0 = math.floor(c - r)
     i1 = min(i0 + 4 + math.ceil(2.0 * r / r2), math.floor(c) + 1)
@@ -300,7 +300,7 @@ def _inverse4(m: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
                 max_drop: int) -> np.ndarray:
-    """:func:`workzone_ros.core.detection.fit_rhombus`: ``(cx, cy, a, b)``, all NaN for no
+    """:func:`workzone_ros.core.detect.diamond.fit_rhombus`: ``(cx, cy, a, b)``, all NaN for no
     fit.  The same least squares and leave-one-out outlier test (see there); the 4 x 4
     normal equations are summed and inverted here (to rounding, not bit for bit, numpy's
     matrix product and LAPACK's inverse)."""
@@ -459,7 +459,7 @@ def profile_medians(samples: np.ndarray, n: int, nt: int) -> np.ndarray:
 def edge_choice(prof_v: np.ndarray, atb: np.ndarray, coef: np.ndarray, valid: np.ndarray,
                 min_contrast: float, u0: np.ndarray, ns: int, off: np.ndarray,
                 best: np.ndarray) -> int:
-    """:func:`workzone_ros.core.detection._edge_offsets` after its least squares: per
+    """:func:`workzone_ros.core.detect.edges._edge_offsets` after its least squares: per
     stretch (``prof_v`` (n, u): its median profile; ``atb``, ``coef`` (k, 3, n): the edge
     models' ``A^T p`` and coefficients; ``valid`` (k,)) the model of least residual among
     those showing a face-to-border step (``coef`` hi > 0, hi - lo >= ``min_contrast`` hi),

@@ -65,6 +65,7 @@ from rclpy.qos import (
     qos_check_compatible,
 )
 
+from workzone_ros.core.sync import FrameGaps
 from workzone_ros.nodes.conversions import InputError
 
 __all__ = ['Param', 'WorkzoneNode', 'run_node', 'InputError', 'ConfigError', 'TopicStats']
@@ -229,6 +230,8 @@ class TopicStats:
     last_arrival: Optional[float] = None
     last_stamp: Any = None
     publishers_since: Optional[float] = None
+    #: frames a latest-only sensor subscription never delivered (overwritten while busy)
+    gaps: Optional[FrameGaps] = None
     times_s: collections.deque = dataclasses.field(
         default_factory=lambda: collections.deque(maxlen=_TIMING_WINDOW))
 
@@ -420,7 +423,7 @@ class WorkzoneNode(Node):
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                          reliability=ReliabilityPolicy.BEST_EFFORT,
                          durability=DurabilityPolicy.VOLATILE)
-        return self._subscribe(msg_type, topic, callback, qos)
+        return self._subscribe(msg_type, topic, callback, qos, count_gaps=True)
 
     def reliable_subscription(self, msg_type: type, topic: str,
                               callback: Callable[[Any], None], depth: int = 10,
@@ -449,8 +452,10 @@ class WorkzoneNode(Node):
         return self.create_publisher(msg_type, topic, qos)
 
     def _subscribe(self, msg_type: type, topic: str, callback: Callable[[Any], None],
-                   qos: QoSProfile) -> Any:
+                   qos: QoSProfile, count_gaps: bool = False) -> Any:
         stats = self._stats_for(self.resolve_topic_name(topic))
+        if count_gaps and stats.gaps is None:
+            stats.gaps = FrameGaps()
 
         def wrapped(msg: Any) -> None:
             arrival = time.monotonic()
@@ -460,6 +465,9 @@ class WorkzoneNode(Node):
                 stats.messages += 1
                 stats.last_arrival = arrival
                 stats.last_stamp = getattr(header, 'stamp', None)
+                if stats.gaps is not None and stats.last_stamp is not None:
+                    st = stats.last_stamp
+                    stats.gaps.add(int(st.sec) * 1_000_000_000 + int(st.nanosec))
             try:
                 callback(msg)
             except InputError as exc:
@@ -574,6 +582,10 @@ class WorkzoneNode(Node):
                 (f'{topic} processing p99 ms',
                  f'{np.percentile(times, 99) * 1e3:.3f}' if times.size else ''),
             ]
+            if stats.gaps is not None:
+                # frames that arrived while the node was busy and were overwritten (keep
+                # last): they never reached the callback, so only the stamps' gaps tell
+                values.append((f'{topic} skipped while busy', str(stats.gaps.skipped)))
             if dropped_now:
                 level = DiagnosticStatus.WARN
                 problems.append(f'{dropped_now} message(s) dropped on {topic}: {reason}')

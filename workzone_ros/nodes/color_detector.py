@@ -1,6 +1,6 @@
 """``color_detector`` node: camera image (+ LiDAR ROIs) -> ``/workzone/detections``.
 
-Thin wrapper around :mod:`workzone_ros.core.detection` (seed 000 section III.A, with the
+Thin wrapper around :mod:`workzone_ros.core.detect` (seed 000 section III.A, with the
 seed 002 / seed 004 alternatives selectable by ``method``).  Each image is converted, handed
 to the core detector together with the ROIs of the same image stamp (the projector stamps
 its ``Rois`` with the image it projected into; a short ring buffer matches them exactly), and
@@ -28,8 +28,8 @@ from std_msgs.msg import String
 from workzone_ros import interfaces
 from workzone_ros.core import kernels
 from workzone_ros.core.color_model import ModelError, default_model, load_model
-from workzone_ros.core.detection import METHODS, ColorDetector, DetectorConfig, RgbLpModel
-from workzone_ros.core.sync import FrameGaps
+from workzone_ros.core.detect import METHODS, ColorDetector, DetectorConfig, RgbLpModel
+from workzone_ros.core.proposals import ProposalConfig, SignProposer, proposals_as_detections
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
 from workzone_ros.resources import config_path
@@ -37,6 +37,7 @@ from workzone_ros.resources import config_path
 __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
 
 DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
+PROPOSALS_MODEL = str(config_path('models/color_proposals.npz'))
 
 # Parameters that map one to one onto DetectorConfig fields.
 _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',
@@ -63,6 +64,15 @@ class ColorDetectorNode(WorkzoneNode):
               read_only=True),
         Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
               'the seed 004 HSV ranges if that file does not exist)', read_only=True),
+        Param('proposals', True, 'also publish the recall-first colour candidates '
+              '(core.proposals, Detection.proposal true) that the rules reject, for the '
+              'classifier to decide'),
+        Param('proposals_model', '', 'colour model with a candidate ranker for the proposals '
+              '(empty: config/models/color_proposals.npz)', read_only=True),
+        Param('max_candidates', 12, 'proposals per frame at most, best ranked first', min=1,
+              max=100),
+        Param('proposal_threshold', 0.5, 'P(sign colour | pixel) of a proposal pixel',
+              min=0.01, max=1.0),
         Param('method', 'learned', 'learned (seed 000) | rgb_lp (seed 002) | hsv (seed 004)',
               choices=METHODS),
         Param('colors', ['orange', 'red', 'yellow'], 'colours to detect'),
@@ -159,6 +169,9 @@ class ColorDetectorNode(WorkzoneNode):
                 self.get_logger().warning(f'{path} not found: using the seed 004 HSV ranges; '
                                           "train one with 'workzone-ros train color'")
             self._detector = self._make_detector()
+            self._proposal_model = load_model(p.proposals_model or PROPOSALS_MODEL) \
+                if p.proposals else None
+            self._proposer = self._make_proposer()
         except (ModelError, ValueError) as exc:
             self.destroy_node()
             raise ConfigError(str(exc)) from None
@@ -169,7 +182,6 @@ class ColorDetectorNode(WorkzoneNode):
         self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
             collections.OrderedDict()
         self._frames = 0
-        self._gaps = FrameGaps()      # camera frames overwritten while the detector was busy
         self._held_counts = collections.Counter()
         # images waiting for their ROIs: stamp ns -> (deadline monotonic s, image, header)
         self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
@@ -201,10 +213,22 @@ class ColorDetectorNode(WorkzoneNode):
         det.set_camera(self._intrinsics)
         return det
 
+    def _make_proposer(self) -> Optional[SignProposer]:
+        p = self.params
+        if not p.proposals:
+            return None
+        if self._proposal_model is None:
+            self._proposal_model = load_model(p.proposals_model or PROPOSALS_MODEL)
+        cfg = ProposalConfig(threshold=p.proposal_threshold,
+                             strong=max(ProposalConfig.strong, p.proposal_threshold),
+                             max_candidates=p.max_candidates)
+        return SignProposer(self._proposal_model, cfg)
+
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Rebuild the detector with the new values (rejected values never get here)."""
         try:
             self._detector = self._make_detector()
+            self._proposer = self._make_proposer()
         except (ModelError, ValueError) as exc:
             self.get_logger().error(f'parameter change not applied: {exc}')
 
@@ -249,7 +273,6 @@ class ColorDetectorNode(WorkzoneNode):
 
     def _hold_or_process(self, msg: Any, header: Any) -> None:
         stamp = conv.stamp_to_time(header.stamp).to_ns()
-        self._gaps.add(stamp)
         if stamp in self._rois or not self._waiting_for_rois():
             self._detect(msg, header)
             return
@@ -282,16 +305,12 @@ class ColorDetectorNode(WorkzoneNode):
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
         dets = self._detector.detect(bgr, rois or ())
+        if self._proposer is not None:
+            dets = dets + proposals_as_detections(self._proposer.propose(bgr), dets)
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
             header=head, detections=dets, channelizers=len(self._detector.channelizers))))
         self._frames += 1
 
-
-    def extra_diagnostics(self) -> list[tuple[str, str]]:
-        """Camera frames that never reached the detector (it keeps the newest when busy)."""
-        g = self._gaps
-        return [('camera frames received', str(g.frames)),
-                ('camera frames skipped while busy', str(g.skipped))]
 
 
 NODE_CLASS = ColorDetectorNode

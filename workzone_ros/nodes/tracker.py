@@ -1,6 +1,6 @@
 """``tracker`` node: camera image + ``/workzone/detections`` -> ``/workzone/tracks`` (seed 001).
 
-Thin wrapper around :class:`workzone_ros.core.tracking.MultiTracker`.  Images are kept in a
+Thin wrapper around :class:`workzone_ros.core.track.MultiTracker`.  Images are kept in a
 short ring buffer keyed by their stamp; a ``Detections`` payload is processed with the image
 of exactly the same stamp (the detector stamps its output with the image it ran on).  When the
 detections arrive first they wait (a few frames) for their image.  Frames are processed in
@@ -15,7 +15,7 @@ from typing import Any, Optional
 from sensor_msgs.msg import CompressedImage, Image
 from std_msgs.msg import String
 
-from workzone_ros.core.tracking import (
+from workzone_ros.core.track import (
     ASSOCIATIONS,
     METHODS,
     MODES,

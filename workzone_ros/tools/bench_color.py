@@ -22,17 +22,20 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from workzone_ros.core import color_model as cm
-from workzone_ros.core import detection as dt
+from workzone_ros.core import detect as dt
 from workzone_ros.resources import config_path
 
 __all__ = ['add_arguments', 'run']
 
 MODEL = config_path('models/color_orange.npz')
+PROPOSALS = config_path('models/color_proposals.npz')
+REAL = Path(__file__).resolve().parents[2].parent / 'shared' / 'realdata' / 'us_workzone_video'
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +44,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--frames', type=int, default=300, help='timed frames (default 300)')
     parser.add_argument('--estimators', type=int, default=40, help='stumps for predict_proba')
     parser.add_argument('--scale', type=int, default=2, help='mask downscale (default 2)')
+    parser.add_argument('--real', nargs='?', const=str(REAL), default=None, metavar='DIR',
+                        help='also time real dashcam frames (every 10th frame of the clips in '
+                             f'DIR, default {REAL}): the rule-based detector, the recall-first '
+                             'proposals and both, beside the renders')
+    parser.add_argument('--proposals-model', default=str(PROPOSALS),
+                        help='colour model with the proposal ranker')
 
 
 def _frames(n: int = 8) -> list[np.ndarray]:
@@ -80,6 +89,47 @@ def _time(fn, frames, n) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ts) * 1e3, np.array(cs) * 1e3
 
 
+def _real_frames(folder: Path, every: int = 10) -> list[np.ndarray]:
+    """Every ``every``-th frame of each clip of ``folder`` at its native size."""
+    out = []
+    for video in sorted(folder.glob('*.mp4')):
+        cap = cv2.VideoCapture(str(video))
+        k = 0
+        while True:
+            ok, img = cap.read()
+            if not ok:
+                break
+            if k % every == 0:
+                out.append(img)
+            k += 1
+        cap.release()
+    return out
+
+
+def _stats(ms: np.ndarray) -> dict:
+    return {'p50': float(np.percentile(ms, 50)), 'p99': float(np.percentile(ms, 99)),
+            'max': float(ms.max())}
+
+
+def run_real(args: argparse.Namespace, model) -> dict:
+    """The real-frame figures of ``--real`` (one pass over every chosen frame)."""
+    from workzone_ros.core.proposals import ProposalConfig, SignProposer
+    folder = Path(args.real)
+    frames = _real_frames(folder)
+    if not frames:
+        return {'skipped': f'no readable clips in {folder}'}
+    det = dt.ColorDetector(model, dt.DetectorConfig(colors=('orange',), scale=args.scale))
+    prop = SignProposer(cm.load_model(args.proposals_model), ProposalConfig())
+    out: dict = {'folder': str(folder), 'frames': len(frames),
+                 'frame': f'{frames[0].shape[1]}x{frames[0].shape[0]}'}
+    for label, fn in (('detector', det.detect), ('proposals', prop.propose),
+                      ('detector+proposals', lambda f: (det.detect(f), prop.propose(f)))):
+        ms, cpu = _time(fn, frames, len(frames))
+        out[f'frame_ms_{label}'] = _stats(ms)
+        out[f'cpu_ms_{label}'] = _stats(cpu)
+    return out
+
+
 def run(args: argparse.Namespace) -> dict:
     """Run the benchmark; returns the figures."""
     cv2.setNumThreads(1)
@@ -103,6 +153,8 @@ def run(args: argparse.Namespace) -> dict:
                                                       for i in range(len(frames))]}
         out[f'cpu_ms_{label}'] = {'p50': float(np.percentile(cpu, 50)),
                                   'p99': float(np.percentile(cpu, 99))}
+    if getattr(args, 'real', None):
+        out['real'] = run_real(args, model)
     det = dt.ColorDetector(model, dt.DetectorConfig(colors=('orange',), scale=args.scale))
     counts = [len(det.detect(f)) for f in frames]
     out['detections_per_frame'] = float(np.mean(counts))

@@ -79,7 +79,7 @@ def make_sequence(frames: int, signs: int, seed: int = 0):
 
 
 def _measure(method: str, images, boxes, repeats: int):
-    from workzone_ros.core.tracking import MultiTracker, TrackerConfig
+    from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.interfaces import Box, Detection
     per_track, per_frame, ious = [], [], []
     for _ in range(repeats):
@@ -116,10 +116,10 @@ def run(args: argparse.Namespace) -> dict:
         core = 'pinned to one core'
     except (AttributeError, OSError):
         core = 'not pinned'
-    from workzone_ros.core import tracking
+    from workzone_ros.core.track import multi
     clock = 'wall (perf_counter)'
     if getattr(args, 'cpu_time', False):
-        tracking._clock = time.thread_time
+        multi._clock = time.thread_time
         clock = 'thread CPU time'
     images, boxes = make_sequence(args.frames, args.signs, args.seed)
     out = {'frames': args.frames, 'signs': args.signs, 'repeats': args.repeats,

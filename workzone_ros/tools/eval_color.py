@@ -51,7 +51,7 @@ import numpy as np
 
 from workzone_ros import interfaces
 from workzone_ros.core import color_model as cm
-from workzone_ros.core import detection as dt
+from workzone_ros.core import detect as dt
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import Box
 from workzone_ros.resources import config_path
@@ -235,6 +235,7 @@ def lidar_chain_rois(bag: str, config: Optional[str] = None) -> dict:
 
     from workzone_ros.core import lidar_clustering as lc
     from workzone_ros.core import projection as pj
+    from workzone_ros.core.lidar_rois import size_rois
     from workzone_ros.tools.eval_lidar import _load_bag, _Odom, pair_stream
     data = yaml.safe_load(Path(config or config_path('workzone.yaml')).read_text()) or {}
     ccfg = (data.get('lidar_cluster') or {}).get('ros__parameters', {}) or {}
@@ -271,7 +272,8 @@ def lidar_chain_rois(bag: str, config: Optional[str] = None) -> dict:
                         time_offset_ns=pj.forward_time_offset(rp))
     out = {}
     for t_img, (t_set, arr, _) in pairs.items():
-        out[t_img], _ = pj.candidates_to_rois(arr, t_set, t_img, camera, l2c, od.lidar, rp)
+        rois, _ = pj.candidates_to_rois(arr, t_set, t_img, camera, l2c, od.lidar, rp)
+        out[t_img] = size_rois(rois, arr, camera)
     return out
 
 

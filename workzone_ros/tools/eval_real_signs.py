@@ -43,13 +43,52 @@ def sign_ranges(path: Path = RANGES) -> dict[str, list[tuple[int, int]]]:
     return out
 
 
-def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0) -> dict:
-    """The figures of one clip (module docstring)."""
+def _draw(img, label, dets, items, signs, text: str):
+    """One contact-sheet tile: label (white), proposals (grey), rule detections (green),
+    tracks (blue), work-zone signs (orange, with the class) and rejected ones (red)."""
+    import cv2
+    out = img.copy()
+
+    def rect(b, color, t=1):
+        cv2.rectangle(out, (int(b.x), int(b.y)), (int(b.x + b.w), int(b.y + b.h)), color, t)
+
+    if label is not None:
+        rect(label, (255, 255, 255), 1)
+    for d in dets:
+        rect(d.box, (150, 150, 150) if d.proposal else (0, 200, 0))
+    for it in items:
+        if hasattr(it, 'track_id'):
+            rect(it.box, (255, 120, 0))
+    for s in signs:
+        wz = s.category == 'workzone'
+        rect(s.box, (0, 140, 255) if wz else (0, 0, 200), 2 if wz else 1)
+        if wz:
+            cv2.putText(out, f'{s.class_key} {s.score:.2f}', (int(s.box.x), int(s.box.y) - 3),
+                        cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 140, 255), 1)
+    cv2.putText(out, text, (5, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 2)
+    return out
+
+
+def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
+                  proposer=None, track: bool = True, tiles: Optional[list] = None,
+                  tile_every: int = 15) -> dict:
+    """The figures of one clip (module docstring).
+
+    ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
+    added to the detections, as the ``color_detector`` node does with ``proposals`` on;
+    ``track`` false classifies the detections themselves (the graph without the tracker).
+    ``tiles``: every ``tile_every``-th labelled sign frame is drawn into it (contact sheet).
+
+    ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
+    the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
+    with the label, before any classification.
+    """
     import cv2
 
+    from workzone_ros.core.proposals import proposals_as_detections
     from workzone_ros.core.recognition import SignRecognizer
     from workzone_ros.core.sign_distance import focal_from_fov
-    from workzone_ros.core.tracking import MultiTracker, TrackerConfig
+    from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.tools.eval_tracker import _ColorDetector
     labels = load_real_labels().get(path.name, {})
     ranges = sign_ranges().get(path.name, [])
@@ -57,27 +96,49 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0) -> di
     recognizer = SignRecognizer(model)
     cap = cv2.VideoCapture(str(path))
     fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
-    n = hits = free = false = k = 0
+    n = hits = free = false = k = cands = big = big_hit = 0
     while not max_frames or k < max_frames:
         ok, img = cap.read()
         if not ok:
             break
-        tracks = tracker.step(img, [d for d in det(img, None) if d.color == 'orange'],
-                              stamp=k / fps)
-        signs, _ = recognizer.recognize(img, tracks, focal_from_fov(img.shape[1], hfov_deg))
+        dets = [d for d in det(img, None) if d.color == 'orange']
+        if proposer is not None:
+            dets += proposals_as_detections(proposer.propose(img), dets)
+        cands += len(dets)
+        items = tracker.step(img, dets, stamp=k / fps) if track else dets
+        signs, _ = recognizer.recognize(img, items, focal_from_fov(img.shape[1], hfov_deg))
         wz = [s for s in signs if s.category == 'workzone']
         label = labels.get(k)
         if label and label[1]:
             n += 1
             hits += any(s.box.iou(label[0]) >= 0.3 for s in wz)
+            if max(label[0].w, label[0].h) >= 20:
+                big += 1
+                big_hit += any(d.box.iou(label[0]) >= 0.3 for d in [*dets, *items])
+            if tiles is not None and n % tile_every == 1:
+                tiles.append(_draw(img, label[0], dets, items, signs, f'{path.stem} #{k}'))
         if not any(a <= k <= b for a, b in ranges):
             free += 1
             false += len(wz)
         k += 1
     cap.release()
-    return {'frames': k, 'sign_frames': n,
+    return {'frames': k, 'sign_frames': n, 'boxes_per_frame': round(cands / max(k, 1), 2),
             'sign_share': round(hits / n, 3) if n else None,
+            'candidate_recall': round(big_hit / big, 3) if big else None,
             'free_frames': free, 'false_per_frame': round(false / free, 3) if free else None}
+
+
+def _write_sheet(tiles: list, path: str, cols: int = 3) -> None:
+    import cv2
+    import numpy as np
+    h, w = tiles[0].shape[:2]
+    tiles = [cv2.resize(t, (w, h)) for t in tiles]
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % cols)
+    rows = [np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)]
+    sheet = np.vstack(rows)
+    cv2.imwrite(path, cv2.resize(sheet, (sheet.shape[1] // 2, sheet.shape[0] // 2),
+                                 interpolation=cv2.INTER_AREA))
+    print(f'contact sheet: {path}', file=sys.stderr)
 
 
 def main(argv: Optional[list[str]] = None) -> int:
@@ -92,6 +153,15 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--clips', nargs='*', default=list(CLIPS))
     p.add_argument('--hfov', type=float, default=60.0, help='stated field of view (deg)')
     p.add_argument('--max-frames', type=int, default=0)
+    p.add_argument('--proposals', metavar='MODEL', nargs='?', const='',
+                   help='add the recall-first colour proposals of this colour model (with '
+                        'its ranker; default config/models/color_proposals.npz)')
+    p.add_argument('--max-candidates', type=int, default=12, help='proposals per frame')
+    p.add_argument('--sheet', metavar='PNG', help='contact sheet of the labelled sign frames '
+                   '(label white, proposals grey, detections green, tracks blue, work-zone '
+                   'signs orange with their class, rejected red)')
+    p.add_argument('--no-tracker', action='store_true',
+                   help='classify the detections themselves (the graph without the tracker)')
     p.add_argument('--json', metavar='OUT')
     args = p.parse_args(argv)
     folder = Path(args.real)
@@ -103,17 +173,35 @@ def main(argv: Optional[list[str]] = None) -> int:
     except ModelError as exc:
         print(f'workzone-ros evaluate real_signs: {exc}', file=sys.stderr)
         return 2
-    out = {'model': args.model, 'trained_on': model.metadata.get('sources'), 'clips': {}}
+    proposer = None
+    if args.proposals is not None:
+        from workzone_ros.core import color_model as cm
+        from workzone_ros.core.proposals import ProposalConfig, SignProposer
+        ppath = args.proposals or str(config_path('models/color_proposals.npz'))
+        try:
+            proposer = SignProposer(cm.load_model(ppath),
+                                    ProposalConfig(max_candidates=args.max_candidates))
+        except (cm.ModelError, ValueError) as exc:
+            print(f'workzone-ros evaluate real_signs: {exc}', file=sys.stderr)
+            return 2
+    out = {'model': args.model, 'trained_on': model.metadata.get('sources'),
+           'proposals': None if proposer is None else args.proposals or 'default',
+           'tracker': not args.no_tracker, 'clips': {}}
+    tiles: list = []
     for name in args.clips:
         path = folder / f'{name}.mp4'
         if not path.exists():
             print(f'{name}: {path} not found, skipped', file=sys.stderr)
             continue
-        r = evaluate_clip(path, model, args.hfov, args.max_frames)
+        r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
+                          not args.no_tracker, tiles if args.sheet else None)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
+              f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "
               f"false work-zone signs / frame {r['false_per_frame']} over "
               f"{r['free_frames']} frames", file=sys.stderr, flush=True)
+    if args.sheet and tiles:
+        _write_sheet(tiles, args.sheet)
     text = json.dumps(out, indent=2, default=str)
     print(text)
     if args.json:

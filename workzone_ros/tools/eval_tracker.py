@@ -4,7 +4,7 @@
 (the lead wires ``workzone-ros evaluate tracker`` to :func:`main`).
 
 For every camera frame of each bag the detector runs once (the colour detector core,
-``workzone_ros.core.detection.ColorDetector``; ``--detector gt`` replaces it with ground-truth
+``workzone_ros.core.detect.ColorDetector``; ``--detector gt`` replaces it with ground-truth
 boxes with simulated misses and jitter), and the same detections feed several trackers in
 lockstep, all from the same starts on the same frames:
 
@@ -66,7 +66,7 @@ DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
 
 
 def _configs():
-    from workzone_ros.core.tracking import TrackerConfig, seed_config
+    from workzone_ros.core.track import TrackerConfig, seed_config
     ours = TrackerConfig()
     return {
         'detection_only': replace(ours, mode='detection_only'),
@@ -113,7 +113,7 @@ class _ColorDetector:
 
     def __init__(self, model_path: Optional[str]) -> None:
         from workzone_ros.core.color_model import default_model, load_model
-        from workzone_ros.core.detection import ColorDetector, DetectorConfig
+        from workzone_ros.core.detect import ColorDetector, DetectorConfig
         path = model_path or DEFAULT_MODEL
         if model_path or os.path.exists(path):
             model = load_model(path)
@@ -259,7 +259,7 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
       Counted for all outputs and for ``tracking`` outputs only (what the tracker adds),
       as frames and as distinct track ids.
     """
-    from workzone_ros.core.tracking import MultiTracker
+    from workzone_ros.core.track import MultiTracker
     cfgs = configs or _configs()
     trackers = {k: MultiTracker(c) for k, c in cfgs.items()}
     started: set[int] = set()              # sign ids the detector has found once
@@ -575,7 +575,7 @@ def evaluate_real(folder: Path, model_path: Optional[str], cfgs: dict,
     """
     import cv2
 
-    from workzone_ros.core.tracking import MultiTracker
+    from workzone_ros.core.track import MultiTracker
     from workzone_ros.tools.eval_color import REAL_CLIPS, load_real_labels
     labels = load_real_labels()
     out: dict = {}

@@ -346,7 +346,7 @@ class ReportCollector:
                 drops = {}
                 for kv in status.values:
                     if kv.key.startswith('stamp to state latency') \
-                            or kv.key.startswith('camera frames '):
+                            or kv.key.endswith((' skipped while busy', ' messages')):
                         self.diag.setdefault(status.name, {'worst': 0})[kv.key] = kv.value
                     if kv.key.endswith(' dropped'):
                         try:
@@ -400,11 +400,13 @@ class ReportCollector:
             else:
                 lines.append('  dropped inputs (diagnostics): no /diagnostics received')
             for name, d in sorted(self.diag.items()):
-                skipped = int(d.get('camera frames skipped while busy', 0))
-                if skipped:
-                    total = skipped + int(d.get('camera frames received', 0))
-                    lines.append(f'  {name}: {skipped} of {total} camera frames skipped while '
-                                 'busy (it keeps the newest frame)')
+                for key, value in d.items():
+                    if not key.endswith(' skipped while busy') or not int(value or 0):
+                        continue
+                    topic = key[:-len(' skipped while busy')]
+                    total = int(value) + int(d.get(f'{topic} messages', 0) or 0)
+                    lines.append(f'  {name}: {value} of {total} frames on {topic} skipped while '
+                                 'busy (it keeps the newest)')
                 lat = [f"{k.rsplit(' ', 2)[1]} {v} ms" for k, v in d.items()
                        if k.startswith('stamp to state latency') and v]
                 if lat:

@@ -2,7 +2,9 @@
 
 Reads one or more folders with ``images/*.png`` and ``masks/*.png`` of the same names
 (``workzone-ros synth pixels -o DIR`` writes them; a user's own images and masks work the
-same way: nonzero mask = work-zone sign face), then
+same way: mask 0 = background, 128 = ignored (neither: e.g. cones, which are orange but no
+sign; ``workzone-ros real-pixels`` writes such masks from labelled video frames), any other
+value = work-zone sign face), then
 
 1. splits each face mask into its orange pixels (positives) and its black legend / border
    and white panels (ignored: neither sign colour nor background, ``--orange-only``);
@@ -56,7 +58,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core import color_model as cm
-from workzone_ros.core import detection as dt
+from workzone_ros.core import detect as dt
 
 __all__ = ['main', 'load_pairs', 'pixel_metrics']
 
@@ -97,12 +99,18 @@ def _is_val(path: Path, frac: float) -> bool:
     return (zlib.crc32(path.stem.encode()) % 1000) / 1000.0 < frac
 
 
-def _read(img_path: Path, mask_path: Path) -> tuple[np.ndarray, np.ndarray]:
+#: Mask value of pixels that are neither sign face nor background (left out of the counts).
+IGNORE = 128
+
+
+def _read(img_path: Path, mask_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(image, face, ignored): mask 0 is background, 128 ignored, any other value face."""
     img = cv2.imread(str(img_path), cv2.IMREAD_COLOR)
     mask = cv2.imread(str(mask_path), cv2.IMREAD_GRAYSCALE)
     if img is None or mask is None or img.shape[:2] != mask.shape[:2]:
         raise ValueError(f'unreadable or mismatched pair {img_path} / {mask_path}')
-    return img, mask > 0
+    ignored = mask == IGNORE
+    return img, (mask > 0) & ~ignored, ignored
 
 
 def orange_mask(hsv: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -189,9 +197,10 @@ def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
     """
     tp = fp = fn = tn = 0
     for ip, mp in pairs:
-        img, face = _read(ip, mp)
+        img, face, ignored = _read(ip, mp)
         hsv = table_hsv(img, gray_world, sat_norm, v_min, white_balance)
         mask, use = orange_mask(hsv, face)
+        use &= ~ignored
         pred = (lut[hsv[..., 0], hsv[..., 1]] >= threshold) & (hsv[..., 2] >= v_min)
         tp += int(np.count_nonzero(pred & mask))
         fn += int(np.count_nonzero(~pred & mask))
@@ -329,7 +338,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         boxes = [tuple(int(v) for v in b) for b in cached['boxes']]
         size = tuple(int(v) for v in cached['size'])
     for ip, mp in (train if cached is None else []):
-        img0, face = _read(ip, mp)
+        img0, face, ignored = _read(ip, mp)
         size = (img0.shape[1], img0.shape[0])
         n, _, stats, _ = cv2.connectedComponentsWithStats(face.astype(np.uint8))
         boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n)
@@ -345,6 +354,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                 mask, use = orange_mask(hsv, face)
             else:
                 mask, use = face, np.ones_like(face)
+            use &= ~ignored
             if args.ignore_s > 0:
                 use &= ~mask | (hsv[..., 1] >= args.ignore_s)
             if args.erode > 0:

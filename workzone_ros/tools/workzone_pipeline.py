@@ -2,9 +2,9 @@
 
 The chain the nodes run, in process and in frame order, from ``workzone_ros.core``:
 
-* the colour detector (``core.detection.ColorDetector`` with the trained orange model,
+* the colour detector (``core.detect.ColorDetector`` with the trained orange model,
   ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it);
-* the mean-shift tracker (``core.tracking.MultiTracker``, ``TrackerConfig()`` defaults);
+* the mean-shift tracker (``core.track.MultiTracker``, ``TrackerConfig()`` defaults);
 * the sign classifier (``core.classifier.load_model``, ``classify_boxes``) with the
   classifier node's rules: boxes under 12 px on a side or less than half inside the image
   are ``unknown`` (never guessed), ``background`` answers are not published, a work-zone
@@ -47,7 +47,7 @@ def _classifier_path(opts) -> str:
 
 def check_available(opts) -> str:
     """'' when the pipeline can run, else one line saying what is missing."""
-    for mod in ('detection', 'tracking', 'classifier', 'digits', 'sign_distance', 'features'):
+    for mod in ('detect', 'track', 'classifier', 'digits', 'sign_distance', 'features'):
         try:
             __import__(f'workzone_ros.core.{mod}')
         except ImportError as exc:
@@ -124,7 +124,7 @@ class PipelineSource:
     def __init__(self, opts) -> None:
         from workzone_ros.core.classifier import load_model
         from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
-        from workzone_ros.core.tracking import MultiTracker, TrackerConfig
+        from workzone_ros.core.track import MultiTracker, TrackerConfig
         from workzone_ros.tools.eval_tracker import _ColorDetector
         self.detector = _ColorDetector(opts.color_model)
         self.tracker = MultiTracker(TrackerConfig())

@@ -26,27 +26,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from workzone_ros.tools.mine_background import crop_box
+
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parents[2]
 VIDEO_DIR = REPO.parent / 'shared' / 'realdata' / 'us_workzone_video'
-GROW = 0.25       # share of the box size added on each side
-MAX_SIDE = 64     # longer side of a stored crop, pixels
-
-
-def crop_box(img: np.ndarray, x: float, y: float, w: float, h: float) -> np.ndarray:
-    """The box grown by GROW on each side, clipped to the image, longer side <= MAX_SIDE."""
-    height, width = img.shape[:2]
-    x0 = int(round(max(0.0, x - GROW * w)))
-    y0 = int(round(max(0.0, y - GROW * h)))
-    x1 = int(round(min(float(width), x + w + GROW * w)))
-    y1 = int(round(min(float(height), y + h + GROW * h)))
-    crop = img[y0:y1, x0:x1]
-    scale = MAX_SIDE / max(crop.shape[:2])
-    if scale < 1.0:
-        size = (max(1, int(round(crop.shape[1] * scale))),
-                max(1, int(round(crop.shape[0] * scale))))
-        crop = cv2.resize(crop, size, interpolation=cv2.INTER_AREA)
-    return crop
 
 
 def read_index(path: Path) -> list[dict]:

@@ -1,0 +1,260 @@
+"""A warning sign's diamond where its mask gives no start.
+
+:func:`diamond_starts` searches the brightness for a face with a dark line round it (box sums
+over a copy turned by 45 degrees, where the diamond is a square); :func:`fit_blurred_diamond`
+fits a blurred diamond to the chroma R - B of a faded or blurred sign that shows no line;
+:func:`diamond_holds` checks that a fitted outline holds the blob's orange.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional, Sequence
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.special import ndtr
+
+__all__ = ['diamond_starts', 'diamond_holds', 'fit_blurred_diamond']
+
+
+_SQRT_HALF = math.sqrt(0.5)
+
+
+def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a: float,
+                   count: int = 3, inner_frac: float = 0.2, line_rel: float = 0.07,
+                   step: float = 1.08, min_contrast: float = 0.05
+                   ) -> list[tuple[float, float, float, float, float]]:
+    """Where in ``value`` a face diamond with a dark line around it could be: a coarse search.
+
+    A start for :func:`refine_diamond` when the mask gives none (a sign merged with a surface
+    of about its colour, an orange dusk sky behind it: the mask's diamond is the union's).
+    In coordinates turned by 45 deg an upright diamond with equal half-diagonals is a square,
+    so box sums over a turned copy of ``value`` (one integral image) score every centre in
+    ``box = (x, y, w, h)`` and every half-diagonal from ``min_a`` to ``max_a`` (steps of
+    ``step``) at once: per side, the face's band ``inner_frac`` of the half-side wide just
+    inside against the line's band (``line_rel`` of the half-diagonal, a pixel at least)
+    just outside, on the middle 70 % of the side; the score is the smallest of the four
+    relative contrasts ``(inside - outside) / inside`` (every edge must show the face-to-line
+    step; a merged surface shows none on its side).  Returns up to ``count`` diamonds
+    ``(cx, cy, a, a, score)`` (continuous coordinates), best first, at least
+    ``min_contrast``, none within about a third of its size of a better one."""
+    img = np.ascontiguousarray(value, dtype=np.float32)
+    H, W = img.shape[:2]
+    c = _SQRT_HALF
+    side = int(math.ceil((W + H) * c)) + 3
+    voff = H * c + 1.0
+    # turned[v, u] = value at x = (u + v - voff) c, y = (u - v + voff) c (pixel centres);
+    # outside the window -1 (counted out of every band)
+    mat = np.array([[c, c, -c * voff], [c, -c, c * voff]], np.float32)
+    turned = cv2.warpAffine(img, mat, (side, side), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
+    inside = turned >= 0
+    sums = cv2.integral(np.where(inside, turned, 0.0).astype(np.float64))
+    counts = cv2.integral(inside.astype(np.uint8))
+    # candidate centres: corners of the turned grid (a square's sides on pixel boundaries)
+    # whose continuous (x, y) lies in the box
+    x, y, w, h = (float(v) for v in box[:4])
+    corners = np.array([(x, y), (x + w, y), (x, y + h), (x + w, y + h)]) - 0.5
+    us_, vs_ = (corners[:, 0] + corners[:, 1]) * c, (corners[:, 0] - corners[:, 1]) * c + voff
+    uu, vv = np.meshgrid(np.arange(max(0, int(us_.min())), min(side, int(us_.max()) + 2) + 1),
+                         np.arange(max(0, int(vs_.min())), min(side, int(vs_.max()) + 2) + 1))
+    px = (uu + vv - 1.0 - voff) * c + 0.5
+    py = (uu - vv + voff) * c + 0.5
+    sel = (px >= x) & (px <= x + w) & (py >= y) & (py <= y + h)
+    uc, vc = uu[sel], vv[sel]
+
+    def mean(u0, u1, v0, v1):
+        s_ = sums[v1, u1] - sums[v0, u1] - sums[v1, u0] + sums[v0, u0]
+        n_ = counts[v1, u1] - counts[v0, u1] - counts[v1, u0] + counts[v0, u0]
+        return s_ / np.maximum(n_, 1), n_ > 0
+
+    lo, hi = max(2.0, min_a * c), max_a * c
+    found = []
+    sizes = sorted({int(round(lo * step ** k)) for k in range(
+        int(math.log(max(hi / lo, 1.0)) / math.log(step)) + 1)})
+    for s in sizes:
+        d = max(1, int(round(inner_frac * s)))
+        lw = max(1, int(round(line_rel * s / c)))
+        t = max(1, int(round(0.7 * s)))
+        ok = (uc >= s + lw) & (vc >= s + lw) & (uc + s + lw <= side) & (vc + s + lw <= side)
+        u, v = uc[ok], vc[ok]
+        if u.size == 0:
+            continue
+        score = None
+        # left, right (u = uc -/+ s), top, bottom (v = vc -/+ s): face band, line band
+        for fb, lb in (((u - s, u - s + d, v - t, v + t), (u - s - lw, u - s, v - t, v + t)),
+                       ((u + s - d, u + s, v - t, v + t), (u + s, u + s + lw, v - t, v + t)),
+                       ((u - t, u + t, v - s, v - s + d), (u - t, u + t, v - s - lw, v - s)),
+                       ((u - t, u + t, v + s - d, v + s), (u - t, u + t, v + s, v + s + lw))):
+            mf, nf = mean(*fb)
+            ml, nl = mean(*lb)
+            sc = np.where(nf & nl, (mf - ml) / np.maximum(mf, 1.0), -1.0)
+            score = sc if score is None else np.minimum(score, sc)
+        good = score >= min_contrast
+        if good.any():
+            found.append((score[good], u[good], v[good], np.full(int(good.sum()), s)))
+    if not found:
+        return []
+    score, u, v, s = (np.concatenate(a) for a in zip(*found))
+    picked: list[int] = []
+    for i in np.argsort(-score, kind='stable')[:400]:
+        if any(abs(u[i] - u[j]) + abs(v[i] - v[j]) <= 0.35 * max(s[i], s[j])
+               and abs(s[i] / s[j] - 1.0) < 0.25 for j in picked):
+            continue
+        picked.append(int(i))
+        if len(picked) >= count:
+            break
+    out = []
+    for i in picked:
+        cx = (u[i] + v[i] - 1.0 - voff) * c + 0.5
+        cy = (u[i] - v[i] + voff) * c + 0.5
+        out.append((float(cx), float(cy), s[i] / c, s[i] / c, float(score[i])))
+    return out
+
+
+def diamond_holds(pixels: np.ndarray, face: Sequence[float], ratio: float, share: float,
+                  slack_px: float = 1.0) -> bool:
+    """Whether the sign outline ``ratio`` x the face diamond ``(cx, cy, a, b)`` (continuous
+    coordinates) holds the nonzero ``pixels`` (their centres; the outline grown by
+    ``slack_px``): False when in three or four of the diamond's quadrants less than
+    ``share`` of the quadrant's pixels lie inside (a sign whose orange reaches out all
+    round: not the catalogue's layout).  Orange beyond one or two sides (flags above a
+    portable stand, a merge with an orange sky or a drum) does not count."""
+    ys, xs = np.nonzero(pixels)
+    if xs.size == 0:
+        return True
+    cx, cy, a, b = (float(v) for v in face[:4])
+    dx, dy = xs + 0.5 - cx, ys + 0.5 - cy
+    out = np.abs(dx) / (ratio * a + slack_px) + np.abs(dy) / (ratio * b + slack_px) > 1.0
+    quad = (dx > 0).astype(np.int64) + 2 * (dy > 0)
+    n = np.bincount(quad, minlength=4)
+    n_out = np.bincount(quad, weights=out, minlength=4)
+    return int(np.count_nonzero(n_out > (1.0 - share) * np.maximum(n, 1))) < 3
+
+
+def _blurred_diamond(p: np.ndarray, xs: np.ndarray, ys: np.ndarray, jac: bool = False
+                     ) -> tuple[np.ndarray, Optional[np.ndarray]]:
+    """The blurred diamond model of :func:`fit_blurred_diamond` at ``(xs, ys)`` and, with
+    ``jac``, its Jacobian (n, 9) in ``p = (cx, cy, a, b, sigma, face, bg, gx, gy)``."""
+    cx, cy, a, b, sg, face, bg, gx, gy = (float(v) for v in p)
+    r2 = a * a + b * b
+    n = a * b / math.sqrt(r2)
+    dx, dy = xs - cx, ys - cy
+    u, v = dx / a, dy / b
+    # signed distances inside the four edges; the blurred indicator of the diamond is the
+    # product of the edges' blurred half-planes (exact at a right-angled corner)
+    signs = ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))
+    z = np.stack([(1.0 - sx * u - sy * v) * (n / sg) for sx, sy in signs])     # (4, n)
+    cdf = ndtr(z)
+    prod = cdf.prod(axis=0)
+    contrast = face - bg
+    model = bg + gx * dx + gy * dy + contrast * prod
+    if not jac:
+        return model, None
+    pdf = np.exp(-0.5 * z * z) * (1.0 / math.sqrt(2.0 * math.pi))
+    # d prod / d z_i: the edge's density times the other three edges' blurred half-planes
+    others = np.stack([np.prod(np.delete(cdf, i, axis=0), axis=0) for i in range(4)])
+    dp_dz = pdf * others                                                      # (4, n)
+    dn_da, dn_db = b ** 3 / r2 ** 1.5, a ** 3 / r2 ** 1.5
+    out = np.empty((xs.size, 9))
+    g = np.zeros((5, xs.size))
+    for i, (sx, sy) in enumerate(signs):
+        lin = 1.0 - sx * u - sy * v
+        g[0] += dp_dz[i] * (sx * n / (a * sg))
+        g[1] += dp_dz[i] * (sy * n / (b * sg))
+        g[2] += dp_dz[i] * ((sx * u / a) * n + lin * dn_da) / sg
+        g[3] += dp_dz[i] * ((sy * v / b) * n + lin * dn_db) / sg
+        g[4] += dp_dz[i] * (-z[i] / sg)
+    out[:, :5] = contrast * g.T
+    out[:, 0] -= gx
+    out[:, 1] -= gy
+    out[:, 5] = prod
+    out[:, 6] = 1.0 - prod
+    out[:, 7] = dx
+    out[:, 8] = dy
+    return model, out
+
+
+def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: float = 4.0,
+                        robust: float = 0.15, inner_skip: float = 0.5, max_nfev: int = 60,
+                        max_half: float = 10.0
+                        ) -> Optional[tuple[float, float, float, float, float, float, float]]:
+    """The sign's orange diamond fitted to a blurred chroma image, where its edges are not.
+
+    A faded, rain-washed or motion-blurred sign may show no border line in the brightness
+    (:func:`refine_diamond` finds no face-to-line step) and its colour mask stops well short
+    of the tips.  Its colour does still place the sign: ``chroma`` (R - B, a linear
+    function of a blend of the sign's and the background's colours) is modelled as a
+    background plane plus the sign's uniform level times the diamond ``|x - cx| / a +
+    |y - cy| / b <= 1`` blurred by a Gaussian of width ``sigma`` (the product of its four
+    edges' blurred half-planes); all nine parameters by robust least squares (soft L1 at
+    ``robust`` x the start's contrast: legend strokes and a post are outliers) from
+    ``start = (cx, cy, a, b)`` (continuous coordinates, pixel ``i`` spans ``[i, i + 1)``),
+    over the window less the start's middle (``inner_skip`` of its half-diagonals: the
+    legend's place).  A sign larger than ``max_half`` px half-diagonal is fitted on the
+    window binned by a whole factor (block means: still linear in the blend) to about that
+    size: the cost is about the same for every size (a few ms).  The border line and the
+    thin margin outside it blend with the edge: the fitted diamond lies between the sign's
+    outline and the face's.  Not claimed: a legend blurred into a small face lowers the
+    face's level and puts the edge further out (about 0.5 px at 9 px half-diagonal and
+    1.5 px blur, 1 px at 2.5 px blur, on a test sign with a stroke down its middle).
+
+    Returns ``(cx, cy, a, b, sigma, face, bg)`` or None: the fit did not converge, a
+    half-diagonal reached half or twice the start's, the blur reached ``max_sigma``, or
+    the sign is not more coloured than its background.
+    """
+    cx, cy, a, b = (float(v) for v in start[:4])
+    h, w = chroma.shape[:2]
+    if a < 2 or b < 2 or h < 4 or w < 4:
+        return None
+    f = max(1, math.ceil(min(a, b) / max_half))
+    if f > 1:
+        h, w = h // f, w // f
+        chroma = chroma[:h * f, :w * f].reshape(h, f, w, f).mean(axis=(1, 3))
+        cx, cy, a, b, max_sigma = cx / f, cy / f, a / f, b / f, max_sigma / f
+    ys, xs = np.mgrid[0:h, 0:w]
+    xs = xs.ravel() + 0.5
+    ys = ys.ravel() + 0.5
+    vals = chroma.astype(np.float64).ravel()
+    rel = np.abs(xs - cx) / a + np.abs(ys - cy) / b
+    inner, outer = vals[rel < 0.7], vals[rel > 1.3]
+    if inner.size < 4 or outer.size < 4:
+        return None
+    face0, bg0 = float(np.percentile(inner, 75)), float(np.median(outer))
+    if face0 <= bg0:
+        return None
+    # the middle holds the legend, and only the face's level: fitted without it
+    keep = rel >= inner_skip
+    xs, ys, vals = xs[keep], ys[keep], vals[keep]
+    p0 = np.array([cx, cy, a, b, 1.0, face0, bg0, 0.0, 0.0])
+    lo = [cx - 0.5 * a, cy - 0.5 * b, 0.5 * a, 0.5 * b, 0.3, -np.inf, -np.inf, -np.inf, -np.inf]
+    hi = [cx + 0.5 * a, cy + 0.5 * b, 2.0 * a, 2.0 * b, max_sigma, np.inf, np.inf, np.inf,
+          np.inf]
+
+    last: list = [None, None]
+
+    def resid(p):
+        # the model and its Jacobian in one pass; least_squares asks for the Jacobian at
+        # the point it has just evaluated
+        model, last[1] = _blurred_diamond(p, xs, ys, jac=True)
+        last[0] = p.copy()
+        return model - vals
+
+    def jac(p):
+        if last[0] is None or not np.array_equal(p, last[0]):
+            resid(p)
+        return last[1]
+
+    try:
+        res = least_squares(resid, p0, jac=jac, bounds=(lo, hi), loss='soft_l1',
+                            f_scale=robust * (face0 - bg0), x_scale='jac', max_nfev=max_nfev,
+                            xtol=1e-4, ftol=1e-4)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    fcx, fcy, fa, fb, fs, face, bg = (float(v) for v in res.x[:7])
+    if res.status <= 0 or face <= bg:
+        return None
+    if not (0.505 * a < fa < 1.99 * a and 0.505 * b < fb < 1.99 * b and fs < 0.99 * max_sigma):
+        return None
+    return fcx * f, fcy * f, fa * f, fb * f, fs * f, face, bg

@@ -1,0 +1,295 @@
+"""False-positive filters and shape tests of an orange blob.
+
+A patch of a larger sign-coloured surface (:meth:`FilterMixin._surround_like`), a cone or a
+drum (white bands, :meth:`FilterMixin._banded`), and below the usual mounting height anything
+but a clear diamond face (:meth:`FilterMixin._clear_diamond`); the rows of a portable stand's
+flags are trimmed off a diamond first.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import cv2
+import numpy as np
+
+from workzone_ros.core.color_model import apply_gains
+from workzone_ros.core.detect.common import _lookup, _median
+from workzone_ros.core.detect.diamond import fit_diamond
+from workzone_ros.core.profiles import (
+    banded_rows,
+    open_background_rows,
+    row_extents,
+    row_taper,
+    white_cap,
+)
+
+__all__ = ['FilterMixin']
+
+
+class FilterMixin:
+    """The detector's false-positive filters and diamond trims."""
+
+    def _sign_checks(self, bgr: np.ndarray, pix: np.ndarray, hull: np.ndarray,
+                     like: np.ndarray, vch: np.ndarray, t: float, relaxed: bool,
+                     org: tuple[int, int], blob: tuple
+                     ) -> Optional[tuple[bool, bool, Optional[tuple], np.ndarray, float,
+                                         np.ndarray]]:
+        """:meth:`_measure_orange`'s tests of an orange face (``pix``, its ``hull``, the
+        window's likelihood ``like`` and value ``vch`` at ``org``; ``blob``: the hull's
+        box in the window): mounting height, surroundings, legend, bands.  None: not a
+        sign; else ``(needs_outline, needs_white, pix_fit, hmask, v_ref, dark)``: kept only
+        with its diamond edges measured, kept only with a white part found, the diamond
+        fit of ``pix`` when the mounting test made it, the hull mask, the face's median
+        value and its dark pixels."""
+        cfg = self.config
+        x0, y0 = org
+        bx0, by0, bw, bh = blob
+        aspect = bw / bh
+        geo = self._geometry
+        pix_fit = None              # fit_diamond(pix), when the mounting test needed it
+        # no legend seen, or an unclear face below the usual mounting: kept only if its
+        # diamond outline is measured in the brightness below (``outline_evidence``)
+        needs_outline = False
+        needs_white = False         # no legend seen on a plaque: kept only with a white part
+        if geo is not None and self._ref_row is not None and not relaxed:
+            # signs are mounted high: their bottom edge is above the prior's reference row
+            # (drums, cones and vehicles stand on the road below it); in units of box height.
+            # Below the usual mounting (soft limit; portable stands stand low) only a clear
+            # diamond face passes; below the lowest training sign (hard limit) nothing does.
+            rel = (y0 + by0 + bh - self._ref_row) / bh
+            if self.debug is not None:
+                self.debug[-1]['mount'] = rel
+            if rel > geo[1]:
+                return None
+            if rel > geo[2]:
+                if cfg.diamond_trim >= 0:
+                    # the diamond test fits ``pix`` either way; the trim below reuses it
+                    pix_fit = fit_diamond(pix)
+                if not self._clear_diamond(pix, pix_fit):
+                    if not (cfg.outline_evidence and cfg.diamond_refine):
+                        return None
+                    needs_outline = True      # a face behind a guardrail: its edges may tell
+        hmask = np.zeros_like(pix)
+        cv2.fillConvexPoly(hmask, hull, 1)
+        v_ref = float(_median(vch[pix > 0]))
+        if cfg.max_surround_like < 1.0 and not relaxed:
+            # a sign is an object on its own: beyond its border the background is not the
+            # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
+            # brick wall, a vehicle's panel) is
+            sl, sh = self._surround_like(hmask, like, max(bw, bh), t - 1e-6)
+            if self.debug is not None:
+                self.debug[-1].update(surround=sl, surround_face=sh)
+            if sl > cfg.max_surround_like and sh > cfg.min_surround_face:
+                return None
+        dark = vch < cfg.dark_rel * v_ref
+        if min(bw, bh) >= cfg.structure_min_px and not relaxed:
+            inside = hmask > 0
+            dfrac = np.count_nonzero(dark & inside) / max(np.count_nonzero(inside), 1)
+            if self.debug is not None:
+                self.debug[-1]['dark'] = dfrac
+            if dfrac < cfg.min_dark_inside:
+                if cfg.white_part_evidence and cfg.extension and not needs_outline \
+                        and aspect >= cfg.ext_min_aspect:
+                    needs_white = True      # a plaque: its white part below may tell
+                elif not (cfg.outline_evidence and cfg.diamond_refine):
+                    return None
+                else:
+                    needs_outline = True
+        if cfg.band_test and bh >= cfg.band_min_px and not relaxed:
+            if self._banded(bgr, x0 + bx0, y0 + by0, bw, bh, pix, v_ref, t):
+                if self.debug is not None:
+                    self.debug[-1]['banded'] = True
+                # a drum or cone (the fusion's channelizer evidence): one per place
+                self.channelizers.add(((x0 + bx0 + bw // 2) // 16, (y0 + by0 + bh // 2) // 16))
+                return None
+        return needs_outline, needs_white, pix_fit, hmask, v_ref, dark
+
+    def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float
+                       ) -> tuple[float, float]:
+        """(mean likelihood, share of pixels of likelihood >= ``level``) of the ring from
+        ``surround_in`` to ``surround_out`` x ``size`` outside the blob's hull (beyond a
+        sign's border and the blur of its edge); zeros when the ring is empty."""
+        cfg = self.config
+        r1 = max(1, int(round(cfg.surround_in * size)))
+        r2 = max(r1 + 1, int(round(cfg.surround_out * size)))
+        d1 = cv2.dilate(hmask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
+        d2 = cv2.dilate(hmask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
+        ring = (d2 > 0) & (d1 == 0)
+        if not ring.any():
+            return 0.0, 0.0
+        lr = like[ring]
+        return float(lr.mean()), float(np.count_nonzero(lr >= level) / lr.size)
+
+    def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
+                v_ref: float, t: float) -> bool:
+        """:func:`banded_rows` (and the cone cap) on a strip over the blob's middle half of
+        columns, reaching a blob height and two blends above and below it (a drum's stripes
+        are as high as its orange ones).  Orange: likelihood at least ``t``; white: see
+        ``band_test``, and not a row whose white runs on past both of the blob's sides
+        (half its width either side: the background); dark relative to ``v_ref``."""
+        cfg = self.config
+        H, W = bgr.shape[:2]
+        # the strip's columns: the middle half of the blob's (a cone's tip is narrow), with
+        # flanks of half the blob's width either side
+        q = max(1, bw // 4)
+        c0, c1 = max(0, bx + q), min(W, bx + bw - q)
+        f0, f1 = max(0, bx - bw // 2), min(W, bx + bw + bw // 2)
+        gap = max(2, int(round(0.15 * bh)))
+        reach = bh + 2 * gap + 2             # a band as high as the blob, blend either side
+        r0, r1 = max(0, by - reach), min(H, by + bh + reach)
+        if c1 <= c0 or r1 <= r0:
+            return False
+        wide = bgr[r0:r1, f0:f1]
+        if self._gains is not None:
+            wide = apply_gains(wide, self._gains)
+        # one conversion of the flanked window; the strip is a view of it
+        whsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
+        wluma = cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY)
+        hsv = whsv[:, c0 - f0:c1 - f0]
+        i = self._idx['orange']
+        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
+        v = hsv[..., 2]
+        # the orange beyond a band (a cone's tip) at the blob's own threshold
+        orange = (like >= t - 1e-6) & (v >= self.model.v_min[i])
+        # white sheeting reflects every channel: brighter (luma) than the orange face under
+        # the same light, where a legend or a grey patch lifted by rain or fog is not
+        luma = wluma[:, c0 - f0:c1 - f0]
+        face = orange[by - r0:by + bh - r0]
+        if not face.any():
+            return False
+        y_ref = float(_median(luma[by - r0:by + bh - r0][face]))
+        white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
+        # a band is the object's own: bounded by its silhouette; white that runs on past
+        # the blob's sides on both flanks is the background (an overcast sky, snow, a
+        # wall), e.g. above a sign's top corner, below its portable stand's flags
+        wwhite = (whsv[..., 1] <= cfg.white_s_max) & (wluma >= cfg.band_white_luma * y_ref)
+        lf, rf = wwhite[:, :max(0, bx - f0)], wwhite[:, min(f1, bx + bw) - f0:]
+        open_rows = open_background_rows(lf, rf, max(1, bw // 4))
+        if open_rows is not None:
+            white = white & ~open_rows[:, None]
+        dark = v < cfg.dark_rel * v_ref
+        # MUTCD bands: a cone's narrower band (4 in.) is about a quarter of the orange part
+        # below it with the base (less the blend of its two edges when small), a drum's
+        # stripes are as high as its orange ones; a sign's white outline or margin is a few
+        # per cent of its size
+        run = max(2, int(round(cfg.band_min_rows * bh)))
+        # the orange beyond: a cone's tip is thin and blurred, half a band's rows will do
+        beyond = max(3, int(round(0.1 * bh)))
+        if banded_rows(orange, white, dark, by - r0, by + bh - r0, run, gap, bh + gap, beyond):
+            return True
+        # a cone whose tip is white or lost: a white band right over a blob that is taller
+        # than wide and widens downward (a diamond is symmetric; a diamond's top half alone
+        # is twice as wide as high)
+        return (bh >= bw and row_taper(pix) <= cfg.cone_taper
+                and white_cap(white, by - r0, run, gap))
+
+    def _clear_diamond(self, pix: np.ndarray, row_fit: Optional[tuple] = None) -> bool:
+        """Whether a blob is a clear diamond face, what may stand below the usual mounting
+        height (a portable stand's sign): about square, diamond-filled, its rows and
+        columns each a two-sided tent (:func:`fit_diamond`; its corners about the blob's
+        middle: a triangle's rows follow a one-sided tent, its apex at the base), and solid
+        (``low_min_solidity``) or following the tents on ``low_min_inliers`` of its rows and
+        columns (a large black symbol, a lane-shift arrow, cuts the orange face but not its
+        outline).  A blob whose rows beyond the fitted diamond's corners (a stand's flags)
+        spoil this is judged without them.  ``row_fit``: :func:`fit_diamond` of ``pix``
+        when already known."""
+        cfg = self.config
+        for k in range(2):
+            if k == 1:
+                if cfg.diamond_trim < 0:
+                    return False
+                pix, _ = self._trim_to_diamond(pix, cfg.diamond_trim, row_fit)
+                if pix is None:
+                    return False
+                row_fit = None
+            pts = cv2.findNonZero(pix)
+            if pts is None or len(pts) < 5:
+                return False
+            hull = cv2.convexHull(pts)
+            hull_area = max(float(cv2.contourArea(hull)), 1.0)
+            # the hull's box is the pixels' box
+            x, y, w, h = cv2.boundingRect(hull)
+            solidity, fill = len(pts) / hull_area, hull_area / (w * h)
+            if fill >= cfg.diamond_hull_fill or max(w / h, h / w) > cfg.low_max_aspect:
+                continue
+            fr = row_fit if row_fit is not None else fit_diamond(pix)
+            fc = fit_diamond(np.ascontiguousarray(pix.T))
+            if fr is None or fc is None:
+                continue
+            centred = (abs(fr[1] - (y + 0.5 * h)) <= 0.15 * h
+                       and abs(fc[1] - (x + 0.5 * w)) <= 0.15 * w)
+            if centred and (solidity >= cfg.low_min_solidity
+                            or min(fr[4], fc[4]) >= cfg.low_min_inliers):
+                return True
+        return False
+
+    @staticmethod
+    def _trim_to_diamond(pix: np.ndarray, tol: float, row_fit: Optional[tuple] = None
+                         ) -> tuple[Optional[np.ndarray], Optional[tuple]]:
+        """(``pix`` without the rows beyond the fitted diamond's corners, or None when none
+        are; :func:`fit_diamond`'s row fit of ``pix``).
+
+        Rows further than ``0.5 + tol x b`` px above the top corner or below the bottom
+        corner of :func:`fit_diamond`'s diamond are dropped (the margin keeps a corner that
+        the fit's noisy slope put a little short).  ``row_fit``: :func:`fit_diamond` of
+        ``pix`` when already known.
+        """
+        fd = row_fit if row_fit is not None else fit_diamond(pix)
+        if fd is None:
+            return None, fd
+        _, cy, _, b, inl = fd
+        if inl < 0.5:
+            return None, fd
+        margin = 0.5 + tol * b
+        lo, hi = int(math.floor(cy - b - margin)), int(math.ceil(cy + b + margin))
+        rows = np.nonzero(pix.any(axis=1))[0]
+        if rows.size == 0 or (rows[0] >= lo and rows[-1] < hi):
+            return None, fd
+        out = pix.copy()
+        out[:max(lo, 0)] = 0
+        out[max(hi, 0):] = 0
+        if np.count_nonzero(out) < 0.5 * np.count_nonzero(pix):
+            return None, fd
+        return out, fd
+
+    @staticmethod
+    def _neck_trim(pix: np.ndarray) -> Optional[np.ndarray]:
+        """``pix`` without its rows above a neck, or None when it has none.
+
+        A portable stand's orange flags merged with the diamond below them by blur: the
+        rows' extents narrow from the flags' width to the diamond's top corner and widen
+        again.  A neck: a row in the upper half of the blob at most half as wide as the
+        widest row below it, with a row above it at least 1.5 x as wide (the flags) that
+        tapers into it (the widest row at least two rows up, the row just above at most
+        0.8 x as wide: not a diamond's widening upper half over a row that a legend line
+        cut short), and the part from it down about as tall as wide (0.7-1.4) and ending in
+        a corner (its last row at most 0.6 x its widest: a diamond).
+        """
+        rows, left, right = row_extents(pix)
+        n = rows.size
+        if n < 12 or rows[-1] - rows[0] + 1 != n:
+            return None
+        ext = right - left
+        # per candidate row k (2 .. n / 2): the widest row above it (the first such) and
+        # the widest below it, from running maxima (this runs on every blob not wide)
+        idx = np.arange(n)
+        top_max = np.maximum.accumulate(ext)
+        first = np.maximum.accumulate(np.where(ext > np.r_[-np.inf, top_max[:-1]], idx, 0))
+        low_max = np.maximum.accumulate(ext[::-1])[::-1]
+        k = np.arange(2, n // 2 + 1)
+        above, j, width = top_max[k - 1], first[k - 1], low_max[k + 1]
+        ok = (ext[k] <= 0.5 * width) & (above >= 1.5 * ext[k])
+        # the flags taper into the neck; a row cut short by a legend line under a
+        # diamond's widening upper half does not
+        ok &= (k - j >= 2) & (ext[k - 1] <= 0.8 * above)
+        ratio = (n - k) / width
+        ok &= (ratio >= 0.7) & (ratio <= 1.4) & (ext[-1] <= 0.6 * width)
+        if not ok.any():
+            return None
+        cand = k[ok]
+        # the narrowest neck, the lowest of equals
+        best = int(cand[np.flatnonzero(ext[cand] == ext[cand].min())[-1]])
+        out = pix.copy()
+        out[:int(rows[best] - 0.5)] = 0
+        return out

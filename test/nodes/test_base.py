@@ -249,3 +249,21 @@ def test_run_node_exit_codes():
 
     assert run_node(Interrupted, args=['interrupted']) == 0
     assert not rclpy.ok()
+
+
+def test_frames_a_busy_node_never_saw_are_counted(ros):
+    """A sensor subscription keeps the newest frames: the ones that never arrived show as
+    gaps in the stamps and are reported apart from invalid input."""
+    node = ros.add(ProbeNode(context=ros.context, **FAST))
+    peer = ros.node('peer')
+    pub = peer.create_publisher(Image, 'probe/image', 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
+    sent = [k for k in range(30) if k % 5 != 4]          # every 5th frame never arrives
+    for k in sent:
+        msg = numpy_to_image(np.zeros((4, 6, 3), 'uint8'))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 100 + k // 10, (k % 10) * 100_000_000
+        pub.publish(msg)
+        ros.spin_until(lambda n=len(node.shapes): len(node.shapes) > n, timeout=2.0)
+    values = _values(node.diagnostic_status())
+    assert values['/probe/image skipped while busy'] == '5'
+    assert values['/probe/image dropped'] == '0'

@@ -67,6 +67,11 @@ class ColorDetectorNode(WorkzoneNode):
         Param('proposals', True, 'also publish the recall-first colour candidates '
               '(core.proposals, Detection.proposal true) that the rules reject, for the '
               'classifier to decide'),
+        Param('rules', 'auto', "the rule-based detector (shape tests and refinements tuned on "
+              "the colour model's own camera): on, off, or auto = only on frames of the "
+              "model's camera (its size and intrinsics); on any other camera the proposals "
+              "and the classifier decide, and the rules' refinement loops cannot stall a "
+              'frame', choices=('auto', 'on', 'off')),
         Param('proposals_model', '', 'colour model with a candidate ranker for the proposals '
               '(empty: config/models/color_proposals.npz)', read_only=True),
         Param('max_candidates', 12, 'proposals per frame at most, best ranked first', min=1,
@@ -213,6 +218,13 @@ class ColorDetectorNode(WorkzoneNode):
         det.set_camera(self._intrinsics)
         return det
 
+    def _rules_apply(self, bgr) -> bool:
+        mode = self.params.rules
+        if mode == 'auto':
+            return self._proposer is None or self._detector.same_camera(bgr.shape[1],
+                                                                        bgr.shape[0])
+        return mode == 'on'
+
     def _make_proposer(self) -> Optional[SignProposer]:
         p = self.params
         if not p.proposals:
@@ -304,11 +316,14 @@ class ColorDetectorNode(WorkzoneNode):
     def _process(self, bgr, header) -> None:
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
-        dets = self._detector.detect(bgr, rois or ())
+        dets, channelizers = [], None      # None: not counted on this frame
+        if self._rules_apply(bgr):
+            dets = self._detector.detect(bgr, rois or ())
+            channelizers = len(self._detector.channelizers)
         if self._proposer is not None:
             dets = dets + proposals_as_detections(self._proposer.propose(bgr), dets)
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
-            header=head, detections=dets, channelizers=len(self._detector.channelizers))))
+            header=head, detections=dets, channelizers=channelizers)))
         self._frames += 1
 
 

@@ -71,13 +71,15 @@ def _draw(img, label, dets, items, signs, text: str):
 
 def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
-                  tile_every: int = 15) -> dict:
+                  tile_every: int = 15, rules: str = 'auto') -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
     added to the detections, as the ``color_detector`` node does with ``proposals`` on;
     ``track`` false classifies the detections themselves (the graph without the tracker).
     ``tiles``: every ``tile_every``-th labelled sign frame is drawn into it (contact sheet).
+    ``rules``: the rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
+    (with proposals, only on frames of the colour model's own camera).
 
     ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
     the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
@@ -101,7 +103,9 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         ok, img = cap.read()
         if not ok:
             break
-        dets = [d for d in det(img, None) if d.color == 'orange']
+        use = rules == 'on' or (rules == 'auto' and (
+            proposer is None or det.det.same_camera(img.shape[1], img.shape[0])))
+        dets = [d for d in det(img, None) if d.color == 'orange'] if use else []
         if proposer is not None:
             dets += proposals_as_detections(proposer.propose(img), dets)
         cands += len(dets)
@@ -160,6 +164,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--sheet', metavar='PNG', help='contact sheet of the labelled sign frames '
                    '(label white, proposals grey, detections green, tracks blue, work-zone '
                    'signs orange with their class, rejected red)')
+    p.add_argument('--rules', choices=('auto', 'on', 'off'), default='auto',
+                   help="the rule-based detector, as color_detector's rules parameter")
     p.add_argument('--no-tracker', action='store_true',
                    help='classify the detections themselves (the graph without the tracker)')
     p.add_argument('--json', metavar='OUT')
@@ -186,7 +192,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             return 2
     out = {'model': args.model, 'trained_on': model.metadata.get('sources'),
            'proposals': None if proposer is None else args.proposals or 'default',
-           'tracker': not args.no_tracker, 'clips': {}}
+           'tracker': not args.no_tracker, 'rules': args.rules, 'clips': {}}
     tiles: list = []
     for name in args.clips:
         path = folder / f'{name}.mp4'
@@ -194,7 +200,8 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f'{name}: {path} not found, skipped', file=sys.stderr)
             continue
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
-                          not args.no_tracker, tiles if args.sheet else None)
+                          not args.no_tracker, tiles if args.sheet else None,
+                          rules=args.rules)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "

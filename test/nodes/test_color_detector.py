@@ -235,3 +235,22 @@ def test_camera_info_decides_whether_the_model_prior_applies(ros, tmp_path):
     assert ros.spin_until(lambda: any(s.dropped for s in node.topic_stats().values()),
                           each=lambda: pub.publish(bad))
     assert node._intrinsics[0] == 320.0
+
+
+def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_path):
+    """With proposals on, a frame of another camera than the colour model's gets the recall-
+    first candidates (flagged ``proposal``) and no rule-checked detections; the payload's
+    channelizer count is then unknown (None), not a stale number."""
+    _node(ros, model_path, image_topic='p/image', detections_topic='p/dets', proposals=True)
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    pub = peer.create_publisher(Image, 'p/image', QoSProfile(
+        depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    got = []
+    peer.create_subscription(String, 'p/dets', got.append, 10)
+    img = cv2.resize(_frame(), (722, 406))               # a phone clip's frame size
+    msg = numpy_to_image(img, 'bgr8', make_header(stamp=interfaces.Time(sec=3, nanosec=0)))
+    assert ros.spin_until(lambda: got, each=lambda: pub.publish(msg))
+    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    assert d.detections and all(x.proposal for x in d.detections)
+    assert max(x.box.iou(Box(429, 93, 90, 68)) for x in d.detections) > 0.5
+    assert d.channelizers is None

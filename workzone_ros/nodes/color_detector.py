@@ -64,9 +64,10 @@ class ColorDetectorNode(WorkzoneNode):
               read_only=True),
         Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
               'the seed 004 HSV ranges if that file does not exist)', read_only=True),
-        Param('proposals', True, 'also publish the recall-first colour candidates '
-              '(core.proposals, Detection.proposal true) that the rules reject, for the '
-              'classifier to decide'),
+        Param('proposals', False, 'also publish the recall-first colour candidates '
+              '(core.proposals, Detection.proposal true) for the classifier to decide; off '
+              'by default: with the shipped classifier they add more false work-zone signs on '
+              'real clips than they find signs (docs/real_cameras.md)'),
         Param('rules', 'auto', "the rule-based detector (shape tests and refinements tuned on "
               "the colour model's own camera): on, off, or auto = only on frames of the "
               "model's camera (its size and intrinsics); on any other camera the proposals "
@@ -309,7 +310,7 @@ class ColorDetectorNode(WorkzoneNode):
             bgr = (conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
                    else conv.image_to_numpy(msg, 'bgr8'))
         except conv.ConversionError as exc:
-            self.drop(self.resolve_topic_name(self.params.image_topic), str(exc))
+            self.drop(self._image_sub.topic_name, str(exc))
             return
         self._process(bgr, header)
 

@@ -58,6 +58,15 @@ setup(
             # LZF decompression for binary_compressed PCD files (the real PJLab LiDAR scenes
             # in the tests); workzone_ros.core.pcd says how to install it when missing.
             'python-lzf>=0.2.6',
+            # generated malformed messages for every subscription (test/faults and
+            # `workzone-ros evaluate faults`; docs/faults.md)
+            'hypothesis>=6.100',
+        ],
+        # `workzone-ros train cnn` only: the CNN sign classifier's trainer and its ONNX
+        # export (the model runs on OpenCV's dnn module; the nodes never import these)
+        'cnn': [
+            'torch>=2.2',
+            'onnx>=1.15',
         ],
     },
     zip_safe=True,

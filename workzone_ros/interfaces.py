@@ -38,9 +38,10 @@ Count = Annotated[int, msgspec.Meta(ge=0)]
 
 
 class Time(msgspec.Struct, frozen=True, **_STRUCT):
-    """builtin_interfaces/Time."""
+    """builtin_interfaces/Time (``sec`` is an int32 there: a payload stamp outside it is no
+    ROS time and is rejected)."""
 
-    sec: int
+    sec: Annotated[int, msgspec.Meta(ge=-2 ** 31, le=2 ** 31 - 1)]
     nanosec: Annotated[int, msgspec.Meta(ge=0, lt=1_000_000_000)] = 0
 
     @classmethod

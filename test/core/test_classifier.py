@@ -197,5 +197,5 @@ def test_training_refuses_classes_without_crops():
 
 
 def test_default_model_path_is_under_config_models():
-    assert cl.DEFAULT_MODEL.startswith('models/sign_classifier.')
+    assert cl.DEFAULT_MODEL.startswith('models/sign_classifier')
     assert ft.FEATURE_KINDS[0] == 'logpolar'

@@ -27,7 +27,12 @@ def test_learned_scale_is_said_once_and_revised_when_values_disagree():
     assert s.pop_messages() == []
     for _ in range(3):
         s.update(np.array([0.5], np.float32))
-    assert s.update(np.array([3.0, 200.0], np.float32)) == 1.0   # a 0-255 sensor after all
+    # a 0-255 sensor after all: revised when three scans in a row say so, not on one
+    assert s.update(np.array([3.0, 200.0], np.float32)) == pytest.approx(255.0)
+    assert s.update(np.array([0.5], np.float32)) == pytest.approx(255.0)
+    for _ in range(2):
+        assert s.update(np.array([3.0, 200.0], np.float32)) == pytest.approx(255.0)
+    assert s.update(np.array([3.0, 200.0], np.float32)) == 1.0
     assert 'revised to 0-255' in s.pop_messages()[0]
 
 

@@ -142,6 +142,9 @@ def test_compressed_png_lossless_and_jpeg_close():
 def test_compressed_rejects_garbage():
     msg = CompressedImage(format='jpeg')
     msg.data = array.array('B', b'not a jpeg at all')
+    with pytest.raises(ConversionError, match='neither JPEG nor PNG'):
+        compressed_to_numpy(msg)
+    msg.data = array.array('B', bytes(numpy_to_compressed(_img()).data)[:300])
     with pytest.raises(ConversionError, match='could not be decoded'):
         compressed_to_numpy(msg)
     with pytest.raises(ConversionError, match='no data'):

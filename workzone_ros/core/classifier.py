@@ -42,7 +42,7 @@ __all__ = [
 SCHEMA = 'workzone_ros/SignClassifier'
 VERSION = 1
 #: The shipped model, relative to ``config/`` (resolve with ``resources.config_path``).
-DEFAULT_MODEL = 'models/sign_classifier.npz'
+DEFAULT_MODEL = 'models/sign_classifier_cnn.npz'
 METHODS = ('svm', 'lda', 'knn')
 #: Multiples of 1 / (n_features * var(X)) (scikit-learn's ``gamma='scale'``) searched by CV.
 GAMMA_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -450,6 +450,10 @@ def _one_line(exc: BaseException) -> str:
 def load_model(path: str | os.PathLike) -> SignClassifier:
     """Read a model written by :func:`save_model`, without executing anything from it.
 
+    A CNN model file (``workzone_ros.core.cnn_classifier``, schema
+    ``workzone_ros/SignClassifierCNN``) gives a ``CnnSignClassifier`` instead: the same
+    interface, so a model path can name either kind.
+
     Raises:
         ModelError: the file is missing, truncated or corrupt, not a sign classifier, of
             another schema version, or its arrays / metadata do not match its hash.
@@ -474,6 +478,9 @@ def load_model(path: str | os.PathLike) -> SignClassifier:
             json.JSONDecodeError) as exc:
         raise ModelError(f'cannot read sign classifier {path!r} (truncated or corrupt?): '
                          f'{_one_line(exc)}') from None
+    if isinstance(md, dict) and md.get('schema') == SCHEMA + 'CNN':   # cnn_classifier.SCHEMA
+        from workzone_ros.core import cnn_classifier  # the CNN run by cv2.dnn
+        return cnn_classifier.from_contents(path, arrays, md)
     if not isinstance(md, dict) or md.get('schema') != SCHEMA:
         raise ModelError(f'{path!r} is not a workzone_ros sign classifier (schema '
                          f'{md.get("schema") if isinstance(md, dict) else None!r})')

@@ -393,7 +393,11 @@ def _column(points: np.ndarray, name: str) -> np.ndarray:
         what = 'an intensity' if name == 'intensity' else f'a {name}'
         raise LidarClusterError(f'point cloud has no {name!r} field (fields: {have}); '
                                 f'sign candidates need {what} field')
-    return points[name]
+    column = points[name]
+    if column.ndim != 1:
+        raise LidarClusterError(f'point cloud field {name!r} has {column.shape[1]} values per '
+                                f'point; it must have one')
+    return column
 
 
 def scan_geometry(points: np.ndarray, params: ClusterParams,

@@ -11,7 +11,7 @@ raw values are multiplied by a scale:
   (:func:`infer_encoding`): integers of 8 bits are 0-255; floats up to 1 are reflectance
   0-1 (x 255); values up to 255 are 0-255 (x 1); anything larger is 0-65535 (x 255/65535).
   :class:`IntensityScale` holds the choice and says which it made, and revises it (with a
-  message) if a later scan holds values its encoding cannot have.
+  message) if later scans hold values its encoding cannot have, 3 scans in a row.
 
 :class:`SilenceWatch` reports when no point reached the threshold for ``n`` scans in a row
 while the clouds were not empty: the observed raw range, the scale in use and what to set.
@@ -44,6 +44,8 @@ ENCODINGS = {
     '16bit': Encoding('0-65535', 65535.0, 255.0 / 65535.0),
 }
 _ORDER = ('unit', '8bit', '16bit')
+_MAX_RAW = ENCODINGS['16bit'].full_scale + 0.5      # the largest raw value of any encoding
+REVISE_SCANS = 3            # scans in a row beyond the learned encoding that revise it
 
 
 def infer_encoding(dtype: np.dtype, max_value: float) -> str:
@@ -112,6 +114,7 @@ class IntensityScale:
         self.scans = 0
         self.max_seen = -np.inf
         self.encoding: Optional[str] = None
+        self._beyond = 0                # learned: scans in a row beyond the encoding
         self._messages: list[str] = []
         if self.fixed > 0:
             self._messages.append(f'intensity: scale x{self.fixed:g} (intensity_scale, as '
@@ -135,10 +138,25 @@ class IntensityScale:
             return self.fixed
         v = np.asarray(values)
         # Once learned, a strided look is enough to notice values the encoding cannot have.
-        top = finite_max(v if self.scans < self.learn_scans else v[::8])
+        sample = v if self.scans < self.learn_scans else v[::8]
+        top = finite_max(sample)
+        if top > _MAX_RAW:
+            # no encoding holds it (a FLT_MAX fill, a broken driver): one such scan must not
+            # turn the scale down for good, so only the plausible values teach anything
+            sample = np.asarray(sample, dtype=np.float64)
+            top = finite_max(sample[sample <= _MAX_RAW])
+        self.scans += 1
+        if self.encoding is not None and self.scans > self.learn_scans:
+            # Learned: values the encoding cannot hold revise it only when they come back
+            # REVISE_SCANS scans in a row (a real mismatch does; one garbage scan, say
+            # byte-swapped floats, must not turn the scale down for good).
+            beyond = np.isfinite(top) and _ORDER.index(
+                infer_encoding(v.dtype, top)) > _ORDER.index(self.encoding)
+            self._beyond = self._beyond + 1 if beyond else 0
+            if self._beyond < REVISE_SCANS:
+                return self.scale
         if np.isfinite(top):
             self.max_seen = max(self.max_seen, top)
-        self.scans += 1
         new = infer_encoding(v.dtype, self.max_seen)
         if self.encoding is None or (new != self.encoding and (
                 self.scans <= self.learn_scans or _ORDER.index(new) > _ORDER.index(

@@ -57,6 +57,8 @@ def fields_to_dtype(fields: Sequence[FieldSpec], point_step: int,
     Raises:
         PointCloudError: unknown datatype, duplicate names, or a field past ``point_step``.
     """
+    if not 0 <= point_step < 2 ** 31:           # numpy's itemsize is a C int
+        raise PointCloudError(f'point_step {point_step} is out of range (0 to 2^31 - 1)')
     order = '>' if is_bigendian else '<'
     names, formats, offsets = [], [], []
     for f in fields:
@@ -66,11 +68,15 @@ def fields_to_dtype(fields: Sequence[FieldSpec], point_step: int,
             raise PointCloudError(f'field {f.name!r} appears twice')
         base = DATATYPES[f.datatype].newbyteorder(order)
         count = max(int(f.count), 1)
-        fmt = base if count == 1 else np.dtype((base, (count,)))
-        if f.offset < 0 or f.offset + fmt.itemsize > point_step:
+        size = base.itemsize * count
+        if f.offset < 0 or f.offset + size > point_step:
             raise PointCloudError(
-                f'field {f.name!r} (offset {f.offset}, {fmt.itemsize} bytes) does not fit in '
+                f'field {f.name!r} (offset {f.offset}, {size} bytes) does not fit in '
                 f'point_step {point_step}')
+        if count > 2 ** 20:
+            raise PointCloudError(f'field {f.name!r} has count {count}: at most 2^20 values '
+                                  f'per point')
+        fmt = base if count == 1 else np.dtype((base, (count,)))
         names.append(f.name)
         formats.append(fmt)
         offsets.append(int(f.offset))

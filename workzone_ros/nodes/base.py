@@ -229,6 +229,10 @@ class TopicStats:
     last_drop_reason: str = ''
     last_arrival: Optional[float] = None
     last_stamp: Any = None
+    #: header stamps equal to / older than the previous message's on this topic (a replayed
+    #: or reordered message; the node decides what to do with it, never dies on it)
+    stamps_repeated: int = 0
+    stamps_out_of_order: int = 0
     publishers_since: Optional[float] = None
     #: frames a latest-only sensor subscription never delivered (overwritten while busy)
     gaps: Optional[FrameGaps] = None
@@ -464,11 +468,23 @@ class WorkzoneNode(Node):
             with self._stats_lock:
                 stats.messages += 1
                 stats.last_arrival = arrival
-                stats.last_stamp = getattr(header, 'stamp', None)
-                if stats.gaps is not None and stats.last_stamp is not None:
-                    st = stats.last_stamp
-                    stats.gaps.add(int(st.sec) * 1_000_000_000 + int(st.nanosec))
+                stamp = getattr(header, 'stamp', None)
+                bad_stamp = None           # an invalid stamp: dropped below, not counted here
+                if stamp is not None and not 0 <= stamp.nanosec < 1_000_000_000:
+                    bad_stamp, stamp = stamp, None
+                previous = stats.last_stamp
+                if stamp is not None:
+                    stats.last_stamp = stamp
+                    ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+                    if previous is not None:
+                        before = int(previous.sec) * 1_000_000_000 + int(previous.nanosec)
+                        stats.stamps_repeated += ns == before
+                        stats.stamps_out_of_order += ns < before
+                    if stats.gaps is not None:
+                        stats.gaps.add(ns)
             try:
+                if bad_stamp is not None:
+                    raise InputError(f'stamp nanosec {bad_stamp.nanosec} is outside [0, 1e9)')
                 callback(msg)
             except InputError as exc:
                 self.drop(stats.topic, str(exc))
@@ -561,6 +577,7 @@ class WorkzoneNode(Node):
             with self._stats_lock:
                 dropped_now, stats.dropped_in_period = stats.dropped_in_period, 0
                 messages, dropped = stats.messages, stats.dropped
+                repeated, out_of_order = stats.stamps_repeated, stats.stamps_out_of_order
                 reason, arrival = stats.last_drop_reason, stats.last_arrival
                 times = np.fromiter(stats.times_s, dtype=float)
             age = None if arrival is None else now - arrival
@@ -576,6 +593,8 @@ class WorkzoneNode(Node):
                 (f'{topic} age of last input s', 'never' if age is None else f'{age:.3f}'),
                 (f'{topic} last stamp', '' if stamp is None
                  else f'{stamp.sec}.{stamp.nanosec:09d}'),
+                (f'{topic} stamps repeated', str(repeated)),
+                (f'{topic} stamps out of order', str(out_of_order)),
                 (f'{topic} publishers', str(publishers)),
                 (f'{topic} processing p50 ms',
                  f'{np.percentile(times, 50) * 1e3:.3f}' if times.size else ''),

@@ -139,10 +139,14 @@ class ClassifierNode(WorkzoneNode):
 
     def _on_image(self, msg: Any) -> None:
         ns = conv.stamp_to_time(msg.header.stamp).to_ns()
+        # converted on arrival: a malformed image is dropped with its reason now, not
+        # buffered until it silently falls out of the ring
+        image = ((conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
+                  else conv.image_to_numpy(msg, 'bgr8')), msg.header)
         if ns in self._pending:
-            self._process(msg, self._pending.pop(ns))
+            self._process(image, self._pending.pop(ns))
             return
-        self._images[ns] = msg
+        self._images[ns] = image
         while len(self._images) > self.params.image_buffer:
             self._images.popitem(last=False)
 
@@ -162,7 +166,8 @@ class ClassifierNode(WorkzoneNode):
 
     # --- the step -------------------------------------------------------------------------
 
-    def _process(self, image: Any, payload: Any) -> None:
+    def _process(self, image: tuple, payload: Any) -> None:
+        frame, header = image
         ns = payload.header.stamp.to_ns()
         if self._last_ns is not None and ns < self._last_ns:
             if self._last_ns - ns <= 2_000_000_000:
@@ -172,8 +177,6 @@ class ClassifierNode(WorkzoneNode):
         self._last_ns = ns
         for old in [k for k in self._images if k <= ns]:
             del self._images[old]
-        frame = (conv.compressed_to_numpy(image) if isinstance(image, CompressedImage)
-                 else conv.image_to_numpy(image, 'bgr8'))
         items = payload.tracks if isinstance(payload, I.Tracks) else payload.detections
         signs, rejected = self._classify(frame, items, self._rois.get(ns, ()))
         self._signs_pub.publish(conv.payload_to_string(I.Signs(header=payload.header,
@@ -181,7 +184,7 @@ class ClassifierNode(WorkzoneNode):
         if self.params.debug_image:
             overlay = draw_debug(frame, signs, rejected, self._state,
                                  show_banner=bool(self.params.state_topic))
-            self._debug_pub.publish(conv.numpy_to_image(overlay, 'bgr8', image.header))
+            self._debug_pub.publish(conv.numpy_to_image(overlay, 'bgr8', header))
 
     def _focal_px(self, width: int) -> float:
         return self._focal or focal_from_fov(width, self.params.assumed_hfov_deg)

@@ -36,7 +36,8 @@ from workzone_ros.core.pointcloud import (
 
 __all__ = [
     'InputError', 'ConversionError', 'ENCODINGS', 'image_to_numpy', 'numpy_to_image',
-    'compressed_to_numpy', 'numpy_to_compressed', 'pointcloud2_to_array',
+    'compressed_to_numpy', 'compressed_image_size', 'MAX_COMPRESSED_PIXELS',
+    'numpy_to_compressed', 'pointcloud2_to_array',
     'array_to_pointcloud2', 'CameraInfoData', 'DISTORTION_MODELS', 'camera_info_to_numpy',
     'numpy_to_camera_info', 'stamp_to_time', 'time_to_stamp', 'header_to_payload',
     'payload_to_header', 'make_header', 'payload_to_string', 'string_to_payload',
@@ -275,18 +276,76 @@ def numpy_to_image(arr: np.ndarray, encoding: str = 'bgr8', header: HeaderLike =
 
 # --- CompressedImage ----------------------------------------------------------------------
 
+#: Largest image a CompressedImage may declare, in pixels (a 12k x 5k panorama): a 600-byte
+#: JPEG can declare 30000 x 30000, which OpenCV allocates (2.7 GB, 12 s) before it finds that
+#: the data is missing.
+MAX_COMPRESSED_PIXELS = 64 * 2 ** 20
+
+_PNG = b'\x89PNG\r\n\x1a\n'
+# JPEG start-of-frame markers (C4 DHT, C8 JPG and CC DAC are not frames)
+_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+
+
+def _jpeg_size(b: memoryview) -> Optional[tuple[int, int]]:
+    """(width, height) from the first start-of-frame segment, or None."""
+    i, n = 2, len(b)
+    while i + 4 <= n:
+        if b[i] != 0xFF:
+            return None
+        marker = b[i + 1]
+        if marker == 0xFF:                                 # fill byte
+            i += 1
+        elif marker == 0x01 or 0xD0 <= marker <= 0xD7:     # no length
+            i += 2
+        elif marker in _SOF:
+            return ((b[i + 7] << 8) | b[i + 8], (b[i + 5] << 8) | b[i + 6]) \
+                if i + 9 <= n else None
+        elif marker == 0xDA:                               # a scan before any frame
+            return None
+        else:
+            i += 2 + ((b[i + 2] << 8) | b[i + 3])
+    return None
+
+
+def compressed_image_size(msg: CompressedImage) -> tuple[int, int]:
+    """(width, height) that a JPEG or PNG ``CompressedImage`` declares, without decoding it.
+
+    Raises:
+        ConversionError: empty data, neither JPEG nor PNG, or no size in the header.
+    """
+    buf = memoryview(_u8(msg.data))
+    if len(buf) == 0:
+        raise ConversionError(f'CompressedImage ({msg.format!r}) has no data')
+    size = None
+    if bytes(buf[:2]) == b'\xff\xd8':
+        size = _jpeg_size(buf)
+    elif bytes(buf[:8]) == _PNG:
+        size = (int.from_bytes(buf[16:20], 'big'), int.from_bytes(buf[20:24], 'big')) \
+            if len(buf) >= 24 and bytes(buf[12:16]) == b'IHDR' else None
+    else:
+        raise ConversionError(f'CompressedImage ({msg.format!r}, {len(buf)} bytes) is neither '
+                              f'JPEG nor PNG')
+    if size is None:
+        raise ConversionError(f'CompressedImage ({msg.format!r}, {len(buf)} bytes) has no '
+                              f'image size in its header')
+    return size
+
+
 def compressed_to_numpy(msg: CompressedImage) -> np.ndarray:
     """Decode a jpeg/png ``sensor_msgs/CompressedImage`` into a BGR (H, W, 3) uint8 array.
 
     Raises:
-        ConversionError: empty data, a compressedDepth image, or data OpenCV cannot decode.
+        ConversionError: empty data, a compressedDepth image, neither JPEG nor PNG, a header
+            declaring more than :data:`MAX_COMPRESSED_PIXELS`, or data OpenCV cannot decode.
     """
-    buf = _u8(msg.data)
-    if buf.size == 0:
-        raise ConversionError(f'CompressedImage ({msg.format!r}) has no data')
     if 'compresseddepth' in msg.format.lower().replace(' ', ''):
         raise ConversionError(f'CompressedImage format {msg.format!r} is not supported '
                               f'(jpeg or png only)')
+    width, height = compressed_image_size(msg)
+    if width * height > MAX_COMPRESSED_PIXELS:
+        raise ConversionError(f'CompressedImage declares a {width}x{height} image, more than '
+                              f'{MAX_COMPRESSED_PIXELS} pixels: not decoded')
+    buf = _u8(msg.data)
     img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     if img is None:
         raise ConversionError(f'CompressedImage ({msg.format!r}, {buf.size} bytes) could not '
@@ -365,6 +424,11 @@ def pointcloud2_to_array(msg: PointCloud2, require_xyz: bool = True) -> np.ndarr
         if missing:
             raise ConversionError(f'PointCloud2 has no {"/".join(missing)} field '
                                   f'(fields: {", ".join(f.name for f in fields) or "none"})')
+        multi = [f'{f.name} (count {f.count})' for f in fields
+                 if f.name in ('x', 'y', 'z') and f.count > 1]
+        if multi:
+            raise ConversionError(f'PointCloud2 field {", ".join(multi)} must hold one value '
+                                  f'per point')
     n = int(msg.width) * int(msg.height)
     if n > 0 and msg.point_step <= 0:
         raise ConversionError(f'PointCloud2 has {n} points but point_step {msg.point_step}')

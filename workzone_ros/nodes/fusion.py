@@ -12,7 +12,8 @@ planner that joins late gets the current state at once) on every frame of signs,
 builds: a restarted fusion never publishes a false ``none``.  Inputs that go quiet (the signs
 chain, the camera, the LiDAR, odometry) are listed in ``stale_inputs``; the state then
 degrades visibly, it never goes silently to ``none``.  A stamp that jumps backwards (a
-looping bag) resets the fusion's memory (counted in ``/diagnostics``).
+looping bag) resets the fusion's memory (counted in ``/diagnostics``); a frame repeated or
+up to 2 s out of order is dropped with its reason instead.
 """
 from __future__ import annotations
 
@@ -39,6 +40,9 @@ from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode
 __all__ = ['FusionNode', 'NODE_CLASS', 'main']
 
 _SCALARS = (bool, int, float, str)
+#: signs older than the last fused frame by more than this are a time jump (a looping bag:
+#: the memory resets); by less, a repeated or reordered frame (dropped, counted)
+JUMP_BACK_NS = 2_000_000_000
 
 
 def _core_params() -> tuple[Param, ...]:
@@ -107,6 +111,7 @@ class FusionNode(WorkzoneNode):
         self._last_seen: dict[str, float] = {}      # input name -> monotonic arrival
         self._last_publish = 0.0
         self._last_stamp: Optional[I.Time] = None
+        self._signs_ns: Optional[int] = None
         self._latency_ms: collections.deque = collections.deque(maxlen=500)
         self._state_pub = self.reliable_publisher(String, p.state_topic, depth=1,
                                                   transient_local=True)
@@ -119,12 +124,12 @@ class FusionNode(WorkzoneNode):
         self._det_sub = (self.reliable_subscription(String, p.detections_topic,
                                                     self._on_detections)
                          if p.detections_topic else None)
-        self._info_sub = (self.sensor_subscription(CameraInfo, p.camera_info_topic,
-                                                   self._seen('camera'), depth=1)
-                          if p.camera_info_topic else None)
-        self._lidar_sub = (self.reliable_subscription(String, p.lidar_topic,
-                                                      self._seen('lidar'))
-                           if p.lidar_topic else None)
+        self._info_sub = (self.sensor_subscription(
+            CameraInfo, p.camera_info_topic, self._seen('camera', conv.camera_info_to_numpy),
+            depth=1) if p.camera_info_topic else None)
+        self._lidar_sub = (self.reliable_subscription(
+            String, p.lidar_topic, self._seen('lidar', lambda m: conv.string_to_payload(
+                m, I.Rois))) if p.lidar_topic else None)
         self._timer = self.create_timer(1.0 / p.publish_rate_hz, self._on_timer)
         self._resume_path = self._resume_file()
         self._saved_phase: Optional[str] = None
@@ -175,8 +180,11 @@ class FusionNode(WorkzoneNode):
 
     # --- inputs ---------------------------------------------------------------------------
 
-    def _seen(self, name: str):
-        def callback(_msg: Any) -> None:
+    def _seen(self, name: str, check):
+        """A liveness callback: a message that ``check`` accepts shows the input is alive (a
+        malformed one raises ConversionError: dropped with its reason, not a sign of life)."""
+        def callback(msg: Any) -> None:
+            check(msg)
             self._last_seen[name] = time.monotonic()
         return callback
 
@@ -203,8 +211,14 @@ class FusionNode(WorkzoneNode):
 
     def _on_signs(self, msg: String) -> None:
         signs = conv.string_to_payload(msg, I.Signs)
-        self._last_seen['signs'] = time.monotonic()
         ns = signs.header.stamp.to_ns()
+        last = self._signs_ns
+        if last is not None and last - JUMP_BACK_NS <= ns <= last:
+            # a repeated or reordered frame is not a looping bag: it must not wipe the memory
+            raise InputError(f'signs stamped {ns * 1e-9:.3f} are not after the last fused '
+                             f'frame ({last * 1e-9:.3f}): repeated or out of order')
+        self._signs_ns = ns
+        self._last_seen['signs'] = time.monotonic()
         resets = self._fusion.resets
         state = self._fusion.update(
             signs, odom_distance_m=self._odom.distance_m if self._odom_seen else None,
@@ -212,6 +226,7 @@ class FusionNode(WorkzoneNode):
         if self._fusion.resets != resets:
             self.get_logger().info('time jumped back: fusion memory reset')
             self._channelizers.clear()
+            self._last_stamp = None         # the state's stamps restart with the new time
         self._publish(state)
         lag = self.get_clock().now().nanoseconds - ns
         self._latency_ms.append(lag * 1e-6)

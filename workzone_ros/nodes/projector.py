@@ -55,6 +55,7 @@ from workzone_ros.core.sync import (
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
     camera_info_to_numpy,
+    compressed_image_size,
     compressed_to_numpy,
     header_to_payload,
     image_to_numpy,
@@ -209,6 +210,10 @@ class ProjectorNode(WorkzoneNode):
         missing = [f for f in ('x', 'y', 'z', 'radius') if f not in (arr.dtype.names or ())]
         if missing:
             raise InputError(f'candidates cloud has no {"/".join(missing)} field')
+        multi = [f for f in arr.dtype.names if arr.dtype[f].shape]
+        if multi:
+            raise InputError(f'candidates field {", ".join(multi)} must hold one value per '
+                             f'candidate')
         stamp = _ns(msg.header.stamp)
         cands = (msg.header, arr.copy())
         if self.params.sync_policy == 'latest':
@@ -230,6 +235,12 @@ class ProjectorNode(WorkzoneNode):
             self._project(image, c)
 
     def _on_image(self, msg: Any) -> None:
+        # checked on arrival (a view, or the JPEG/PNG header: nothing is decoded), so a
+        # malformed image is dropped with its reason instead of getting ROIs
+        if isinstance(msg, CompressedImage):
+            compressed_image_size(msg)
+        else:
+            image_to_numpy(msg)
         stamp = _ns(msg.header.stamp)
         self._image_stamps.append(stamp)
         if self.params.sync_policy == 'latest':
@@ -270,7 +281,7 @@ class ProjectorNode(WorkzoneNode):
         image is not dropped: ``hold`` (image, candidates) is kept to be projected when the
         CameraInfo comes (a replay's first image can arrive before it).
         """
-        topic = self.resolve_topic_name(self.params.image_topic)
+        topic = self._image_sub.topic_name
         if self._camera is None and self._extrinsics is not None:
             now = time.monotonic()
             if self._waiting_since is None:
@@ -295,13 +306,13 @@ class ProjectorNode(WorkzoneNode):
         return True
 
     def _project(self, image: Any, cands: tuple) -> None:
-        topic = self.resolve_topic_name(self.params.image_topic)
+        topic = self._image_sub.topic_name
         if not self._ready(hold=(image, cands)):
             return
-        if not isinstance(image, CompressedImage) and \
-                (int(image.width), int(image.height)) != (self._camera.width,
-                                                          self._camera.height):
-            self.drop(topic, f'image {image.width}x{image.height} does not match CameraInfo '
+        size = (compressed_image_size(image) if isinstance(image, CompressedImage)
+                else (int(image.width), int(image.height)))
+        if size != (self._camera.width, self._camera.height):
+            self.drop(topic, f'image {size[0]}x{size[1]} does not match CameraInfo '
                              f'{self._camera.width}x{self._camera.height}')
             return
         header, arr = cands

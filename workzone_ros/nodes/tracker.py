@@ -269,10 +269,14 @@ class TrackerNode(WorkzoneNode):
 
     def _on_image(self, msg: Any) -> None:
         ns = stamp_to_time(msg.header.stamp).to_ns()
+        # converted on arrival: a malformed image is dropped with its reason now, not
+        # buffered until it silently falls out of the ring
+        frame = (compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
+                 else image_to_numpy(msg, desired_encoding='bgr8'))
         if ns in self._pending:
-            self._process(msg, self._pending.pop(ns))
+            self._process(frame, self._pending.pop(ns))
             return
-        self._images[ns] = msg
+        self._images[ns] = frame
         while len(self._images) > self._max:
             self._images.popitem(last=False)
 
@@ -291,7 +295,7 @@ class TrackerNode(WorkzoneNode):
 
     # --- the step -------------------------------------------------------------------------
 
-    def _process(self, image: Any, dets: Detections) -> None:
+    def _process(self, frame: Any, dets: Detections) -> None:
         ns = dets.header.stamp.to_ns()
         if self._last_ns is not None and ns < self._last_ns:
             if self._last_ns - ns > 2_000_000_000:
@@ -299,8 +303,6 @@ class TrackerNode(WorkzoneNode):
                 self._tracker.reset()
             else:
                 raise InputError('detections older than the last processed frame')
-        frame = (compressed_to_numpy(image) if isinstance(image, CompressedImage)
-                 else image_to_numpy(image, desired_encoding='bgr8'))
         tracks = self._tracker.step(frame, dets.detections, stamp=ns * 1e-9)
         self._last_ns = ns
         for old in [k for k in self._images if k <= ns]:

@@ -1,4 +1,5 @@
-"""``workzone-ros evaluate <stage> ...``: accuracy reports against a bag's ground truth.
+"""``workzone-ros evaluate <stage> ...``: accuracy reports against a bag's ground truth, and
+the robustness campaign (``faults``).
 
 Each evaluation is a module ``workzone_ros.tools.eval_<stage>`` with ``main(argv) -> int``.
 """
@@ -18,6 +19,7 @@ EVALUATIONS: dict[str, str] = {
     'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
     'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
+    'faults': 'malformed messages on every subscription of every node: crashes, recovery',
 }
 
 

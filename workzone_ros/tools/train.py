@@ -13,6 +13,8 @@ __all__ = ['TRAINERS', 'main']
 TRAINERS: dict[str, str] = {
     'color': 'boosted hue/saturation color model (seed 000) from `synth pixels` or images+masks',
     'classifier': 'sign classifier: log-polar + PCA + RBF SVM (seed 000) from renders / folders',
+    'proposals': 'the candidate ranker of the recall-first colour proposals, into a colour model',
+    'cnn': 'sign classifier: small CNN for cv2.dnn (ONNX) from renders / folders; needs .[cnn]',
 }
 
 

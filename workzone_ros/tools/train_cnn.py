@@ -1,0 +1,850 @@
+"""``workzone-ros train cnn``: a small CNN sign classifier, exported to ONNX for ``cv2.dnn``.
+
+Needs PyTorch and onnx (``pip install -e .[cnn]``); the model it writes does not
+(``workzone_ros.core.cnn_classifier`` runs it with OpenCV).  One thread
+(``torch.set_num_threads(1)``), a time budget (``--max-minutes``, default 14).
+
+Sources are those of ``workzone-ros train classifier`` (the same render cache and the same
+folder loader): ``--synth N`` renders, ``--data DIR`` folders, ``--exclude-clip`` /
+``--real-clips`` to choose which real clips of ``DIR/index.csv`` train the model.
+
+Every training crop is re-cut and degraded on the fly like a phone camera's frame, so the
+network does not learn the renderer:
+
+* framing: the object's box (from the crop index) grown by the node's margin and squared,
+  as ``classify_boxes`` cuts it, then shifted by up to 12 % and scaled by 0.86-1.42 (a
+  detector's localisation error; the stored real crops' 25 % margin is inside that range),
+  a rotation of up to 12 deg and a horizontal squeeze (a sign seen at an angle); parts
+  outside the stored crop are clipped (as at the image border) or padded;
+* resolution: the cut resampled to 10-44 px (a sign 10-44 px in the frame; 8 % of them
+  70-130 px), JPEG quality 30-95 at that size, Gaussian or motion blur;
+* colour: white balance, exposure, gamma, contrast, saturation, haze, sensor noise;
+* partial occlusion from a border (a pole, a car, foliage: a flat or textured band);
+* left-right flips of background crops and of the pictogram mirror pairs (W1-4, W4-2:
+  the label swaps), never of a legend.
+
+Then a 4-block CNN (3x3 conv + BN + ReLU, 2x2 max-pool; widths w, 2w, 4w, 8w; global
+average; dropout; linear) on ``--input-size`` (32) px colour crops, AdamW, a cosine schedule,
+label smoothing, class-balanced sampling (real crops ``--real-share`` of each class).
+
+Measurement (every number from crops the model did not train on):
+
+* ``--holdout-split K``: train on the training part of split K of ``evaluate classifier``'s
+  Table III splits of the rendered crops (``StratifiedGroupKFold(3)`` by physical object,
+  ``--split-seed``) and report on its test part: macro P / R, mirror pairs, background
+  false-sign rate;
+* real clips left out with ``--exclude-clip`` are reported per clip (accuracy, per class,
+  background false-sign rate), the leave-one-clip-out protocol of ``test/data/real_crops``.
+
+Example (docs/classifier.md)::
+
+    workzone-ros train cnn --synth 20 --synth-seeds 0 1 2 3 4 5 --synth-random 4 \\
+        --data test/data/real_crops -o config/models/sign_classifier_cnn.npz
+"""
+from __future__ import annotations
+
+import argparse
+import collections
+import csv
+import datetime as _dt
+import io
+import json
+import math
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional, Sequence
+
+import cv2
+import numpy as np
+
+from workzone_ros.core import cnn_classifier as cnn
+from workzone_ros.tools import train_classifier as tc
+
+__all__ = ['Sample', 'load_samples', 'augment', 'build_net', 'train', 'export', 'main']
+
+DEFAULT_OUTPUT = Path(__file__).resolve().parents[2] / 'config' / cnn.DEFAULT_MODEL
+#: The margin and squaring of ``classify_boxes`` (the node's default margin).
+RUN_MARGIN = 0.1
+#: How ``test/data/real_crops/make_crops.py`` cut the real crops (share added per side).
+REAL_GROW = 0.25
+REAL_MAX_SIDE = 64
+#: Mirror pictograms: a flipped crop of one is a crop of the other.
+FLIP_SWAP = {'lane_shift_left': 'lane_shift_right', 'lane_shift_right': 'lane_shift_left',
+             'left_lane_ends': 'right_lane_ends', 'right_lane_ends': 'left_lane_ends'}
+OPSET = 17
+
+
+def _say(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+# --- data: crops with the object's box inside each ----------------------------------------
+
+@dataclass
+class Sample:
+    """Training crops, their labels, and where the object is in each crop.
+
+    ``boxes`` are ``(x, y, w, h)`` in the crop's pixels (``None``: the whole crop);
+    ``scales`` are the frame pixels one crop pixel covers (a render of a 13 px sign is
+    stored at 64 px: 0.2); ``data`` keeps the
+    :class:`~workzone_ros.tools.train_classifier.CropSet` (labels, groups, clips, sources)
+    in the same order.
+    """
+
+    data: tc.CropSet
+    boxes: list = field(default_factory=list)
+    scales: list = field(default_factory=list)
+
+    def subset(self, idx: Sequence[int]) -> 'Sample':
+        idx = list(idx)
+        return Sample(self.data.subset(idx), [self.boxes[i] for i in idx],
+                      [self.scales[i] for i in idx])
+
+    def extend(self, other: 'Sample') -> 'Sample':
+        self.data.extend(other.data)
+        self.boxes.extend(other.boxes)
+        self.scales.extend(other.scales)
+        return self
+
+
+def render_boxes(specs: Sequence, per_class: int, size: int, cache: Path
+                 ) -> tuple[list, list]:
+    """The object's box inside every crop :func:`train_classifier.render_crops` returns,
+    in the same order (from the render index: the box, and the jittered crop box that was
+    cut, then cut to its visible part), and the crops' scales (frame px per crop px)."""
+    from workzone_ros.sim.world import DEFAULT_CAMERA
+    W, H = DEFAULT_CAMERA.width, DEFAULT_CAMERA.height
+    out, scales = [], []
+    for spec, seed in specs:
+        folder = tc._render_one(spec, seed, per_class, size, Path(cache))
+        with open(folder / 'index.csv', newline='') as fh:
+            for r in csv.DictReader(fh):
+                x, y, w, h = (float(r[k]) for k in ('crop_x', 'crop_y', 'crop_w', 'crop_h'))
+                x0, y0, x1, y1 = max(x, 0.0), max(y, 0.0), min(x + w, W), min(y + h, H)
+                if x1 <= x0 or y1 <= y0 or (x1 - x0) * (y1 - y0) < 0.5 * w * h:
+                    continue                          # _visible_part drops it
+                sx, sy = size / w, size / h
+                c0, r0 = int(round((x0 - x) * sx)), int(round((y0 - y) * sy))
+                if (x0, y0, x1, y1) != (x, y, x + w, y + h):
+                    c1, r1 = int(round((x1 - x) * sx)), int(round((y1 - y) * sy))
+                    if c1 - c0 < 4 or r1 - r0 < 4:
+                        continue
+                bx, by, bw, bh = (float(r[k]) for k in ('box_x', 'box_y', 'box_w', 'box_h'))
+                out.append(((bx - x) * sx - c0, (by - y) * sy - r0, bw * sx, bh * sy))
+                scales.append(w / size)
+    return out, scales
+
+
+def folder_boxes(root: Path, exclude: Sequence[str], only: Optional[Sequence[str]],
+                 shapes: Sequence[tuple]) -> tuple[list, list]:
+    """The object's box inside every crop :func:`train_classifier.load_folder` returns.
+
+    From ``root/index.csv`` columns ``x, y, w, h`` (the box in the frame) for crops cut as
+    ``test/data/real_crops/make_crops.py`` does (the box grown by 25 %, clipped, shrunk);
+    ``None`` for crops without an index row.  Also the crops' scales (frame px per crop
+    px: 1 unless the crop was shrunk to 64 px).
+    """
+    rows = {}
+    index = root / 'index.csv'
+    if index.is_file():
+        with open(index, newline='') as fh:
+            reader = csv.DictReader(fh)
+            if {'path', 'x', 'y', 'w', 'h'} <= set(reader.fieldnames or ()):
+                rows = {Path(r['path']).as_posix(): r for r in reader}
+    clips = tc._clip_index(root)
+    out = []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir()):
+        for img in sorted(folder.iterdir()):
+            if img.suffix.lower() not in tc.IMAGE_EXT:
+                continue
+            rel = img.relative_to(root).as_posix()
+            clip = clips.get(rel, ('', 0.0))[0]
+            if clip in exclude or (only is not None and clip not in only):
+                continue
+            r = rows.get(rel)
+            if r is None:
+                out.append(None)
+                continue
+            x, y, w, h = (float(r[k]) for k in ('x', 'y', 'w', 'h'))
+            x0, y0 = round(max(0.0, x - REAL_GROW * w)), round(max(0.0, y - REAL_GROW * h))
+            out.append([x - x0, y - y0, w, h])             # native pixels; scaled below
+    if len(out) != len(shapes):
+        raise tc.DataError(f'{root}: {len(out)} index boxes for {len(shapes)} crops')
+    scales = [1.0] * len(out)
+    for k, (b, shape) in enumerate(zip(out, shapes)):
+        if b is None:
+            continue
+        x, y, w, h = b
+        s = 1.0                                # stored at native size unless shrunk to 64
+        if max(shape[:2]) >= REAL_MAX_SIDE:
+            # the native crop reaches REAL_GROW past the box on the right / bottom unless
+            # the frame edge cut it (smaller), so the larger of the two ratios is the shrink
+            s = min(1.0, max(shape[1] / (x + w * (1 + REAL_GROW)),
+                             shape[0] / (y + h * (1 + REAL_GROW))))
+        out[k] = (x * s, y * s, w * s, h * s)
+        scales[k] = 1.0 / s
+    return out, scales
+
+
+def load_samples(args: argparse.Namespace, progress=_say) -> tuple[Sample, Sample]:
+    """``(renders, real)``: every crop the source options select, with boxes."""
+    real = Sample(tc.CropSet())
+    for d in args.data:
+        root = Path(d)
+        part = tc.load_folder(root, exclude_clips=args.exclude_clip, only_clips=args.real_clips)
+        real.extend(Sample(part, *folder_boxes(root, args.exclude_clip, args.real_clips,
+                                               [c.shape for c in part.crops])))
+    renders = Sample(tc.CropSet())
+    if args.synth > 0:
+        specs = tc.synth_specs(args.synth_seeds, args.synth_random, not args.no_library)
+        data = tc.render_crops(specs, args.synth, args.size, Path(args.cache), progress)
+        boxes, scales = render_boxes(specs, args.synth, args.size, Path(args.cache))
+        if len(boxes) != len(data):
+            raise tc.DataError(f'render index gives {len(boxes)} boxes for {len(data)} crops')
+        renders = Sample(data, boxes, scales)
+    if not len(renders.data) + len(real.data):
+        raise tc.DataError('no training crops: give --synth N and/or --data DIR')
+    return renders, real
+
+
+# --- augmentation --------------------------------------------------------------------------
+
+def _window(crop: np.ndarray, box, rng: np.random.Generator) -> np.ndarray:
+    """A detector-like, run-time-like square cut around the object (see module doc)."""
+    H, W = crop.shape[:2]
+    if box is None:
+        box = (0.1 * W / 1.2, 0.1 * H / 1.2, W / 1.2, H / 1.2)
+    x, y, w, h = box
+    side = max(w, h, 2.0) * (1 + 2 * RUN_MARGIN) * math.exp(rng.uniform(-0.15, 0.35))
+    cx = x + w / 2 + rng.uniform(-0.12, 0.12) * side
+    cy = y + h / 2 + rng.uniform(-0.12, 0.12) * side
+    x0, y0 = int(round(cx - side / 2)), int(round(cy - side / 2))
+    n = max(2, int(round(side)))
+    x1, y1 = x0 + n, y0 + n
+    if rng.random() < 0.5:                   # clip to what exists (an image border)
+        cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+        if (cx1 - cx0) * (cy1 - cy0) >= 0.55 * n * n and cx1 - cx0 >= 3 and cy1 - cy0 >= 3:
+            return crop[cy0:cy1, cx0:cx1]
+    pad = max(0, -x0, -y0, x1 - W, y1 - H)
+    if pad:
+        crop = cv2.copyMakeBorder(crop, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+        x0, y0, x1, y1 = x0 + pad, y0 + pad, x1 + pad, y1 + pad
+    return crop[y0:y1, x0:x1]
+
+
+def _resize(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    interp = cv2.INTER_AREA if img.shape[1] >= w and img.shape[0] >= h else cv2.INTER_LINEAR
+    return cv2.resize(img, (w, h), interpolation=interp)
+
+
+def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
+            texture: Optional[np.ndarray] = None, min_side: float = 0.0) -> np.ndarray:
+    """One camera-like variant of a training crop (BGR ``uint8``, about the size the object
+    had in the frame or smaller; the network's input resize then enlarges it smoothly, as
+    at run time).
+
+    Args:
+        crop: the stored crop.
+        box: the object's box in it (``None``: the whole crop).
+        rng: randomness.
+        scale: frame pixels per crop pixel; a render of a small sign stored enlarged (with
+            blocky pixels) is first brought back to its size in the frame.
+        texture: another crop, pasted as an occluder sometimes.
+        min_side: never shrink the object's box below this (px): the node publishes
+            smaller boxes as ``unknown`` and never classifies them.
+    """
+    if scale < 0.95:
+        h, w = crop.shape[:2]
+        nw, nh = max(4, int(round(w * scale))), max(4, int(round(h * scale)))
+        crop = cv2.resize(crop, (nw, nh), interpolation=cv2.INTER_AREA)
+        if box is not None:
+            box = (box[0] * nw / w, box[1] * nh / h, box[2] * nw / w, box[3] * nh / h)
+    if rng.random() < 0.4:          # a tilted post, camera roll, a sign seen at an angle
+        H, W = crop.shape[:2]
+        M = cv2.getRotationMatrix2D((W / 2, H / 2), rng.uniform(-12, 12), 1.0)
+        M[0, :2] *= rng.uniform(0.75, 1.08)
+        M[0, 2] = W / 2 - M[0, 0] * W / 2 - M[0, 1] * H / 2
+        crop = cv2.warpAffine(crop, M, (W, H), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+    win = _window(crop, box, rng)
+    h0, w0 = win.shape[:2]
+    # as seen from farther away (never closer: that would invent detail), or, sometimes, a
+    # close sign: the run-time path of big crops
+    s = min(1.0, max(8.0 / max(h0, w0), math.exp(rng.uniform(math.log(0.5), 0.0))))
+    if min_side and box is not None:
+        s = min(1.0, max(s, min_side / max(1.0, min(box[2], box[3]))))
+    if rng.random() < 0.08:
+        s = rng.uniform(70, 130) / max(h0, w0)
+    img = _resize(win, max(3, int(round(w0 * s))), max(3, int(round(h0 * s))))
+    img = img.astype(np.float32)
+    # colour: white balance, exposure, gamma, contrast, saturation, haze
+    img *= np.exp(rng.normal(0, 0.10, 3)).astype(np.float32)
+    img *= float(math.exp(rng.uniform(-0.55, 0.4)))
+    img = np.clip(img, 0, 255)
+    img = 255.0 * (img / 255.0) ** float(math.exp(rng.uniform(-0.35, 0.35)))
+    mean = img.mean()
+    img = mean + (img - mean) * float(rng.uniform(0.6, 1.15))
+    grey = img.mean(axis=2, keepdims=True)
+    img = grey + (img - grey) * float(rng.uniform(0.45, 1.35))
+    if rng.random() < 0.5:                   # sheeting and lighting hue, +-6 deg
+        hsv = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_BGR2HSV)
+        hsv[..., 0] = ((hsv[..., 0].astype(int) + int(rng.integers(-3, 4))) % 180)
+        img = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).astype(np.float32)
+    if rng.random() < 0.2:
+        haze = rng.uniform(120, 230) * np.exp(rng.normal(0, 0.05, 3))
+        a = rng.uniform(0.1, 0.4)
+        img = img * (1 - a) + haze.astype(np.float32) * a
+    # occlusion from a border
+    if rng.random() < 0.25:
+        h, w = img.shape[:2]
+        side = int(rng.integers(4))
+        depth = rng.uniform(0.1, 0.35)
+        if texture is not None and rng.random() < 0.5:
+            fill = _resize(texture, w, h).astype(np.float32)
+        else:
+            fill = np.empty_like(img)
+            fill[:] = rng.uniform(0, 255, 3)
+            fill += rng.normal(0, rng.uniform(2, 25), fill.shape)
+        if side == 0:
+            d = max(1, int(round(depth * w)))
+            img[:, :d] = fill[:, :d]
+        elif side == 1:
+            d = max(1, int(round(depth * w)))
+            img[:, w - d:] = fill[:, w - d:]
+        elif side == 2:
+            d = max(1, int(round(depth * h)))
+            img[h - d:] = fill[h - d:]
+        else:
+            d = max(1, int(round(depth * h)))
+            img[:d] = fill[:d]
+    # optics and sensor
+    r = rng.random()
+    if r < 0.45:
+        sigma = rng.uniform(0.3, 1.0)
+        img = cv2.GaussianBlur(img, (0, 0), sigma)
+    elif r < 0.42:
+        k = int(rng.integers(3, 6))
+        kern = np.zeros((k, k), np.float32)
+        kern[k // 2] = 1.0 / k
+        if rng.random() < 0.3:
+            kern = kern.T
+        img = cv2.filter2D(img, -1, kern)
+    img += rng.normal(0, rng.uniform(0, 7), img.shape).astype(np.float32)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    if rng.random() < 0.7:
+        q = int(rng.integers(30, 96))
+        ok, enc = cv2.imencode('.jpg', out, [cv2.IMWRITE_JPEG_QUALITY, q])
+        if ok:
+            out = cv2.imdecode(enc, cv2.IMREAD_COLOR)
+    return out
+
+
+# --- network -------------------------------------------------------------------------------
+
+def build_net(n_classes: int, width: int = 8, dropout: float = 0.2):
+    """The CNN: 4 blocks of 3x3 conv + BN + ReLU (widths w, 2w, 4w, 8w), 2x2 max-pools
+    between them, global average, dropout, linear."""
+    import torch.nn as nn
+
+    def block(i: int, o: int) -> list:
+        return [nn.Conv2d(i, o, 3, padding=1, bias=False), nn.BatchNorm2d(o), nn.ReLU()]
+
+    w = width
+    return nn.Sequential(*block(3, w), nn.MaxPool2d(2), *block(w, 2 * w), nn.MaxPool2d(2),
+                         *block(2 * w, 4 * w), nn.MaxPool2d(2), *block(4 * w, 8 * w),
+                         nn.AdaptiveAvgPool2d(1), nn.Flatten(), nn.Dropout(dropout),
+                         nn.Linear(8 * w, n_classes))
+
+
+def macs(width: int, size: int, n_classes: int) -> int:
+    """Multiply-accumulates of one crop through :func:`build_net`."""
+    chans = [3, width, 2 * width, 4 * width, 8 * width]
+    total, s = 0, size
+    for k in range(4):
+        total += s * s * chans[k + 1] * chans[k] * 9
+        if k < 3:
+            s //= 2
+    return total + 8 * width * n_classes
+
+
+@dataclass
+class TrainConfig:
+    input_size: int = 32
+    width: int = 8
+    epochs: int = 40
+    samples_per_epoch: int = 6000
+    batch: int = 128
+    lr: float = 3e-3
+    weight_decay: float = 5e-4
+    label_smoothing: float = 0.05
+    dropout: float = 0.2
+    real_share: float = 0.4
+    composite: float = 0.5
+    min_sign_side: float = 12.0
+    background_share: float = 0.3
+    class_power: float = 0.5
+    max_minutes: float = 14.0
+    seed: int = 0
+
+
+def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
+              ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The simulator's art of sign ``key`` pasted on part of a background crop.
+
+    The renders show signs before grass, sky and asphalt only, so a network learns that a
+    busy real backdrop (houses, brick, trees, traffic) means ``background``; pasted on the
+    training clips' own background crops, the signs come with real surroundings.  The
+    canvas is 16-64 px (the sign at that size in the frame, drawn anti-aliased by
+    ``signart``), the face 45-80 % of it, off-centre, often on a post, in a random orange
+    sheeting; returns the canvas and the face's box.
+    """
+    from workzone_ros.sim import signart
+    n = int(rng.integers(20, 65))
+    H, W = backdrop.shape[:2]
+    f = rng.uniform(0.5, 1.0)
+    bw, bh = max(4, int(W * f)), max(4, int(H * f))
+    x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
+    canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
+    speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
+    variant = str(rng.choice(signart.OTHER_VARIANTS)) if key == 'other_workzone' else None
+    orange = signart.sheeting_orange(int(rng.integers(8)), 7)
+    side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
+    face = signart.sign_face(key, side, speed, variant, orange)
+    h, w = face.shape[:2]
+    if h > n or w > n:
+        face = cv2.resize(face, (min(w, n), min(h, n)), interpolation=cv2.INTER_AREA)
+        h, w = face.shape[:2]
+    x = int(np.clip((n - w) / 2 + rng.uniform(-0.1, 0.1) * n, 0, n - w))
+    y = int(np.clip((n - h) / 2 + rng.uniform(-0.1, 0.1) * n, 0, n - h))
+    if rng.random() < 0.6 and y + h < n:            # a post below the face
+        pw = max(1, int(round(w * 0.06)))
+        grey = rng.uniform(60, 170)
+        canvas[y + h:, x + w // 2 - pw // 2:x + w // 2 - pw // 2 + pw] = grey
+    # sheeting under daylight: a tint, a light gradient across the face, grain
+    art = face.astype(np.float32)
+    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+    light = 1.0 + rng.uniform(-0.25, 0.25) * (gx / w - 0.5) + rng.uniform(-0.25, 0.25) * (
+        gy / h - 0.5)
+    art[..., :3] *= light[..., None] * np.exp(rng.normal(0, 0.06, 3)).astype(np.float32)
+    art[..., :3] += rng.normal(0, rng.uniform(0, 8), (h, w, 3)) * art[..., 3:] / 255.0
+    canvas[y:y + h, x:x + w] = signart.over(art, canvas[y:y + h, x:x + w])
+    return np.clip(canvas, 0, 255).astype(np.uint8), (float(x), float(y), float(w), float(h))
+
+
+def cutout(key: str, crop: np.ndarray, box, scale: float, backdrop: np.ndarray,
+           rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
+    """A rendered sign cut out along its outline (the class's shape in its box) and put
+    before part of a background crop, at the size it had in the frame; returns the canvas
+    and the box.  The renderer's sheeting and light, with real surroundings."""
+    from workzone_ros.core import signs
+    from workzone_ros.sim import signart
+    if scale < 0.95:
+        h, w = crop.shape[:2]
+        nw, nh = max(4, int(round(w * scale))), max(4, int(round(h * scale)))
+        crop = cv2.resize(crop, (nw, nh), interpolation=cv2.INTER_AREA)
+        box = (box[0] * nw / w, box[1] * nh / h, box[2] * nw / w, box[3] * nh / h)
+    # the render on a canvas with room around it (renders are cut tight to the sign)
+    ch, cw = crop.shape[:2]
+    m = int(round(0.25 * max(ch, cw)))
+    H, W = ch + 2 * m, cw + 2 * m
+    x, y, w, h = box[0] + m, box[1] + m, box[2], box[3]
+    poly = signart.outline(signs.get(key).shape, w, h) + (x, y)
+    mask = np.zeros((H, W), np.uint8)
+    cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
+    mask[:m] = mask[m + ch:] = 0
+    mask[:, :m] = mask[:, m + cw:] = 0
+    a = (mask.astype(np.float32) / 255.0)[..., None]
+    crop = cv2.copyMakeBorder(crop, m, m, m, m, cv2.BORDER_CONSTANT)
+    bh_, bw_ = backdrop.shape[:2]
+    f = rng.uniform(0.5, 1.0)
+    sw, sh = max(4, int(bw_ * f)), max(4, int(bh_ * f))
+    x0, y0 = int(rng.integers(0, bw_ - sw + 1)), int(rng.integers(0, bh_ - sh + 1))
+    canvas = _resize(backdrop[y0:y0 + sh, x0:x0 + sw], W, H).astype(np.float32)
+    if rng.random() < 0.6 and y + h < H:            # a post below the face
+        pw = max(1, int(round(w * 0.06)))
+        px = int(round(x + w / 2 - pw / 2))
+        canvas[int(y + h):, max(0, px):max(0, px + pw)] = rng.uniform(60, 170)
+    out = canvas * (1 - a) + crop.astype(np.float32) * a
+    return np.clip(out, 0, 255).astype(np.uint8), (x, y, w, h)
+
+
+def _weights(labels: np.ndarray, real: np.ndarray, cfg: TrainConfig) -> np.ndarray:
+    """Sampling weights: classes balanced towards uniform by ``class_power``; within a class
+    that has real and rendered crops, the real ones get ``real_share`` of its draws (the
+    same share in every class, so that looking real does not predict ``background``);
+    ``background`` gets ``background_share`` of all draws (0: as ``class_power`` says)."""
+    keys, inv, counts = np.unique(labels, return_inverse=True, return_counts=True)
+    w = counts[inv].astype(float) ** (1.0 - cfg.class_power)      # mass of each class
+    out = np.zeros(len(labels))
+    for k in range(len(keys)):
+        sel = inv == k
+        r, s = sel & real, sel & ~real
+        share = cfg.real_share if r.any() and s.any() else float(r.any())
+        if r.any():
+            out[r] = w[r] * share / r.sum()
+        if s.any():
+            out[s] = w[s] * (1.0 - share) / s.sum()
+    out /= out.sum()
+    bg = labels == 'background'
+    if cfg.background_share > 0 and bg.any() and (~bg).any():
+        out[bg] *= cfg.background_share / out[bg].sum()
+        out[~bg] *= (1.0 - cfg.background_share) / out[~bg].sum()
+    return out
+
+
+def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: TrainConfig,
+          progress=_say):
+    """Train the network on ``sample`` (labels mapped to ``classes``); returns it (eval)."""
+    import torch
+    torch.set_num_threads(1)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    idx_of = {c: i for i, c in enumerate(classes)}
+    y_all = np.array([idx_of[lab] for lab in labels])
+    real = np.array([c != '' for c in sample.data.clip])
+    p = _weights(np.asarray(labels), real, cfg)
+    net = build_net(len(classes), cfg.width, cfg.dropout)
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    loss_fn = torch.nn.CrossEntropyLoss(label_smoothing=cfg.label_smoothing)
+    steps_per_epoch = max(1, cfg.samples_per_epoch // cfg.batch)
+    epochs, step, t0 = cfg.epochs, 0, time.monotonic()
+    crops, boxes, scales = sample.data.crops, sample.boxes, sample.scales
+    bg = np.flatnonzero(np.asarray(labels) == 'background')
+    real_bg = np.flatnonzero((np.asarray(labels) == 'background') & real)
+    flip_ok = {k for k in FLIP_SWAP if k in idx_of and FLIP_SWAP[k] in idx_of} | {'background'}
+
+    def lr_at(s: int, total: int) -> float:
+        warm = steps_per_epoch
+        if s < warm:
+            return cfg.lr * (s + 1) / warm
+        return 0.5 * cfg.lr * (1 + math.cos(math.pi * min(1.0, (s - warm) / max(1, total - warm))))
+
+    epoch = 0
+    while epoch < epochs:
+        net.train()
+        tot_loss = correct = seen = 0
+        draw = rng.choice(len(crops), size=steps_per_epoch * cfg.batch, p=p)
+        for b in range(steps_per_epoch):
+            ids = draw[b * cfg.batch:(b + 1) * cfg.batch]
+            imgs, ys = [], []
+            for i in ids:
+                tex = crops[int(bg[rng.integers(len(bg))])] if len(bg) else None
+                lab = labels[i]
+                if lab != 'background' and not real[i] and len(bg) \
+                        and rng.random() < cfg.composite:
+                    pool = real_bg if len(real_bg) and rng.random() < 0.6 else bg
+                    backdrop = crops[int(pool[rng.integers(len(pool))])]
+                    if rng.random() < 0.5 or boxes[i] is None:
+                        canvas, box = composite(lab, backdrop, rng)
+                    else:
+                        canvas, box = cutout(lab, crops[i], boxes[i], scales[i], backdrop,
+                                             rng)
+                    img = augment(canvas, box, rng, 1.0, tex, cfg.min_sign_side)
+                else:
+                    img = augment(crops[i], boxes[i], rng, scales[i], tex,
+                                  0.0 if lab == 'background' else cfg.min_sign_side)
+                if lab in flip_ok and rng.random() < 0.5:
+                    img = img[:, ::-1]
+                    lab = FLIP_SWAP.get(lab, lab)
+                imgs.append(img)
+                ys.append(idx_of[lab])
+            x = torch.from_numpy(cnn.preprocess(imgs, cfg.input_size))
+            y = torch.tensor(ys)
+            for g in opt.param_groups:
+                g['lr'] = lr_at(step, epochs * steps_per_epoch)
+            out = net(x)
+            loss = loss_fn(out, y)
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            step += 1
+            tot_loss += loss.item() * len(ys)
+            correct += int((out.argmax(1) == y).sum())
+            seen += len(ys)
+        epoch += 1
+        spent = time.monotonic() - t0
+        if epoch == 1:                       # fit the schedule into the time budget
+            fit = int(cfg.max_minutes * 60 / max(spent, 1e-3))
+            if fit < epochs:
+                epochs = max(2, fit)
+                progress(f'time budget {cfg.max_minutes:g} min: {epochs} epochs '
+                         f'({spent:.0f} s each)')
+        progress(f'epoch {epoch}/{epochs}: loss {tot_loss / seen:.3f}, train accuracy '
+                 f'(augmented) {correct / seen:.3f}, {spent / 60:.1f} min')
+    net.eval()
+    del y_all
+    return net, {'epochs': epochs, 'minutes': round((time.monotonic() - t0) / 60, 2)}
+
+
+def export(net, input_size: int) -> bytes:
+    """The network as ONNX bytes (batch dimension dynamic), BatchNorm folded."""
+    import torch
+    buf = io.BytesIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        torch.onnx.export(net, torch.zeros(1, 3, input_size, input_size), buf,
+                          input_names=['crops'], output_names=['logits'],
+                          dynamic_axes={'crops': {0: 'n'}, 'logits': {0: 'n'}},
+                          opset_version=OPSET, do_constant_folding=True, dynamo=False)
+    return buf.getvalue()
+
+
+def _check_export(net, model: cnn.CnnSignClassifier, crops: Sequence[np.ndarray]) -> float:
+    """Largest |logit difference| between torch and cv2.dnn on some crops."""
+    import torch
+    x = cnn.preprocess(crops, model.input_size)
+    with torch.no_grad():
+        ref = net(torch.from_numpy(x)).numpy()
+    return float(np.abs(model._forward(x) - ref).max())
+
+
+# --- measurement ---------------------------------------------------------------------------
+
+def report(model, data: tc.CropSet) -> dict:
+    """``evaluate classifier``'s figures of ``model`` on ``data``."""
+    from workzone_ros.tools import eval_classifier as ec
+    res, _ = ec.evaluate_model(model, data)
+    res.pop('_confusion', None)
+    res['counts'] = data.counts()
+    return res
+
+
+BIASES = (0.0, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0)
+
+
+def bias_table(model, data: tc.CropSet, biases: Sequence[float] = BIASES) -> dict:
+    """What a ``background_bias`` would do on ``data``: per bias, background crops given a
+    sign class, sign crops given their class, and the macro P / R, all crops and the
+    node's sizes (sign boxes >= 12 px); pooled over splits, it chooses the shipped bias."""
+    from workzone_ros.tools import eval_classifier as ec
+    z = np.vstack([model.logits(data.crops[i:i + 256]) for i in range(0, len(data), 256)])
+    labels = np.array(tc.map_labels(data.labels, model.classes))
+    big = (labels == 'background') | ~(np.asarray(data.side, float) < 12)
+    saved, out = model.background_bias, {}
+    try:
+        for b in biases:
+            model.background_bias = b
+            pred = np.asarray(model.classes)[model.proba_of_logits(z).argmax(1)]
+            bg = labels == 'background'
+            sc, sc12 = (ec.scores(labels[k], pred[k], model.classes) for k in (
+                slice(None), big))
+            out[f'{b:g}'] = {
+                'background_crops': int(bg.sum()),
+                'background_given_sign': int(np.sum(pred[bg] != 'background')),
+                'sign_crops': int((~bg).sum()),
+                'sign_given_its_class': int(np.sum(pred[~bg] == labels[~bg])),
+                'precision': round(sc['precision'], 4), 'recall': round(sc['recall'], 4),
+                'precision_12px': round(sc12['precision'], 4),
+                'recall_12px': round(sc12['recall'], 4)}
+    finally:
+        model.background_bias = saved
+    return out
+
+
+def runtime_crop(crop: np.ndarray, box) -> np.ndarray:
+    """A stored crop re-cut as ``classify_boxes`` cuts the frame (square, the node's
+    margin), clipped to the stored crop; the whole crop when its box is unknown."""
+    from workzone_ros.core.features import crop_sign
+    if box is None:
+        return crop
+    out, _ = crop_sign(crop, box, RUN_MARGIN, square=True)
+    return crop if out is None else out
+
+
+def _line(name: str, r: dict) -> str:
+    bg = r['background']
+    return (f'{name}: {sum(r["counts"].values())} crops, P {r["precision"]:.3f} '
+            f'R {r["recall"]:.3f} accuracy {r["accuracy"]:.3f}, background false-sign '
+            f'{bg["false_sign_rate"]} ({bg["background_crops"]})')
+
+
+# --- command line --------------------------------------------------------------------------
+
+def _parser() -> argparse.ArgumentParser:
+    p = tc._Parser(prog='workzone-ros train cnn', description=__doc__,
+                   formatter_class=argparse.RawDescriptionHelpFormatter)
+    tc.add_source_arguments(p, synth_default=20)
+    p.add_argument('--real-clips', nargs='+', default=None, metavar='NAME',
+                   help="train only on these clips of the --data folders (index.csv column "
+                        "'clip'; default all but --exclude-clip)")
+    d = TrainConfig()
+    p.add_argument('--input-size', type=int, default=d.input_size,
+                   help=f'network input side, px (default {d.input_size})')
+    p.add_argument('--width', type=int, default=d.width,
+                   help=f'channels of the first block (then x2, x4, x8; default {d.width})')
+    p.add_argument('--epochs', type=int, default=d.epochs, help=f'default {d.epochs}')
+    p.add_argument('--samples-per-epoch', type=int, default=d.samples_per_epoch,
+                   help=f'augmented crops drawn per epoch (default {d.samples_per_epoch})')
+    p.add_argument('--batch', type=int, default=d.batch, help=f'default {d.batch}')
+    p.add_argument('--lr', type=float, default=d.lr, help=f'peak AdamW rate ({d.lr:g})')
+    p.add_argument('--real-share', type=float, default=d.real_share,
+                   help='share of the draws of a class that are real crops, when it has '
+                        f'real and rendered ones (default {d.real_share:g})')
+    p.add_argument('--composite', type=float, default=d.composite,
+                   help='share of the rendered sign draws replaced by the sign art pasted on a '
+                        f'training background crop (default {d.composite:g})')
+    p.add_argument('--background-share', type=float, default=d.background_share,
+                   help='share of the draws that are background crops (0: balanced like '
+                        f'the other classes; default {d.background_share:g})')
+    p.add_argument('--background-bias', type=float, default=0.0,
+                   help='added to the background output at run time (stored in the model; '
+                        'default 0)')
+    p.add_argument('--min-sign-side', type=float, default=d.min_sign_side,
+                   help='leave out rendered sign crops whose box is smaller (px) and never '
+                        'shrink a sign below it in augmentation (the node publishes smaller '
+                        f'boxes as unknown; default {d.min_sign_side:g})')
+    p.add_argument('--max-minutes', type=float, default=d.max_minutes,
+                   help='time budget: fewer epochs when one epoch says it would not fit '
+                        f'(default {d.max_minutes:g})')
+    p.add_argument('--seed', type=int, default=0, help='training seed')
+    p.add_argument('--holdout-split', type=int, default=None, metavar='K',
+                   help="train on split K's training part of the rendered crops (evaluate "
+                        "classifier's Table III splits) and report on its test part")
+    p.add_argument('--splits', type=int, default=5, help='splits of --holdout-split (5)')
+    p.add_argument('--split-seed', type=int, default=0, help='seed of the splits (0)')
+    p.add_argument('--json', metavar='OUT', help='write the figures to this JSON file')
+    p.add_argument('-o', '--output', default=str(DEFAULT_OUTPUT),
+                   help='model file (default config/models/sign_classifier_cnn.npz)')
+    return p
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
+    args = _parser().parse_args(argv)
+    prog = 'workzone-ros train cnn'
+    try:
+        import onnx  # noqa: F401
+        import torch  # noqa: F401
+    except ImportError as exc:
+        print(f'{prog}: needs PyTorch and onnx ({exc.name} is missing): pip install -e '
+              '.[cnn]', file=sys.stderr)
+        return 2
+    try:
+        renders, real = load_samples(args)
+        everything = Sample(tc.CropSet()).extend(renders).extend(real)
+        classes = tc.class_list(args.classes, everything.data.labels)
+        test = None
+        if args.holdout_split is not None:
+            from workzone_ros.tools import eval_classifier as ec
+            if not len(renders.data):
+                raise tc.DataError('--holdout-split splits the rendered crops: give --synth')
+            if not 0 <= args.holdout_split < args.splits:
+                raise tc.DataError(f'--holdout-split must be in 0..{args.splits - 1}')
+            lab = tc.map_labels(renders.data.labels, classes)
+            tr, te = ec.grouped_splits(lab, renders.data.groups, args.splits,
+                                       args.split_seed)[args.holdout_split]
+            test = renders.data.subset(te)
+            renders = renders.subset(tr)
+        # rendered signs too small for the node to classify (its min_size) are left out:
+        # at 8-11 px a sign is an orange blob, and a blob is what a network must not learn
+        # to call a sign
+        # (unless that leaves a class without crops: then it keeps its small ones)
+        mapped = tc.map_labels(renders.data.labels, classes)
+        small = [i for i, (lab, side) in enumerate(zip(mapped, renders.data.side))
+                 if lab != 'background' and side < args.min_sign_side]
+        left = collections.Counter(mapped)
+        left.subtract(mapped[i] for i in small)
+        small = [i for i in small if left[mapped[i]] > 0]
+        dropped = len(small)
+        renders = renders.subset(sorted(set(range(len(renders.data))) - set(small)))
+        train_set = Sample(tc.CropSet()).extend(renders).extend(real)
+        labels = tc.map_labels(train_set.data.labels, classes)
+        missing = [c for c in classes if c not in set(labels)]
+        if missing:
+            raise tc.DataError(f'no crops of class(es) {", ".join(missing)}; add renders '
+                               '(--synth) or folders for them, or use --classes workzone')
+    except tc.DataError as exc:
+        print(f'{prog}: {exc}', file=sys.stderr)
+        return 2
+    cfg = TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
+                      samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
+                      real_share=args.real_share, composite=args.composite,
+                      min_sign_side=args.min_sign_side,
+                      background_share=args.background_share,
+                      max_minutes=args.max_minutes, seed=args.seed)
+    _say(f'training a CNN (width {cfg.width}, {cfg.input_size} px, '
+         f'{macs(cfg.width, cfg.input_size, len(classes)) / 1e6:.2f} M MAC per crop) on '
+         f'{len(train_set.data)} crops ({len(real.data)} real), {len(classes)} classes: '
+         + ', '.join(f'{k} {v}' for k, v in sorted(train_set.data.counts().items())))
+    net, run = train(train_set, labels, classes, cfg)
+    import torch
+    src = tc.describe_sources(args, train_set.data)
+    src['only_clips'] = args.real_clips
+    src['render_signs_below_min_side_left_out'] = dropped
+    if args.holdout_split is not None:
+        src['holdout'] = {'split': args.holdout_split, 'of': args.splits,
+                          'seed': args.split_seed, 'trained_render_crops': len(renders.data),
+                          'held_out_render_crops': len(test)}
+    md = {'input_size': cfg.input_size, 'normalise': 'per_crop', 'channels': 'bgr',
+          'margin': RUN_MARGIN, 'square_crops': True, 'temperature': 1.0,
+          'method': 'cnn', 'features': 'cnn',
+          'architecture': {'blocks': [cfg.width * m for m in (1, 2, 4, 8)], 'conv': '3x3',
+                           'norm': 'batch (folded)', 'pool': 'max 2x2 between blocks',
+                           'head': 'global average, dropout, linear',
+                           'parameters': int(sum(q.numel() for q in net.parameters())),
+                           'macs_per_crop': macs(cfg.width, cfg.input_size, len(classes))},
+          'training': {**{k: getattr(cfg, k) for k in (
+              'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
+              'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
+              'class_power', 'seed')}, **run,
+              'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
+              'augmentation': 'run-time framing +-12 % shift, x0.86-1.42 scale, +-12 deg, '
+                              'x0.75-1.08 squeeze; '
+                              '10-44 px; JPEG 30-95; blur; white balance, exposure, gamma, '
+                              'contrast, saturation, haze, noise; border occlusion; flips of '
+                              'background and W1-4 / W4-2 (label swapped)',
+              'torch': torch.__version__, 'onnx_opset': OPSET},
+          'training_sources': src, 'class_set': args.classes,
+          'train_counts': {c: labels.count(c) for c in classes},
+          'date': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds')}
+    if args.background_bias:
+        md['background_bias'] = args.background_bias
+    model = cnn.CnnSignClassifier(export(net, cfg.input_size), classes, md)
+    probe = train_set.data.crops[:64]
+    model.metadata['onnx_check_max_abs_logit_diff'] = round(_check_export(net, model, probe), 6)
+    cnn.save_model(model, args.output)
+    out = {'model': args.output, 'metadata': model.metadata}
+    if test is not None:
+        out['holdout'] = report(model, test)
+        out['holdout']['background_bias'] = bias_table(model, test)
+        _say(_line(f'held-out renders (split {args.holdout_split})', out['holdout']))
+    if args.data and args.exclude_clip:
+        out['held_out_clips'] = {}
+        for d in args.data:
+            for clip in args.exclude_clip:
+                try:
+                    part = tc.load_folder(d, only_clips=[clip])
+                except tc.DataError:
+                    continue
+                res = report(model, part)
+                boxes, _ = folder_boxes(Path(d), (), [clip], [c.shape for c in part.crops])
+                recut = tc.CropSet(*[list(getattr(part, f)) for f in tc._FIELDS])
+                recut.crops = [runtime_crop(c, b) for c, b in zip(part.crops, boxes)]
+                res['runtime_framing'] = report(model, recut)
+                res['wrong'] = [f'{t} -> {p}' for t, p in zip(
+                    tc.map_labels(part.labels, classes),
+                    [q.class_key for q in model.classify(part.crops)]) if t != p][:20]
+                out['held_out_clips'][clip] = res
+                _say(_line(f'held-out clip {clip}', res))
+                _say(_line(f'held-out clip {clip}, run-time framing', res['runtime_framing']))
+    text = json.dumps(out, indent=2, default=_jsonable)
+    if args.json:
+        Path(args.json).write_text(text)
+        _say(f'figures written to {args.json}')
+    print(f'model written to {args.output} ({Path(args.output).stat().st_size / 1024:.0f} KiB)')
+    return 0
+
+
+def _jsonable(o):
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.generic):
+        return o.item()
+    raise TypeError(type(o).__name__)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

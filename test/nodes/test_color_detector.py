@@ -254,3 +254,28 @@ def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_pat
     assert d.detections and all(x.proposal for x in d.detections)
     assert max(x.box.iou(Box(429, 93, 90, 68)) for x in d.detections) > 0.5
     assert d.channelizers is None
+
+
+def test_a_camera_that_publishes_only_jpeg_works_without_configuration(ros, model_path):
+    """``compressed`` left false: no raw image comes, so the compressed stream is used, and
+    ``/diagnostics`` says so; a raw stream, once it flows, wins."""
+    from sensor_msgs.msg import CompressedImage
+
+    from workzone_ros.nodes.conversions import numpy_to_compressed
+    node = _node(ros, model_path, image_topic='j/image', detections_topic='j/dets')
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    qos = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+    cpub = peer.create_publisher(CompressedImage, 'j/image/compressed', qos)
+    got = []
+    peer.create_subscription(String, 'j/dets', got.append, 10)
+    msg = numpy_to_compressed(_frame(), 'jpeg', 95,
+                              make_header(stamp=interfaces.Time(sec=4, nanosec=0)))
+    assert ros.spin_until(lambda: got, each=lambda: cpub.publish(msg))
+    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    assert len(d.detections) == 1
+    values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+    assert values['image transport'] == 'compressed (no raw images)'
+    rpub = peer.create_publisher(Image, 'j/image', qos)
+    raw = numpy_to_image(_frame(), 'bgr8', make_header(stamp=interfaces.Time(sec=5, nanosec=0)))
+    assert ros.spin_until(lambda: node._image_transport == 'raw',
+                          each=lambda: (rpub.publish(raw), cpub.publish(msg)))

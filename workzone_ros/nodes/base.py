@@ -418,6 +418,53 @@ class WorkzoneNode(Node):
 
     # --- QoS helpers ----------------------------------------------------------------------
 
+    #: seconds without a raw image after which an image node takes the compressed stream
+    RAW_IMAGE_TIMEOUT_S = 2.0
+
+    def image_subscription(self, topic: str, callback: Callable[[Any], None],
+                           compressed: bool, depth: int = 5) -> Any:
+        """Subscribe to a camera the way image_transport users expect.
+
+        ``compressed`` true: ``<topic>/compressed`` (sensor_msgs/CompressedImage) only.
+        Otherwise the raw ``topic`` and, as a fallback, ``<topic>/compressed``: a compressed
+        frame is passed to ``callback`` only while no raw frame has arrived for
+        ``RAW_IMAGE_TIMEOUT_S`` (a bag or a vehicle that records JPEG only works without
+        configuration; with both published, raw wins).  ``/diagnostics`` says which stream
+        is in use (``image transport``).  Returns the primary subscription.
+        """
+        from sensor_msgs.msg import CompressedImage, Image
+        ctopic = topic.rstrip('/') + '/compressed'
+        self._image_transport = 'none yet'
+        if compressed:
+            def on_compressed_only(msg: Any) -> None:
+                self._image_transport = 'compressed'
+                callback(msg)
+            return self.sensor_subscription(CompressedImage, ctopic, on_compressed_only,
+                                            depth=depth)
+        last_raw = [-math.inf]
+
+        def on_raw(msg: Any) -> None:
+            last_raw[0] = time.monotonic()
+            self._image_transport = 'raw'
+            callback(msg)
+
+        def on_fallback(msg: Any) -> None:
+            if time.monotonic() - last_raw[0] < self.RAW_IMAGE_TIMEOUT_S:
+                return                                  # raw frames are flowing: raw wins
+            self._image_transport = 'compressed (no raw images)'
+            callback(msg)
+
+        self._compressed_fallback_sub = self.sensor_subscription(
+            CompressedImage, ctopic, on_fallback, depth=depth)
+        return self.sensor_subscription(Image, topic, on_raw, depth=depth)
+
+    def image_topic_of(self, msg: Any) -> str:
+        """The resolved topic an image of :meth:`image_subscription` came from."""
+        topic = self._image_sub.topic_name
+        if type(msg).__name__ == 'CompressedImage' and not topic.endswith('/compressed'):
+            return topic + '/compressed'
+        return topic
+
     def sensor_subscription(self, msg_type: type, topic: str, callback: Callable[[Any], None],
                             depth: int = 5) -> Any:
         """Subscribe with the sensor-data profile (best effort, keep last ``depth``).
@@ -629,6 +676,9 @@ class WorkzoneNode(Node):
                     text = f'publisher(s) on {topic} but no message for {age:.1f} s'
                     self.warn_throttled(f'silent:{topic}', text)
                 problems.append(text)
+        transport = getattr(self, '_image_transport', None)
+        if transport is not None:
+            values.append(('image transport', transport))
         try:
             values += list(self.extra_diagnostics())
         except Exception as exc:  # noqa: BLE001 - a subclass's figures never kill diagnostics

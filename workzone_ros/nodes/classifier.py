@@ -39,7 +39,8 @@ class ClassifierNode(WorkzoneNode):
     PARAMS = (
         Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
               read_only=True),
-        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
+              'while no raw image arrives)',
               read_only=True),
         Param('input_topic', '/workzone/tracks', 'boxes to classify: Tracks (or Detections '
               'when tracking is off)', read_only=True),
@@ -88,11 +89,7 @@ class ClassifierNode(WorkzoneNode):
         self.counts = collections.Counter()
         self._signs_pub = self.reliable_publisher(String, p.signs_topic)
         self._debug_pub = self.sensor_publisher(Image, p.debug_image_topic)
-        if p.compressed:
-            self._image_sub = self.sensor_subscription(
-                CompressedImage, p.image_topic.rstrip('/') + '/compressed', self._on_image)
-        else:
-            self._image_sub = self.sensor_subscription(Image, p.image_topic, self._on_image)
+        self._image_sub = self.image_subscription(p.image_topic, self._on_image, p.compressed)
         self._input_sub = self.reliable_subscription(String, p.input_topic, self._on_boxes)
         self._rois_sub = (self.reliable_subscription(String, p.rois_topic, self._on_rois)
                           if p.rois_topic else None)

@@ -56,7 +56,8 @@ class ColorDetectorNode(WorkzoneNode):
     PARAMS = (
         Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
               read_only=True),
-        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
+              'while no raw image arrives)',
               read_only=True),
         Param('rois_topic', '/workzone/rois', 'LiDAR ROIs (Rois payload); empty = no LiDAR',
               read_only=True),
@@ -192,13 +193,8 @@ class ColorDetectorNode(WorkzoneNode):
         # images waiting for their ROIs: stamp ns -> (deadline monotonic s, image, header)
         self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
         self._pub = self.reliable_publisher(String, p.detections_topic)
-        if p.compressed:
-            self._image_sub = self.sensor_subscription(
-                CompressedImage, p.image_topic.rstrip('/') + '/compressed', self._on_compressed,
-                depth=1)
-        else:
-            self._image_sub = self.sensor_subscription(Image, p.image_topic, self._on_image,
-                                                       depth=1)
+        self._image_sub = self.image_subscription(p.image_topic, self._on_image, p.compressed,
+                                                  depth=1)
         self._rois_sub = None
         if p.rois_topic:
             self._rois_sub = self.reliable_subscription(String, p.rois_topic, self._on_rois,
@@ -275,9 +271,6 @@ class ColorDetectorNode(WorkzoneNode):
     def _on_image(self, msg: Image) -> None:
         self._hold_or_process(msg, msg.header)
 
-    def _on_compressed(self, msg: CompressedImage) -> None:
-        self._hold_or_process(msg, msg.header)
-
     def _waiting_for_rois(self) -> bool:
         """True when ROIs can come: a topic is set, a publisher exists, waiting is on."""
         p = self.params
@@ -310,7 +303,7 @@ class ColorDetectorNode(WorkzoneNode):
             bgr = (conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
                    else conv.image_to_numpy(msg, 'bgr8'))
         except conv.ConversionError as exc:
-            self.drop(self._image_sub.topic_name, str(exc))
+            self.drop(self.image_topic_of(msg), str(exc))
             return
         self._process(bgr, header)
 

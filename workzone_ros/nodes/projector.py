@@ -83,7 +83,8 @@ class ProjectorNode(WorkzoneNode):
     PARAMS = (
         Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates'),
         Param('image_topic', '/camera/image_raw', 'input image'),
-        Param('compressed', False, 'subscribe to <image_topic>/compressed instead (the size '
+        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
+              'while no raw image arrives; the size '
               'then comes from CameraInfo)', read_only=True),
         Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo'),
         Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)'),
@@ -149,13 +150,8 @@ class ProjectorNode(WorkzoneNode):
                                                     self._on_info, depth=1)
         self._cand_sub = self.reliable_subscription(PointCloud2, self.params.candidates_topic,
                                                     self._on_candidates, depth=5)
-        if self.params.compressed:
-            self._image_sub = self.sensor_subscription(
-                CompressedImage, self.params.image_topic.rstrip('/') + '/compressed',
-                self._on_image, depth=5)
-        else:
-            self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
-                                                       self._on_image, depth=5)
+        self._image_sub = self.image_subscription(self.params.image_topic, self._on_image,
+                                                  self.params.compressed, depth=5)
         self._odom_sub = self.reliable_subscription(
             Odometry, self.params.odom_topic, self._on_odom, depth=50) \
             if self.params.odom_topic and self.params.compensate else None
@@ -306,7 +302,7 @@ class ProjectorNode(WorkzoneNode):
         return True
 
     def _project(self, image: Any, cands: tuple) -> None:
-        topic = self._image_sub.topic_name
+        topic = self.image_topic_of(image)
         if not self._ready(hold=(image, cands)):
             return
         size = (compressed_image_size(image) if isinstance(image, CompressedImage)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import collections
 from typing import Any, Optional
 
-from sensor_msgs.msg import CompressedImage, Image
+from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
 from workzone_ros.core.track import (
@@ -229,7 +229,8 @@ class TrackerNode(WorkzoneNode):
 
     PARAMS = (
         Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)'),
-        Param('compressed', False, 'subscribe to <image_topic>/compressed instead',
+        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
+              'while no raw image arrives)',
               read_only=True),
         Param('detections_topic', '/workzone/detections', 'input Detections payloads'),
         Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads'),
@@ -248,13 +249,8 @@ class TrackerNode(WorkzoneNode):
         self._max = n
         self._last_ns: Optional[int] = None
         self._tracks_pub = self.reliable_publisher(String, self.params.tracks_topic)
-        if self.params.compressed:
-            self._image_sub = self.sensor_subscription(
-                CompressedImage, self.params.image_topic.rstrip('/') + '/compressed',
-                self._on_image)
-        else:
-            self._image_sub = self.sensor_subscription(Image, self.params.image_topic,
-                                                       self._on_image)
+        self._image_sub = self.image_subscription(self.params.image_topic, self._on_image,
+                                                  self.params.compressed)
         self._det_sub = self.reliable_subscription(String, self.params.detections_topic,
                                                    self._on_detections)
 

@@ -11,30 +11,48 @@ folder loader): ``--synth N`` renders, ``--data DIR`` folders, ``--exclude-clip`
 Every training crop is re-cut and degraded on the fly like a phone camera's frame, so the
 network does not learn the renderer:
 
+* size: a render of a small sign (stored enlarged to 64 px, with blocky pixels) is first
+  brought back to the size it had in the frame, then the cut is shrunk by up to 2x (seen
+  from farther away), never enlarged (8 % of them go to 70-130 px: the run-time path of big
+  crops); the network's input resize enlarges it smoothly, as at run time.  Rendered signs
+  below ``--min-sign-side`` (12 px, the node's ``min_size``) are left out, and no sign is
+  shrunk below it: at 8-11 px a sign is an orange blob, and a network that learns to call
+  blobs signs calls real cones and loaders signs;
 * framing: the object's box (from the crop index) grown by the node's margin and squared,
   as ``classify_boxes`` cuts it, then shifted by up to 12 % and scaled by 0.86-1.42 (a
   detector's localisation error; the stored real crops' 25 % margin is inside that range),
   a rotation of up to 12 deg and a horizontal squeeze (a sign seen at an angle); parts
   outside the stored crop are clipped (as at the image border) or padded;
-* resolution: the cut resampled to 10-44 px (a sign 10-44 px in the frame; 8 % of them
-  70-130 px), JPEG quality 30-95 at that size, Gaussian or motion blur;
-* colour: white balance, exposure, gamma, contrast, saturation, haze, sensor noise;
+* surroundings: half of the rendered sign draws (``--composite``) are replaced by a sign
+  on one of the training background crops, real ones preferred: the simulator's sign art
+  (any class, orange sheeting varied, light gradient, grain, often a post) or the render
+  itself cut out along its class's outline.  Without it the network learns that busy real
+  surroundings (houses, brick, traffic) mean ``background``: with them blurred, a real
+  UTILITY WORK AHEAD diamond it called background at 0.9 became a sign;
+* colour: white balance, exposure, gamma, contrast, saturation, hue (+-6 deg), haze,
+  sensor noise; JPEG quality 30-95 at the crop's size; Gaussian or motion blur;
 * partial occlusion from a border (a pole, a car, foliage: a flat or textured band);
 * left-right flips of background crops and of the pictogram mirror pairs (W1-4, W4-2:
   the label swaps), never of a legend.
 
 Then a 4-block CNN (3x3 conv + BN + ReLU, 2x2 max-pool; widths w, 2w, 4w, 8w; global
 average; dropout; linear) on ``--input-size`` (32) px colour crops, AdamW, a cosine schedule,
-label smoothing, class-balanced sampling (real crops ``--real-share`` of each class).
+label smoothing.  Sampling: classes balanced by the square root of their counts, real
+crops ``--real-share`` of the draws of each class that has them (the same share in every
+class, so that looking real does not mean ``background``), ``background``
+``--background-share`` of all draws.  ``--background-bias`` is stored in the model and
+added to its ``background`` output at run time (a prior for a detector whose boxes are
+mostly not signs; 0 by default).
 
 Measurement (every number from crops the model did not train on):
 
 * ``--holdout-split K``: train on the training part of split K of ``evaluate classifier``'s
   Table III splits of the rendered crops (``StratifiedGroupKFold(3)`` by physical object,
   ``--split-seed``) and report on its test part: macro P / R, mirror pairs, background
-  false-sign rate;
+  false-sign rate, and what each background bias would give (``background_bias``);
 * real clips left out with ``--exclude-clip`` are reported per clip (accuracy, per class,
-  background false-sign rate), the leave-one-clip-out protocol of ``test/data/real_crops``.
+  background false-sign rate), the leave-one-clip-out protocol of ``test/data/real_crops``,
+  on the stored crops and re-cut as ``classify_boxes`` cuts (``runtime_framing``).
 
 Example (docs/classifier.md)::
 
@@ -63,7 +81,8 @@ import numpy as np
 from workzone_ros.core import cnn_classifier as cnn
 from workzone_ros.tools import train_classifier as tc
 
-__all__ = ['Sample', 'load_samples', 'augment', 'build_net', 'train', 'export', 'main']
+__all__ = ['Sample', 'TrainConfig', 'load_samples', 'augment', 'composite', 'cutout',
+           'build_net', 'train', 'export', 'bias_table', 'runtime_crop', 'main']
 
 DEFAULT_OUTPUT = Path(__file__).resolve().parents[2] / 'config' / cnn.DEFAULT_MODEL
 #: The margin and squaring of ``classify_boxes`` (the node's default margin).
@@ -503,7 +522,6 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
     idx_of = {c: i for i, c in enumerate(classes)}
-    y_all = np.array([idx_of[lab] for lab in labels])
     real = np.array([c != '' for c in sample.data.clip])
     p = _weights(np.asarray(labels), real, cfg)
     net = build_net(len(classes), cfg.width, cfg.dropout)
@@ -575,7 +593,6 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
         progress(f'epoch {epoch}/{epochs}: loss {tot_loss / seen:.3f}, train accuracy '
                  f'(augmented) {correct / seen:.3f}, {spent / 60:.1f} min')
     net.eval()
-    del y_all
     return net, {'epochs': epochs, 'minutes': round((time.monotonic() - t0) / 60, 2)}
 
 
@@ -791,10 +808,12 @@ def main(argv: Optional[list[str]] = None) -> int:
               'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
               'class_power', 'seed')}, **run,
               'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
-              'augmentation': 'run-time framing +-12 % shift, x0.86-1.42 scale, +-12 deg, '
-                              'x0.75-1.08 squeeze; '
-                              '10-44 px; JPEG 30-95; blur; white balance, exposure, gamma, '
-                              'contrast, saturation, haze, noise; border occlusion; flips of '
+              'augmentation': 'renders at their size in the frame, shrunk up to 2x, '
+                              'signs >= min_sign_side; run-time framing +-12 % shift, '
+                              'x0.86-1.42 scale, +-12 deg, x0.75-1.08 squeeze; signs on '
+                              'training background crops (art or render cut-outs); JPEG '
+                              '30-95; blur; white balance, exposure, gamma, contrast, '
+                              'saturation, hue, haze, noise; border occlusion; flips of '
                               'background and W1-4 / W4-2 (label swapped)',
               'torch': torch.__version__, 'onnx_opset': OPSET},
           'training_sources': src, 'class_set': args.classes,

@@ -40,6 +40,9 @@ setup(
         # compiled inner loops of the sign measurement (workzone_ros/core/kernels.py)
         'numba>=0.59',
         'scikit-learn>=1.3',
+        # Haar-like features and integral images of the sign-shape cascade
+        # (workzone_ros/core/general/shapes.py)
+        'scikit-image>=0.22',
         'opencv-python-headless>=4.8',
         'msgspec>=0.18',
         'PyYAML>=6',

@@ -192,7 +192,10 @@ class Sign(msgspec.Struct, frozen=True, **_STRUCT):
     ``category: "unknown"`` and a ``reason`` when the crop could not be classified (too
     small, outside the image): never a guess.  ``distance_m`` is the estimated distance from
     the camera (LiDAR range of the ROI the sign came from, else apparent size x the class's
-    standard size / focal length) and ``distance_source`` says which.
+    standard size / focal length) and ``distance_source`` says which.  A general sign
+    (category ``general``: stop, yield, guide signs, mile markers, ...) comes from the
+    general-sign recogniser and never changes the work-zone state; a mile marker carries
+    its number in ``mile`` when it could be read.
     """
 
     box: Box
@@ -207,6 +210,8 @@ class Sign(msgspec.Struct, frozen=True, **_STRUCT):
     distance_m: Optional[NonNeg] = None
     distance_source: Literal['lidar', 'size', 'none'] = 'none'
     reason: str = ''
+    mile: Optional[int] = None
+    mile_confidence: Optional[Unit] = None
 
 
 class Signs(msgspec.Struct, frozen=True, tag='workzone_ros/Signs/1', tag_field='schema',

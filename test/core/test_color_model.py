@@ -274,68 +274,6 @@ def test_prior_camera_jitter_widens_the_roi():
     assert other.prior_image(640, 480)[235, 435] > 0.99
 
 
-def _hue_band_counts():
-    """Orange sign pixels; saturated yellow, red and blue background at the sign's
-    saturation, and grey / warm-grey ground at low saturation."""
-    pos = np.zeros((cm.H_BINS, cm.S_BINS))
-    neg = np.zeros_like(pos)
-    pos[10:17, 170:250] = 5.0                      # fluorescent orange
-    neg[24:32, 150:256] = 3.0                      # yellow vehicles / diamonds
-    neg[0:4, 150:256] = 3.0                        # red
-    neg[100:120, 120:256] = 10.0                   # blue sky
-    neg[5:25, 20:120] = 20.0                       # warm grey asphalt, dry lawns
-    neg[:, :20] = 50.0                             # grey
-    return pos, neg
-
-
-def test_gentle_lut_equals_the_stumps_on_every_bin():
-    """The table is built from per-feature sums; the reference adds the stumps one by one
-    over every (h, s) bin and applies the seed's g(F) = e^F / (e^F + e^-F)."""
-    model = cm.fit_gentle(*_hue_band_counts(), n_estimators=40)
-    assert len(model) == 40
-    lut = cm.gentle_lut(model)
-    assert lut.shape == (180, 256) and lut.dtype == np.float32
-    h, s = np.meshgrid(np.arange(180), np.arange(256), indexing='ij')
-    X = np.column_stack([h.ravel(), s.ravel()])
-    F = cm.gentle_margin(model, X)
-    ref = (np.exp(F) / (np.exp(F) + np.exp(-F))).reshape(180, 256)
-    np.testing.assert_allclose(lut, ref, atol=1e-6)
-    assert np.ptp(F) > 1.0                          # not a trivial model
-
-
-def test_gentle_boosting_learns_a_hue_band():
-    """Regression stumps refine the hue band: saturated yellow, red and blue stay below 0.5
-    at the sign's saturation, orange is above; warm grey ground is below too."""
-    lut = cm.gentle_lut(cm.fit_gentle(*_hue_band_counts(), n_estimators=60))
-    assert lut[13, 210] > 0.9
-    for h in (28, 2, 110):
-        assert lut[h, 210] < 0.5, h
-    assert lut[13, 60] < 0.5 and lut[13, 5] < 0.5
-
-
-def test_gentle_margin_is_half_the_log_odds():
-    """Friedman et al.: the additive logistic model's F estimates 1/2 log(p / (1 - p)), so
-    the seed's link returns the class probability itself (a bin with 3:1 sign pixels)."""
-    pos = np.zeros((cm.H_BINS, cm.S_BINS))
-    neg = np.zeros_like(pos)
-    pos[12, 200], neg[12, 200] = 3.0, 1.0
-    neg[90, 40] = 1000.0
-    pos[90, 40] = 1.0
-    model = cm.fit_gentle(pos * 1.0, neg, n_estimators=200, pos_weight=pos.sum() / neg.sum())
-    lut = cm.gentle_lut(model)
-    assert abs(lut[12, 200] - 0.75) < 0.03
-    assert lut[90, 40] < 0.01
-
-
-def test_gentle_stumps_validation_and_errors():
-    with pytest.raises(cm.ModelError):
-        cm.GentleStumps(np.zeros((3, 3)))
-    with pytest.raises(cm.ModelError):
-        cm.GentleStumps(np.array([[2.0, 1.0, 0.0, 0.0]]))
-    with pytest.raises(cm.ModelError, match='both sign and background'):
-        cm.fit_gentle(np.zeros((180, 256)), np.ones((180, 256)))
-
-
 def test_prior_expected_value_and_flat_prior():
     """The location-free prior is the heat map's mean over its ROI; a flat prior is that
     value everywhere; a uniform prior's expected value is 1."""

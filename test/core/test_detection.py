@@ -13,7 +13,6 @@ from workzone_ros.core.detect import (
     estimate_horizon,
     fit_rgb_lp,
     nms,
-    relative_measure,
     rgb_histograms,
 )
 from workzone_ros.core.detect.common import _components, _lookup, _median, _mode, pixel_box
@@ -578,76 +577,6 @@ def test_regulatory_extension_under_a_blue_sky_with_gray_world(model):
     d = _one(det.detect(img), gt, 0.8)
     assert d.kind == 'regulatory' and d.box.h > 80
 
-
-def _smooth_model(measure=None):
-    """An orange table that rises smoothly with saturation (like a Gentle AdaBoost table):
-    a sign's blended edge scores in between the face's and the background's level."""
-    lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
-    lut[5:21] = np.clip((np.arange(cm.S_BINS) - 40) / 200.0, 0.0, 0.98)
-    base = cm.default_model(lut, 50)
-    meta = {} if measure is None else {'measure': measure}
-    return cm.ColorModel(base.classes, base.luts, base.v_min, base.prior, meta, {})
-
-
-def test_relative_measurement_keeps_boxes_tight_on_smooth_tables():
-    """Model metadata ``measure: relative`` takes the box from the blob's core between its
-    own face and background levels; with the absolute thresholds (set for step-shaped
-    tables) a smooth table lets the box grow into the blended edge."""
-    img = _background()
-    gt = Box(*map(float, _diamond(img, 420, 150, 25)))
-    img = cv2.GaussianBlur(img, (0, 0), 2.0)
-    # the hull path (a diamond's box from the fitted diamond is tight either way, below)
-    cfg = DetectorConfig(colors=('orange',), use_prior=False, diamond_scale=0.0)
-    old = ColorDetector(_smooth_model(), cfg).detect(img)
-    new = ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.5,
-                                          'blur_rel': 0.5}), cfg).detect(img)
-    assert len(old) == 1 and len(new) == 1
-    _, p_old, _ = box_metrics(old[0].box, gt)
-    _, p_new, r_new = box_metrics(new[0].box, gt)
-    assert p_old < 0.9 and p_new > 0.95 and r_new > 0.95
-    # absolute mode in the metadata is the old behaviour
-    same = ColorDetector(_smooth_model({'mode': 'absolute'}), cfg).detect(img)
-    assert same[0].box == old[0].box
-    # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
-    # which the brightness refinement assumes: boxes here come from the orange mask
-    fitted = ColorDetector(_smooth_model(), replace_cfg(cfg, diamond_scale=1.07,
-                                                           diamond_refine=False)).detect(img)
-    assert len(fitted) == 1 and min(box_metrics(fitted[0].box, gt)[1:]) > 0.95
-
-
-def test_relative_measure_metadata():
-    assert relative_measure({}) is None
-    assert relative_measure({'measure': {'mode': 'absolute'}}) is None
-    assert relative_measure({'measure': {'mode': 'relative', 'edge_rel': 0.4,
-                                            'blur_rel': 0.2}}) == (0.4, 0.2)
-    for bad in ({'mode': 'relative'}, {'mode': 'relative', 'edge_rel': 2, 'blur_rel': 0.1},
-                {'mode': 'peak'}, 'relative'):
-        with pytest.raises(cm.ModelError, match='measure'):
-            relative_measure({'measure': bad})
-    with pytest.raises(cm.ModelError, match='measure'):
-        ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 'x',
-                                        'blur_rel': 0.1}))
-
-
-def test_relative_measurement_does_not_grow_over_an_inside_border_line():
-    """With a relative (smooth-table) model, a band just inside the hull that is mostly dark
-    is the border line itself: the box does not grow by ``border_frac`` (an absolute model
-    compares the bands only, and grows when the outside is at least as dark)."""
-    hmask = np.zeros((60, 60), np.uint8)
-    hmask[10:50, 10:50] = 1
-    dark = np.zeros((60, 60), bool)
-    dark[8:52, 8:52] = True
-    dark[14:46, 14:46] = False             # the black line straddles the hull's edge
-    like = np.where(hmask > 0, 0.95, 0.0).astype(np.float32)
-    cfg = DetectorConfig(colors=('orange',), use_prior=False)
-    old = ColorDetector(_smooth_model(), cfg)._border_growth(hmask, dark, like, 40)[0]
-    rel = ColorDetector(_smooth_model({'mode': 'relative', 'edge_rel': 0.75,
-                                          'blur_rel': 0.5}), cfg)
-    assert old == pytest.approx(cfg.border_frac)
-    assert rel._border_growth(hmask, dark, like, 40, 0.5)[0] == 0.0
-
-
-# --- frames of a camera the model was not trained on (#5 real frames) -------------------
 
 def test_other_camera_does_not_get_the_fixed_camera_prior(model):
     """A 722x406 frame from an unknown camera: the prior's heat map (rows and columns of our

@@ -47,3 +47,36 @@ def test_unclassifiable_reasons():
     assert 'min_size' in unclassifiable(Box(x=0, y=0, w=20, h=8), 640, 480, 12, 0.5)
     assert 'only 6% of the box' in unclassifiable(Box(x=-15, y=-15, w=20, h=20), 640, 480, 12,
                                                   0.5)
+
+
+class _Found:
+    """A general sign as the general recogniser reports it (x, y, w, h box)."""
+
+    def __init__(self, key, box, score=0.8, mile=None, mile_confidence=None):
+        self.class_key, self.box, self.score = key, box, score
+        self.mile, self.mile_confidence = mile, mile_confidence
+
+
+def test_general_signs_are_category_general_with_a_distance_and_their_mile():
+    from workzone_ros.core.recognition import general_signs
+    found = [_Found('stop', (100, 100, 40, 40)),
+             _Found('mile_marker', (500, 200, 10, 25), mile=42, mile_confidence=0.9),
+             _Found('no_such_sign', (10, 10, 30, 30))]
+    out = general_signs(found, focal_px=1000.0)
+    assert [s.class_key for s in out] == ['stop', 'mile_marker']
+    assert all(s.category == 'general' for s in out)
+    assert out[0].code == 'R1-1' and out[0].distance_source == 'size'
+    assert abs(out[0].distance_m - 1000.0 * 0.9 / 40) < 0.05
+    assert out[1].mile == 42 and out[1].mile_confidence == 0.9
+    assert out[0].mile is None
+
+
+def test_a_general_sign_where_the_work_zone_chain_published_one_is_left_out():
+    from workzone_ros.core.recognition import general_signs
+    from workzone_ros.interfaces import Sign
+    published = [Sign(box=Box(x=100, y=100, w=40, h=40), class_key='road_work_ahead',
+                      code='W20-1', category='workzone', score=0.9)]
+    found = [_Found('warning_diamond', (102, 101, 38, 40)),
+             _Found('stop', (300, 100, 40, 40))]
+    out = general_signs(found, focal_px=1000.0, published=published)
+    assert [s.class_key for s in out] == ['stop']

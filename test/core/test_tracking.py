@@ -21,7 +21,6 @@ from workzone_ros.core.track import (
     bhattacharyya,
     box_iou,
     build_target,
-    cone_like,
     shape_mask,
 )
 from workzone_ros.interfaces import Box, Detection
@@ -1057,108 +1056,9 @@ def test_sign_at_30_fps_runs_on_its_own_where_a_vehicle_ahead_does_not():
             assert not any(alone), sources[14:]
 
 
-def _cone(img, cx, base_y, height, base_w):
-    """A traffic cone (MUTCD 6F.63): an orange truncated cone, its top a fifth of its base,
-    with a white band across it from 35 to 50 % of its height; returns the box of its orange
-    body below the band (what the colour detector reports on its false detections)."""
-    def half(y):
-        return (base_w / 10 + (base_w / 2 - base_w / 10) * (y - (base_y - height)) / height)
-    top = base_y - height
-    for y in range(int(top), int(base_y)):
-        t = (y - top) / height
-        col = WHITE if 0.35 <= t < 0.5 else ORANGE
-        img[y, int(round(cx - half(y))):int(round(cx + half(y)))] = col
-    y0 = int(top + 0.5 * height)
-    x0 = int(round(cx - half(base_y - 1)))
-    return (float(x0), float(y0), float(int(round(cx + half(base_y - 1))) - x0),
-            float(int(base_y) - y0))
-
-
-@pytest.mark.parametrize('test', [True, False])
-def test_a_cone_body_under_its_band_does_not_run_on_its_own_but_a_sign_does(test):
-    """Cone test around the box (``cone_test``): the detector's false detection of a cone's
-    body right below its white band (the band lies outside the box, so the white gate inside
-    the shape does not see it) is not published on its own; a regulatory sign's white bottom
-    under its orange top (no orange beyond it, a black border line under it) still is (with
-    the test off, the cone runs on its own too: can fail)."""
-    bg = background(31)
-    tracker = MultiTracker(TrackerConfig(cone_test=test, **SLOW))
-    alone = {'sign': 0, 'cone': 0}
-    for i in range(7):
-        img = bg.copy()
-        sign = draw_regulatory(img, 420 + 2 * i, 200 - 0.6 * i, 40 * 1.02 ** i)
-        cone = _cone(img, 180 + 2 * i, 330 + i, 90 * 1.02 ** i, 52 * 1.02 ** i)
-        dets = [det(sign, kind='regulatory'), det(cone)] if i < 2 else []
-        for t in tracker.step(img, dets):
-            if t.source == 'tracking':
-                b = (t.box.x, t.box.y, t.box.w, t.box.h)
-                alone['sign' if box_iou(b, sign) > 0.5 else 'cone'] += 1
-    assert alone['sign'] == 5, alone
-    assert (alone['cone'] == 0) == test, alone
-
-
-def test_cone_like_sees_the_band_around_the_box_and_not_a_sign_border():
-    """:func:`cone_like`: a cone's body under its band (and a box lagging a few rows below
-    the body's top) is a cone; a regulatory sign's orange top over its white bottom, a
-    diamond and a cone box under the minimum height are not."""
-    img = background(32)
-    body = _cone(img, 200, 400, 120, 70)
-    sign = draw_regulatory(img, 460, 200, 60)
-    diamond = draw_diamond(img, 460, 400, 60)
-    cfg = TrackerConfig()
-    x, y, w, h = body
-    assert cone_like(img, body, cfg)
-    assert cone_like(img, (x, y + 0.15 * h, w, 0.85 * h), cfg)        # lagging box
-    top = (sign[0], sign[1], sign[2], 0.3 * sign[3])                   # the orange top
-    assert not cone_like(img, top, cfg)
-    assert not cone_like(img, diamond, cfg)
-    assert not cone_like(img, body, replace(cfg, cone_min_px=int(h) + 1))
-
-
-@pytest.mark.parametrize('rel', [0.5, 0.0])
-def test_cone_like_needs_orange_as_saturated_as_the_face_beyond_a_band(rel):
-    """A sign in front of pale sky with pale orange-brown ground of a similar hue above the
-    sky (a tinted facade): the white between is no band of a cone (with ``cone_sat_rel``
-    off, the pale orange counts as the object's: can fail)."""
-    img = background(33)
-    pale = cv2.cvtColor(np.uint8([[[13, 80, 200]]]), cv2.COLOR_HSV2BGR)[0, 0]
-    img[200:262, 400:520] = pale                    # pale orange-brown, the sign's hue
-    img[262:292, 430:490] = WHITE                   # pale sky between it and the sign
-    sign = draw_diamond(img, 460, 330, 70)
-    cfg = TrackerConfig(cone_sat_rel=rel)
-    assert cone_like(img, sign, cfg) == (rel == 0.0)
-
-
-@pytest.mark.parametrize('sticky', [True, False])
-def test_a_track_judged_a_cone_stays_so_until_its_next_detection(sticky):
-    """``cone_sticky``: the band of a cone blurs or hides in some frames (here painted over
-    after the first frame on its own); the track judged a cone is still not published on
-    its own (with the flag off, it is once the band is gone: can fail)."""
-    bg = background(34)
-    tracker = MultiTracker(TrackerConfig(cone_test=True, cone_sticky=sticky, **SLOW))
-    alone = 0
-    for i in range(7):
-        img = bg.copy()
-        cone = _cone(img, 180 + 2 * i, 330 + i, 90 * 1.02 ** i, 52 * 1.02 ** i)
-        if i >= 3:
-            band = img[:int(cone[1]), int(cone[0]):int(cone[0] + cone[2])]
-            band[(band == WHITE).all(axis=2)] = ORANGE
-        alone += sum(t.source == 'tracking'
-                     for t in tracker.step(img, [det(cone)] if i < 2 else []))
-    assert (alone == 0) == sticky, alone
-
-
-def test_a_sign_leaving_the_frame_with_its_flag_over_the_sky_is_not_a_cone():
-    """A warning diamond on a portable stand at the image's right edge, its orange flag
-    above it and pale sky between them and all around: the sky is background, not a band
-    (the cut-off flank does not count; judged on the visible one).  Without that rule the
-    sky rows count as a band with orange (the flag) beyond it: a cone (tuning random 3605)."""
-    img = background(34)
-    img[150:330, 560:] = WHITE                              # overcast sky behind the stand
-    img[170:200, 612:636] = ORANGE                          # the stand's flag
-    sign = draw_diamond(img, 630, 260, 60)
-    cut = (sign[0], sign[1], W - sign[0], sign[3])          # the part inside the frame
-    assert not cone_like(img, cut, TrackerConfig())
+def test_open_background_rows_are_rows_with_background_on_both_sides():
+    """Rows whose left and right flanks are open background (a sign at the frame edge is
+    judged on its visible flank: an empty flank counts as open)."""
     left = np.ones((10, 8), bool)
     assert open_background_rows(left, np.zeros((10, 0), bool), 4).all()
     assert open_background_rows(left, np.zeros((10, 8), bool), 4).sum() == 0

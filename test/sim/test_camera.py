@@ -1,4 +1,4 @@
-"""Tests for the synthetic camera renderer (sim/camera.py)."""
+"""Tests for the synthetic camera renderer (sim/camera.py and the modules it draws with)."""
 import math
 
 import cv2
@@ -315,7 +315,7 @@ def test_frame_effects_do_not_move_the_image_against_its_labels():
     c0 = centroid(base)
     for frame in range(60):
         rng = np.random.default_rng([7, frame])
-        out = cam._effects(base.copy(), frame, rng, None)
+        out = cam.effects.apply(base.copy(), frame, rng, None)
         c = centroid(out)
         assert abs(c[0] - c0[0]) < 0.15 and abs(c[1] - c0[1]) < 0.15, (frame, c, c0)
 
@@ -369,7 +369,7 @@ def _coverage(sign, pose, box, ss=8):
 
 def test_sign_labels_are_the_pixels_the_face_covers_more_than_half():
     """A sign's label pixels are those its face covers more than half, as the image shows
-    them through the lens (:meth:`CameraRenderer._sign_edges`): against the outline's
+    them through the lens (:meth:`ObjectPainter.sign_edges`): against the outline's
     coverage computed independently (projectPoints, 8x8 samples a pixel), over 24 signs of
     four classes at 25-90 m, at most 0.75 % of the pixels covered clearly more or less than
     half (by 0.1) are labelled otherwise, and the label agrees on at least 88 % of the

@@ -10,12 +10,8 @@ saturation,
 and the posterior multiplies it by a prior over image locations learned from the ground-truth
 boxes (the heat map of seed 000, Fig. 1):  P(sign | x) = eta P(x | sign) P(sign)  (eq. 1).
 
-Two boosting variants fit those stumps: scikit-learn's discrete SAMME AdaBoost
-(:func:`fit_boosted`; each stump votes +-1) and Gentle AdaBoost over regression stumps
-(:func:`fit_gentle`, Friedman, Hastie and Tibshirani's additive logistic regression, the
-seed's reference [8]), whose F is half the log-odds, so g(F) is the class probability
-without a calibration factor, and whose stumps keep refining hue bands where discrete
-SAMME's weighted error sticks near 0.5 (``train color --boost gentle``).
+scikit-learn's discrete SAMME AdaBoost fits those stumps (:func:`fit_boosted`; each stump
+votes +-1).
 
 Because the model only sees (hue, saturation) and OpenCV's 8-bit HSV has 180 x 256 distinct
 values, the whole boosted model is evaluated once per bin and stored as a table: a frame
@@ -49,9 +45,7 @@ __all__ = [
     'SpatialPrior', 'logistic_link', 'stump_margin', 'boosted_probability', 'fit_boosted',
     'boosted_lut', 'hsv_range_lut', 'histogram_from_pixels', 'fit_prior', 'save_model',
     'load_model', 'default_model', 'gray_world_gains', 'low_chroma_gains', 'WHITE_BALANCE',
-    'apply_gains', 'SatNorm',
-    'saturation_gain', 'saturation_table', 'GentleStumps', 'fit_gentle', 'gentle_margin',
-    'gentle_lut',
+    'apply_gains', 'SatNorm', 'saturation_gain', 'saturation_table',
 ]
 
 SCHEMA = 'workzone_ros/ColorModel'
@@ -187,121 +181,6 @@ def fit_boosted(pos: np.ndarray, neg: np.ndarray, n_estimators: int = 40,
     clf.fit(X, y, sample_weight=w / w.sum())
     return clf
 
-
-@dataclass(frozen=True)
-class GentleStumps:
-    """An additive logistic model of regression stumps (Gentle AdaBoost, Friedman et al. [8]).
-
-    Stump i is ``f_i(x) = left[i] if x[feature[i]] <= threshold[i] else right[i]`` over
-    x = (hue, saturation); the model is F(x) = sum_i f_i(x) and Friedman, Hastie and
-    Tibshirani's additive logistic regression makes F half the log-odds,
-    P(sign | x) = e^F / (e^F + e^-F): exactly the link g of seed 000 eq. 2, with no
-    calibration factor.  Unlike discrete AdaBoost (each stump a vote in {-1, +1}), every
-    stump fits a weighted least-squares step to y in {-1, +1}, so later stumps refine hue
-    bands instead of re-voting the same saturation split.
-
-    Attributes:
-        stumps: (H, 4) float64 rows (feature 0 = hue / 1 = saturation, threshold, left,
-            right).
-    """
-
-    stumps: np.ndarray
-
-    def __post_init__(self) -> None:
-        st = np.asarray(self.stumps, np.float64)
-        if st.ndim != 2 or st.shape[1] != 4 or not np.all(np.isin(st[:, 0], (0.0, 1.0))):
-            raise ModelError(f'gentle stumps must be (H, 4) rows (feature 0/1, threshold, '
-                             f'left, right), got shape {st.shape}')
-        object.__setattr__(self, 'stumps', st)
-
-    def __len__(self) -> int:
-        return len(self.stumps)
-
-
-def gentle_margin(model: GentleStumps, X: np.ndarray) -> np.ndarray:
-    """F(x) = sum_i f_i(x) evaluated stump by stump (the reference evaluator; (N,) float64)."""
-    X = np.asarray(X, dtype=np.float64)
-    f = np.zeros(len(X))
-    for feat, thr, left, right in model.stumps:
-        f += np.where(X[:, int(feat)] <= thr, left, right)
-    return f
-
-
-def gentle_lut(model: GentleStumps) -> np.ndarray:
-    """The Gentle model on every (hue, saturation) bin: (180, 256) float32.
-
-    Each stump depends on one feature, so F(h, s) = A(h) + B(s); the table is built from
-    the two per-feature sums (no stump-by-stump loop over the 46 080 bins).
-    """
-    parts = [np.zeros(H_BINS), np.zeros(S_BINS)]
-    axes = [np.arange(H_BINS, dtype=np.float64), np.arange(S_BINS, dtype=np.float64)]
-    for feat, thr, left, right in model.stumps:
-        k = int(feat)
-        parts[k] += np.where(axes[k] <= thr, left, right)
-    f = parts[0][:, None] + parts[1][None, :]
-    return logistic_link(f).astype(np.float32)
-
-
-def fit_gentle(pos: np.ndarray, neg: np.ndarray, n_estimators: int = 100,
-               pos_weight: float = 1.0, shrinkage: float = 1.0,
-               min_weight: float = 1e-9) -> GentleStumps:
-    """Gentle AdaBoost (Friedman, Hastie, Tibshirani 2000, Alg. 4) on per-bin counts.
-
-    Every (hue, saturation) bin holds a positive weight and a negative weight (initially
-    its pixel counts, each class normalised to total ``pos_weight`` and 1).  Per round the
-    weighted least-squares stump on y in {-1, +1} is found for both features at once from
-    cumulative sums over the bins: for a region with class weights Wp, Wn the fitted value
-    is (Wp - Wn) / (Wp + Wn) and the squared-error reduction (Wp - Wn)^2 / (Wp + Wn).  Then
-    w_pos *= exp(-f), w_neg *= exp(+f).  Cost per round: O(180 x 256) array operations.
-
-    Args:
-        pos, neg: (180, 256) pixel counts from :func:`histogram_from_pixels`.
-        n_estimators: number of stumps H.
-        pos_weight: total weight of the positive class relative to the negative class.
-        shrinkage: each stump's values are multiplied by this (1 = plain Gentle AdaBoost).
-        min_weight: a split needs at least this much weight on each side.
-
-    Raises:
-        ModelError: no positive or no negative pixels.
-    """
-    pos = np.asarray(pos, np.float64)
-    neg = np.asarray(neg, np.float64)
-    if pos.shape != (H_BINS, S_BINS) or neg.shape != (H_BINS, S_BINS):
-        raise ModelError(f'count tables must be ({H_BINS}, {S_BINS})')
-    if pos.sum() <= 0 or neg.sum() <= 0:
-        raise ModelError('training needs both sign and background pixels')
-    wp = pos / pos.sum() * pos_weight
-    wn = neg / neg.sum()
-    rows = []
-    for _ in range(int(n_estimators)):
-        best = None
-        for k in (0, 1):
-            mp, mn = wp.sum(axis=1 - k), wn.sum(axis=1 - k)        # marginals over feature k
-            cp, cn = np.cumsum(mp)[:-1], np.cumsum(mn)[:-1]        # left of threshold t + 0.5
-            tp, tn = mp.sum(), mn.sum()
-            lw, rw = cp + cn, (tp - cp) + (tn - cn)
-            ok = (lw > min_weight) & (rw > min_weight)
-            if not ok.any():
-                continue
-            gain = np.where(ok, (cp - cn) ** 2 / np.maximum(lw, 1e-300)
-                            + ((tp - cp) - (tn - cn)) ** 2 / np.maximum(rw, 1e-300), -1.0)
-            t = int(np.argmax(gain))
-            if best is None or gain[t] > best[0]:
-                left = (cp[t] - cn[t]) / lw[t]
-                right = ((tp - cp[t]) - (tn - cn[t])) / rw[t]
-                best = (gain[t], k, t + 0.5, shrinkage * left, shrinkage * right)
-        if best is None:
-            break
-        _, k, thr, left, right = best
-        axis = np.arange(H_BINS if k == 0 else S_BINS)
-        f1 = np.where(axis <= thr, left, right)
-        f = f1[:, None] if k == 0 else f1[None, :]
-        wp = wp * np.exp(-f)
-        wn = wn * np.exp(f)
-        total = wp.sum() + wn.sum()
-        wp, wn = wp / total, wn / total
-        rows.append((float(k), float(thr), float(left), float(right)))
-    return GentleStumps(np.array(rows, np.float64).reshape(-1, 4))
 
 
 def hsv_range_lut(ranges: Sequence[tuple[int, int, int, int]],

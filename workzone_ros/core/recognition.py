@@ -11,7 +11,11 @@ The rules a consumer of ``/workzone/signs`` relies on, shared by the node and by
 * a work-zone speed limit gets its value from :func:`workzone_ros.core.digits.
   read_speed_limit` when it can be read;
 * every sign gets a distance: its LiDAR ROI's range, else its apparent size
-  (:mod:`workzone_ros.core.sign_distance`).
+  (:mod:`workzone_ros.core.sign_distance`);
+* general signs found on the whole frame (:mod:`workzone_ros.core.general`: stop, yield,
+  do-not-enter, warning, speed limit, guide signs and mile markers) are added by
+  :func:`general_signs` with category ``general``, unless a work-zone chain's sign already
+  covers the same place.
 """
 from __future__ import annotations
 
@@ -23,7 +27,11 @@ from workzone_ros.core import signs as catalogue
 from workzone_ros.core.sign_distance import estimate_distance
 from workzone_ros.interfaces import Box, Roi, Sign
 
-__all__ = ['RecognitionConfig', 'SignRecognizer', 'unclassifiable']
+__all__ = ['RecognitionConfig', 'SignRecognizer', 'unclassifiable', 'general_signs',
+           'GENERAL_OVERLAP']
+
+#: A general sign whose box overlaps a published sign's by this IoU or more is not added.
+GENERAL_OVERLAP = 0.3
 
 
 @dataclass(frozen=True)
@@ -119,3 +127,33 @@ class SignRecognizer:
         if reading.value is None:
             return None, None
         return int(reading.value), _unit(reading.confidence)
+
+
+
+def general_signs(found: Sequence[Any], focal_px: Optional[float], rois: Sequence[Roi] = (),
+                  published: Sequence[Sign] = ()) -> list[Sign]:
+    """``Sign`` payload items (category ``general``) of the general signs ``found`` in a frame.
+
+    ``found`` are :class:`workzone_ros.core.general.GeneralSign` (``box`` as x, y, w, h;
+    ``class_key``, ``score``, ``mile``, ``mile_confidence``).  One overlapping a sign of
+    ``published`` by :data:`GENERAL_OVERLAP` IoU or more is left out: the work-zone chain
+    already said what is there.
+    """
+    out: list[Sign] = []
+    for g in found:
+        c = catalogue.BY_KEY.get(g.class_key)
+        if c is None:
+            continue
+        box = Box(x=float(g.box[0]), y=float(g.box[1]), w=float(g.box[2]), h=float(g.box[3]))
+        if any(box.iou(p.box) >= GENERAL_OVERLAP for p in published):
+            continue
+        dist, source = estimate_distance(box, c.key, focal_px, rois)
+        mile = getattr(g, 'mile', None)
+        conf = getattr(g, 'mile_confidence', None)
+        out.append(Sign(box=box, class_key=c.key, code=c.code, category='general',
+                        score=_unit(g.score),
+                        distance_m=None if dist is None else round(dist, 2),
+                        distance_source=source,
+                        mile=None if mile is None else int(mile),
+                        mile_confidence=None if mile is None or conf is None else _unit(conf)))
+    return out

@@ -188,31 +188,6 @@ _CORE_PARAMS = (
     Param('perspective_min_detections', _D.perspective_min_detections, 'perspective scale: '
           'detections the trend needs (and it extrapolates no further than they span)',
           min=3, max=1000),
-    Param('cone_test', _D.cone_test, 'drum/cone test around a track running on its own: a '
-          'white band with more orange beyond it, or a white cap over a body widening '
-          'downward (MUTCD 6F.63/6F.64): not published on its own'),
-    Param('cone_min_px', _D.cone_min_px, 'cone test: anchors at least this high (px)',
-          min=1, max=10000),
-    Param('cone_strip', _D.cone_strip, "cone test: the strip's width over the box's",
-          min=0.05, max=1.0),
-    Param('cone_sat_rel', _D.cone_sat_rel, "cone test: orange is at least this times the "
-          "face's median saturation", min=0.0, max=1.0),
-    Param('cone_sticky', _D.cone_sticky, 'cone test: a track judged a cone stays so until '
-          'its next detection'),
-    Param('cone_hue_tolerance', _D.cone_hue_tolerance, "cone test: orange within this of "
-          "the face's hue (OpenCV units)", min=1, max=90),
-    Param('cone_min_saturation', _D.cone_min_saturation, 'cone test: orange saturation at '
-          'least this', min=0, max=255),
-    Param('cone_white_s_max', _D.cone_white_s_max, 'cone test: white saturation at most '
-          'this', min=0, max=255),
-    Param('cone_white_luma', _D.cone_white_luma, "cone test: white at least this times the "
-          "orange face's luma", min=0.0, max=10.0),
-    Param('cone_band_rows', _D.cone_band_rows, "cone test: a band's white rows at least this "
-          "times the anchor's height", min=0.0, max=1.0),
-    Param('cone_taper', _D.cone_taper, 'cone test: a capped body widens downward: row taper '
-          'at most this', min=0.0, max=2.0),
-    Param('cone_dark_rel', _D.cone_dark_rel, "cone test: a dark row (below this times the "
-          "face's value) ends the search (a sign's border line)", min=0.0, max=1.0),
 )
 
 

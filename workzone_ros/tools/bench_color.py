@@ -18,9 +18,7 @@ Figures (one core: ``cv2.setNumThreads(1)``; run it on a quiet machine):
   When it is as high as the wall clock, a slow p99 is the core's own speed (a virtual
   machine's CPU time varies by half from run to run), not other processes preempting it.
 * ``per_pixel_ns``: P(x | sign) per pixel by the boosted model (scikit-learn
-  ``predict_proba`` over (hue, saturation)) vs the lookup table, and their ratio; and the
-  Gentle AdaBoost model (``--boost gentle``) evaluated directly, stump by stump in numpy
-  then g(F), vs the table (``gentle_direct``, ``gentle_ratio``).  The
+  ``predict_proba`` over (hue, saturation)) vs the lookup table, and their ratio.  The
   boosted model is fitted here on the frame (H = ``--estimators`` stumps) so the figure does
   not depend on a model file.
 """
@@ -186,17 +184,8 @@ def run(args: argparse.Namespace) -> dict:
         np.take(lut_u8, idx)
     t_lut = (time.perf_counter() - t0) / reps
     n = X.shape[0]
-    # Gentle AdaBoost (regression stumps): F evaluated stump by stump over the pixels, then
-    # the seed's link g(F) (no scikit-learn call exists for it; this is the direct model)
-    gentle = cm.fit_gentle(pos, neg, args.estimators)
-    t0 = time.perf_counter()
-    cm.logistic_link(cm.gentle_margin(gentle, X))
-    t_gentle = time.perf_counter() - t0
     out['per_pixel_ns'] = {'boosted_predict_proba': t_boost / n * 1e9,
                            'lut': t_lut / n * 1e9,
                            'ratio': t_boost / max(t_lut, 1e-12),
-                           'stumps': int(len(clf.estimators_)),
-                           'gentle_direct': t_gentle / n * 1e9,
-                           'gentle_ratio': t_gentle / max(t_lut, 1e-12),
-                           'gentle_stumps': len(gentle)}
+                           'stumps': int(len(clf.estimators_))}
     return out

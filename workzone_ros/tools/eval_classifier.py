@@ -38,6 +38,7 @@ from workzone_ros.core import classifier as clf_mod
 from workzone_ros.core import features as ft
 from workzone_ros.core import signs
 from workzone_ros.tools import train_classifier as tc
+from workzone_ros.tools.outputs import json_default
 
 __all__ = ['main', 'grouped_splits', 'scores', 'mirror_separation', 'background_fp',
            'score_thresholds', 'draw_confusion', 'contact_sheet']
@@ -418,20 +419,12 @@ def main(argv: Optional[list[str]] = None) -> int:
         out['leave_one_clip_out'] = leave_one_clip_out(
             renders, Path(args.real), classes, args.features, args.seed)
     out['sources'] = tc.describe_sources(args, data)
-    text = json.dumps(out, indent=2, default=_jsonable)
+    text = json.dumps(out, indent=2, default=json_default)
     print(text)
     if args.json:
         Path(args.json).write_text(text)
         _say(f'figures written to {args.json}')
     return 0
-
-
-def _jsonable(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(type(o).__name__)
 
 
 if __name__ == '__main__':

@@ -55,6 +55,7 @@ from workzone_ros.core import detect as dt
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import Box
 from workzone_ros.resources import config_path
+from workzone_ros.tools.outputs import write_contact_sheet
 
 __all__ = ['main', 'match_frame', 'TableI', 'REAL_CLIPS', 'draw']
 
@@ -188,18 +189,6 @@ def draw(img: np.ndarray, dets, gts=(), rois=(), label: str = '') -> np.ndarray:
     if label:
         cv2.putText(out, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 2)
     return out
-
-
-def _sheet(tiles: list[np.ndarray], path: str, cols: int = 3, width: int = 480) -> None:
-    if not tiles:
-        return
-    h = int(width * tiles[0].shape[0] / tiles[0].shape[1])
-    tiles = [cv2.resize(t, (width, h)) for t in tiles]
-    while len(tiles) % cols:
-        tiles.append(np.zeros_like(tiles[0]))
-    rows = [np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)]
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(path, np.vstack(rows))
 
 
 # --- synthetic bags -----------------------------------------------------------------------
@@ -516,7 +505,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         report['bags'] = list(args.bags)
         report['synthetic'] = evaluate_bags(args.bags, detectors, args, tiles)
         if args.sheet:
-            _sheet(tiles, args.sheet)
+            write_contact_sheet(tiles, args.sheet, width=480)
     if args.pixels:
         report['pixels'] = evaluate_pixels(model, args.pixels, args.threshold)
     if args.real:
@@ -535,7 +524,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         args_real.sheet_method = 'learned'
         report['real'] = evaluate_real(Path(args.real), real_dets, args_real, tiles)
         if args.real_sheet:
-            _sheet(tiles, args.real_sheet)
+            write_contact_sheet(tiles, args.real_sheet, width=480)
     text = json.dumps(report, indent=2, default=float)
     print(text)
     if args.json:

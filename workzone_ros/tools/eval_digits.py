@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core import digits
+from workzone_ros.tools.outputs import tile_grid
 
 __all__ = ['main', 'Sample', 'make_specs', 'samples', 'export_samples', 'summarise',
            'contact_sheet', 'BINS']
@@ -303,12 +304,8 @@ def contact_sheet(items: Sequence[tuple[Sample, np.ndarray]], path: str, cols: i
                     (2, tile + 26), cv2.FONT_HERSHEY_PLAIN, 0.8, colours[s.outcome], 1,
                     cv2.LINE_AA)
         tiles.append(t)
-    if not tiles:
-        return
-    while len(tiles) % cols:
-        tiles.append(np.full_like(tiles[0], 255))
-    rows = [np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)]
-    cv2.imwrite(path, np.vstack(rows))
+    if tiles:
+        cv2.imwrite(path, tile_grid(tiles, cols, fill=255))
 
 
 def _sheet_items(items, n: int = 256):

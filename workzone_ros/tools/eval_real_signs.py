@@ -23,6 +23,7 @@ from typing import Optional
 
 from workzone_ros.resources import config_path
 from workzone_ros.tools.eval_color import load_real_labels
+from workzone_ros.tools.outputs import write_contact_sheet
 
 __all__ = ['evaluate_clip', 'main']
 
@@ -132,19 +133,6 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
             'free_frames': free, 'false_per_frame': round(false / free, 3) if free else None}
 
 
-def _write_sheet(tiles: list, path: str, cols: int = 3) -> None:
-    import cv2
-    import numpy as np
-    h, w = tiles[0].shape[:2]
-    tiles = [cv2.resize(t, (w, h)) for t in tiles]
-    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % cols)
-    rows = [np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)]
-    sheet = np.vstack(rows)
-    cv2.imwrite(path, cv2.resize(sheet, (sheet.shape[1] // 2, sheet.shape[0] // 2),
-                                 interpolation=cv2.INTER_AREA))
-    print(f'contact sheet: {path}', file=sys.stderr)
-
-
 def main(argv: Optional[list[str]] = None) -> int:
     """Entry point; prints one line per clip and the JSON figures."""
     import json
@@ -207,8 +195,8 @@ def main(argv: Optional[list[str]] = None) -> int:
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "
               f"false work-zone signs / frame {r['false_per_frame']} over "
               f"{r['free_frames']} frames", file=sys.stderr, flush=True)
-    if args.sheet and tiles:
-        _write_sheet(tiles, args.sheet)
+    if args.sheet and write_contact_sheet(tiles, args.sheet, scale=0.5):
+        print(f'contact sheet: {args.sheet}', file=sys.stderr)
     text = json.dumps(out, indent=2, default=str)
     print(text)
     if args.json:

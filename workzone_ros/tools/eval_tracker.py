@@ -75,7 +75,6 @@ def _configs():
         'meanshift_seed': seed_config(ours),
         'meanshift_no_guard': replace(ours, anchor_on_color=False),
         'camshift': replace(ours, method='camshift'),
-        'meanshift_cone': replace(ours, cone_test=True),     # opt-in, not in CONFIGS
     }
 
 

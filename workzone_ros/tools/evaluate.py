@@ -19,6 +19,7 @@ EVALUATIONS: dict[str, str] = {
     'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
     'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
+    'ablation': 'each default-on switch of the colour stage turned off: Table I, real clips',
     'faults': 'malformed messages on every subscription of every node: crashes, recovery',
 }
 

@@ -80,6 +80,7 @@ import numpy as np
 
 from workzone_ros.core import cnn_classifier as cnn
 from workzone_ros.tools import train_classifier as tc
+from workzone_ros.tools.outputs import json_default
 
 __all__ = ['Sample', 'TrainConfig', 'load_samples', 'augment', 'composite', 'cutout',
            'build_net', 'train', 'export', 'bias_table', 'runtime_crop', 'main']
@@ -849,20 +850,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                 out['held_out_clips'][clip] = res
                 _say(_line(f'held-out clip {clip}', res))
                 _say(_line(f'held-out clip {clip}, run-time framing', res['runtime_framing']))
-    text = json.dumps(out, indent=2, default=_jsonable)
+    text = json.dumps(out, indent=2, default=json_default)
     if args.json:
         Path(args.json).write_text(text)
         _say(f'figures written to {args.json}')
     print(f'model written to {args.output} ({Path(args.output).stat().st_size / 1024:.0f} KiB)')
     return 0
-
-
-def _jsonable(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(type(o).__name__)
 
 
 if __name__ == '__main__':

@@ -220,12 +220,6 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('data', nargs='+', help='folder(s) with images/ and masks/')
     p.add_argument('-o', '--output', default=str(DEFAULT_OUT), help='model file (.npz)')
     p.add_argument('--estimators', type=int, default=60, help='weak learners H (default 60)')
-    p.add_argument('--boost', choices=('discrete', 'gentle'), default='discrete',
-                   help='discrete: scikit-learn SAMME AdaBoost over decision stumps; gentle: '
-                        'Gentle AdaBoost over regression stumps (Friedman et al., the additive '
-                        'logistic model whose F the link g expects; default discrete)')
-    p.add_argument('--shrinkage', type=float, default=1.0,
-                   help='gentle: each stump scaled by this (default 1)')
     p.add_argument('--geometry-from', nargs='+', default=None, metavar='DIR',
                    help='mounting geometry from the masks of these folders instead of the '
                         'training folders: renders from our fixed camera (synth pixels '
@@ -299,17 +293,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--lp-w', type=float, default=1.0,
                    help='seed 002 FN weight w, relative to the class sizes (default 1)')
     p.add_argument('--lp-max', type=int, default=6, help='seed 002 max thresholds (default 6)')
-    p.add_argument('--measure-relative', type=float, nargs=2, metavar=('EDGE', 'BLUR'),
-                   help='store box-measurement levels relative to each blob (model metadata '
-                        '"measure"): the box from the face pixels at least base + EDGE x '
-                        "(face - base) of the blob's own likelihood levels, grown by rings "
-                        'of mean at least base + BLUR x (face - base); for smooth tables '
-                        "(e.g. --boost gentle).  Default: the detector's "
-                        'absolute weak_threshold / blur_like')
     args = p.parse_args(argv)
-    if args.measure_relative is not None and not all(
-            0.0 <= v <= 1.0 for v in args.measure_relative):
-        p.error('--measure-relative levels must lie in [0, 1]')
 
     try:
         pairs = load_pairs(args.data)
@@ -373,21 +357,15 @@ def main(argv: Optional[list[str]] = None) -> int:
                 rgb_neg += b_
     if args.counts and cached is None and size is not None:
         # the bin counts depend on the data and the counting options only (not on the
-        # boosting options): keep them to refit with other --boost / --pos-weight / H
+        # boosting options): keep them to refit with another --pos-weight / H
         np.savez_compressed(args.counts, pos=pos, neg=neg,
                             boxes=np.array(boxes, np.int64).reshape(-1, 4),
                             size=np.array(size, np.int64))
     t_count = time.perf_counter() - t0
     extras: dict = {}
-    if args.boost == 'gentle':
-        gentle = cm.fit_gentle(pos, neg, args.estimators, args.pos_weight, args.shrinkage)
-        lut = cm.gentle_lut(gentle)
-        extras['gentle_stumps'] = gentle.stumps
-        n_est = len(gentle)
-    else:
-        clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
-        lut = cm.boosted_lut(clf)
-        n_est = int(len(clf.estimators_))
+    clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
+    lut = cm.boosted_lut(clf)
+    n_est = int(len(clf.estimators_))
     t_fit = time.perf_counter() - t0 - t_count
     jitter = (args.camera_pitch, args.camera_yaw, args.camera_zoom)
     prior = cm.fit_prior(boxes, size or (640, 480), saturate=args.prior_saturate,
@@ -396,8 +374,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
         'train_images': len(train), 'val_images': len(val),
-        'sign_boxes': len(boxes), 'estimators': n_est, 'boost': args.boost,
-        'shrinkage': args.shrinkage if args.boost == 'gentle' else None,
+        'sign_boxes': len(boxes), 'estimators': n_est, 'boost': 'discrete',
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
@@ -429,9 +406,6 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['geometry'] = extras['geometry'].tolist()
         meta['geometry_from'] = ([str(Path(d).resolve()) for d in args.geometry_from]
                                  if args.geometry_from else 'training folders')
-    if args.measure_relative is not None:
-        meta['measure'] = {'mode': 'relative', 'edge_rel': args.measure_relative[0],
-                           'blur_rel': args.measure_relative[1]}
     if args.rgb_lp:
         lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)

@@ -56,13 +56,8 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    grown per blob from its own edge profile (``_border_growth``): by ``border_frac`` when the
    black border line lies outside the hull (margin and line lost), plus the width of the
    soft colour edge around it (blurred, small or rain-washed signs); a bright sign whose
-   margin is already inside the hull does not grow.  A model whose table scores the
-   blended edge smoothly (Gentle AdaBoost) says so in its metadata (``measure``: relative):
-   the box is taken from the blob's core (pixels at least ``edge_rel`` of the way from its
-   own background likelihood level to its face level) and grown by the blur rings judged on
-   the same relative scale (:func:`relative_measure`); which blobs are signs is still
-   judged on the absolute face.  Warning diamonds and the orange part of regulatory
-   rectangles then get their edges at sub-pixel precision from the brightness
+   margin is already inside the hull does not grow.  Warning diamonds and the orange part of
+   regulatory rectangles then get their edges at sub-pixel precision from the brightness
    (:func:`refine_diamond`, :func:`refine_rectangle`; ``diamond_refine``, ``rect_refine``):
    the colour table cannot place them, because a blend of the orange face and its black
    border line keeps the face's hue and saturation; the mask-based box stays the fallback
@@ -109,11 +104,11 @@ from workzone_ros.core.detect.baselines import (
 )
 from workzone_ros.core.detect.candidates import Candidate, box_metrics, dominant_color, nms
 from workzone_ros.core.detect.config import METHODS, DetectorConfig
-from workzone_ros.core.detect.detector import ColorDetector, relative_measure
+from workzone_ros.core.detect.detector import ColorDetector
 from workzone_ros.core.detect.horizon import estimate_horizon
 
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
-    'dominant_color', 'estimate_horizon', 'relative_measure',
+    'dominant_color', 'estimate_horizon',
 ]

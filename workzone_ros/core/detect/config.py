@@ -237,8 +237,6 @@ class DetectorConfig:
     #: dark share of the ring outside the hull meaning "border line outside" (0: compare with the
     #: ring inside)
     border_dark: float = 0.0
-    #: ``profile`` (per blob, from its edge profile) or ``always`` (grow by ``border_frac``)
-    border_mode: str = 'profile'
     #: blur rings outside the hull of at least this mean likelihood are added
     blur_like: float = 0.08
     #: at most this share of the size (+ 2) of blur rings

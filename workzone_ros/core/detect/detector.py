@@ -44,39 +44,7 @@ from workzone_ros.core.detect.rectangle import RectangleMixin
 from workzone_ros.core.detect.warning import WarningMixin
 from workzone_ros.interfaces import Detection, Roi
 
-__all__ = ['relative_measure', 'ColorDetector']
-
-
-def relative_measure(metadata: Any) -> Optional[tuple[float, float]]:
-    """The box-measurement levels a model file asks for (metadata ``measure``).
-
-    ``{"mode": "relative", "edge_rel": a, "blur_rel": b}``: every orange blob's box is the
-    bounding box of its core, the face pixels with likelihood at least ``base + a (face -
-    base)``, grown by 1-px rings whose mean likelihood is at least ``base + b (face -
-    base)``, where face and base are that blob's own face and background likelihood levels
-    (see ``ColorDetector._relative_levels``); the shape, legend and mounting-height tests
-    still use the absolute face.  For tables that score a sign's blended edge smoothly
-    (Gentle AdaBoost).  Absent (old models) or ``"mode": "absolute"``: the configured
-    ``weak_threshold`` and ``blur_like`` (tuned for step-shaped tables) give the box.
-
-    Raises:
-        ModelError: a malformed ``measure`` entry.
-    """
-    d = metadata.get('measure') if metadata else None
-    if not d:
-        return None
-    try:
-        mode = d.get('mode', 'absolute')
-        if mode == 'absolute':
-            return None
-        if mode != 'relative':
-            raise ValueError(f'unknown mode {mode!r}')
-        a, b = float(d['edge_rel']), float(d['blur_rel'])
-        if not (0.0 <= a <= 1.0 and 0.0 <= b <= 1.0):
-            raise ValueError('edge_rel and blur_rel must lie in [0, 1]')
-        return a, b
-    except (AttributeError, KeyError, TypeError, ValueError) as exc:
-        raise ModelError(f'malformed measure metadata {d!r}: {exc}') from None
+__all__ = ['ColorDetector']
 
 
 class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMixin,
@@ -125,7 +93,6 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         # half-diagonals (a, b) of this frame's faces measured on sharp edges: their box
         # takes ``diamond_box_bias`` (a face keeps them when moved to its blob's window)
         self._sharp_faces: set[tuple[float, float]] = set()
-        self._relative = relative_measure(model.metadata)
         self._intrinsics: Optional[tuple[float, float, float, float]] = None
 
     def set_camera(self, intrinsics: Optional[Sequence[float]]) -> None:

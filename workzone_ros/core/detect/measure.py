@@ -19,7 +19,6 @@ from workzone_ros.core.detect.candidates import Candidate
 from workzone_ros.core.detect.common import (
     _P_SCALE,
     _components,
-    _median,
     _mode,
     _paste,
 )
@@ -38,7 +37,6 @@ class _Face:
     like: np.ndarray            # the orange likelihood of its pixels
     t: float                    # the blob's likelihood threshold
     blur_t: float               # the blur rings' likelihood level
-    edge_t: Optional[float]     # the core's level of a relative measure (None: absolute)
     region: np.ndarray          # the face region (boolean: the orange and its legend)
     pix: np.ndarray             # the face's orange pixels (uint8)
     area: float                 # their count
@@ -80,7 +78,7 @@ class MeasureMixin:
         bx0, by0, bw, bh = face.box
         raw, hsv, like, t, m = face.raw, face.hsv, face.like, face.t, face.margin
         vch = hsv[..., 2]
-        blur_t, edge_t, region_j = face.blur_t, face.edge_t, face.region
+        blur_t = face.blur_t
         pix, area, hull, hull_fill = face.pix, face.area, face.hull, face.hull_fill
         solidity, aspect = face.solidity, bw / bh
         # a LiDAR-supported blob needs less colour evidence: looser shape filters, no legend
@@ -124,17 +122,6 @@ class MeasureMixin:
             return None
         conf = _mode(like[pix > 0])
         face_px = pix
-        if edge_t is not None:
-            # the box from the face's core: its pixels at least ``edge_rel`` of the way
-            # from the background's likelihood level to the face's
-            core = (region_j & (like >= edge_t)).astype(np.uint8)
-            if np.count_nonzero(core) >= 3:
-                hull = cv2.convexHull(cv2.findNonZero(core))
-                bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
-                hmask = np.zeros_like(pix)
-                cv2.fillConvexPoly(hmask, hull, 1)
-                face_px = core
-                row_fit = None
         grow, feats = self._border_growth(hmask, dark, like, min(bw, bh), blur_t)
         if self.debug is not None:
             self.debug[-1].update(hull_box=(x0 + bx0, y0 + by0, bw, bh), vref=v_ref,
@@ -240,15 +227,6 @@ class MeasureMixin:
         weak_t, blur_t = min(cfg.weak_threshold, t), cfg.blur_like
         if peel_t is not None:
             weak_t = t             # no hysteresis back into the surface the core was peeled from
-        rel = self._relative
-        edge_t = None
-        if rel is not None:
-            # the box edge relative to this blob's own levels (model metadata ``measure``):
-            # a smooth table scores a sign's blended edge anywhere between the face's level
-            # and the background's, so the absolute thresholds (set for a step-shaped table)
-            # would let the box grow into the blend.  Only the box moves: which blobs are
-            # signs is still judged on the absolute face below.
-            edge_t, blur_t = self._relative_levels(like, strong, region, rel)
         weak = (like >= weak_t).astype(np.uint8) | strong
         size = max(fw, fh)
         k = max(3, int(round(cfg.close_frac * size)) | 1)
@@ -285,26 +263,8 @@ class MeasureMixin:
         if self.debug is not None:
             self.debug.append(dict(box=(x0 + bx0, y0 + by0, bw, bh), fill=hull_fill,
                                    sol=solidity, aspect=aspect, t=t))
-        return _Face((x0, y0, x1, y1), m, raw, hsv, like, t, blur_t, edge_t, region_j, pix,
+        return _Face((x0, y0, x1, y1), m, raw, hsv, like, t, blur_t, region_j, pix,
                      area, hull, (bx0, by0, bw, bh), hull_fill, solidity)
-
-    @staticmethod
-    def _relative_levels(like: np.ndarray, strong: np.ndarray, region: np.ndarray,
-                         rel: tuple) -> tuple[float, float]:
-        """(edge, blur) likelihood thresholds of one blob from its own levels.
-
-        The face level is the mode of the blob's strong pixels' likelihood (the blob's
-        confidence, eq. 2), the background level the median likelihood of the measuring
-        window outside the (dilated) blob.  An edge blurred by the optics or by resampling
-        goes from one level to the other; ``rel = (edge_rel, blur_rel)`` place the core's
-        edge and the blur-ring thresholds at ``base + rel x (face - base)`` (0.5: the
-        half-maximum rule).
-        """
-        face = _mode(like[strong > 0])
-        outside = like[region == 0]
-        base = min(float(_median(outside)) if outside.size else 0.0, face)
-        span = face - base
-        return base + rel[0] * span, base + rel[1] * span
 
     def _border_growth(self, hmask: np.ndarray, dark: np.ndarray, like: np.ndarray,
                        size: int, blur_like: Optional[float] = None) -> tuple[float, dict]:
@@ -316,8 +276,7 @@ class MeasureMixin:
         the inner one) the hull stops at the line's inner edge, the margin and line are
         missing and the box grows by ``border_frac``; if the line is inside the hull (the
         margin was found, or bright light pulled the surroundings in) it does not grow.
-        ``border_dark`` > 0 replaces the comparison by "outer band dark share >= it";
-        ``border_mode='always'`` always grows (the old behaviour).
+        ``border_dark`` > 0 replaces the comparison by "outer band dark share >= it".
         """
         cfg = self.config
         blur_like = cfg.blur_like if blur_like is None else blur_like
@@ -338,13 +297,7 @@ class MeasureMixin:
                 break
             blur, prev = blur + 1, nxt
         feats = dict(ring=out_dark, inner=in_dark, blur=blur)
-        if cfg.border_mode == 'always':
-            return cfg.border_frac, feats
         if no == 0:
             return 0.0, feats
         line_out = (out_dark >= cfg.border_dark) if cfg.border_dark > 0 else out_dark >= in_dark
-        if self._relative is not None and in_dark >= 0.5:
-            # a smooth table's face reaches over the border line: a band just inside the
-            # hull that is mostly dark is the line itself, nothing is missing outside it
-            line_out = False
         return (cfg.border_frac if line_out else 0.0) + blur / float(size), feats

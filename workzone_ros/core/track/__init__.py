@@ -75,7 +75,6 @@ from workzone_ros.core.track.appearance import (
     TargetModel,
     build_target,
     chroma_contrast,
-    cone_like,
     saturation_contrast,
     shape_mask,
 )
@@ -104,5 +103,4 @@ __all__ = [
     'MODES', 'METHODS', 'ASSOCIATIONS', 'SCALES', 'OUR_SCALES', 'seed_config', 'bhattacharyya',
     'shape_mask', 'build_target', 'meanshift_localise', 'camshift_localise', 'score_box',
     'box_iou', 'saturation_contrast', 'chroma_contrast', 'approach_rate', 'predicted_size',
-    'cone_like',
 ]

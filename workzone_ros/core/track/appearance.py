@@ -3,8 +3,7 @@
 The target model (:class:`TargetModel`: the shape mask, the kernel histogram, the relation of
 the coloured anchor to the whole box) built from a detection, and the tests of whether a
 target looks like a sign on its own: more saturated and colourful than its surroundings
-(:func:`saturation_contrast`, :func:`chroma_contrast`), not part of a cone or drum
-(:func:`cone_like`).
+(:func:`saturation_contrast`, :func:`chroma_contrast`).
 """
 from __future__ import annotations
 
@@ -15,7 +14,6 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-from workzone_ros.core.profiles import banded_rows, open_background_rows, row_taper, white_cap
 from workzone_ros.core.track.config import TrackerConfig
 from workzone_ros.core.track.meanshift import (
     SearchWindow,
@@ -28,7 +26,6 @@ from workzone_ros.core.track.meanshift import (
 
 __all__ = [
     'saturation_contrast', 'chroma_contrast', 'shape_mask', 'TargetModel', 'build_target',
-    'cone_like',
 ]
 
 
@@ -298,110 +295,3 @@ def _content(hsv: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
         last = int(dom.max()) if dom.size else -1
         below = float(rows_w[last + 1:].sum()) / n_white
     return dark, n_white / n, below
-
-
-def cone_like(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig) -> bool:
-    """A drum or cone test around a coloured box (not only inside it, like ``_content``).
-
-    Traffic cones and drums (MUTCD 6F.63, 6F.64) carry white retro-reflective bands across
-    their whole width between orange parts; the colour detector's false detections of them
-    are often one orange part, e.g. a cone's body right below its band.  The colour
-    detector's band test (:func:`~workzone_ros.core.profiles.banded_rows`; the cone cap,
-    :func:`~workzone_ros.core.profiles.white_cap` over a body taller than wide that widens
-    downward, :func:`~workzone_ros.core.profiles.row_taper`) runs on strips of
-    ``cone_strip`` of the box's width (around its centre and around its orange pixels'
-    median column) reaching a box height and two blends above and below it, with simple
-    HSV masks: orange within ``cone_hue_tolerance`` of the face's saturation-weighted hue
-    mode, at least ``max(cone_min_saturation, cone_sat_rel x`` the face's median
-    saturation); white at most ``cone_white_s_max`` saturated and at least
-    ``cone_white_luma`` times as bright (luma) as the orange face, not in rows whose white
-    runs on past both of the box's sides (the background: sky, a wall); dark below
-    ``cone_dark_rel`` times the face's value (a regulatory sign's white bottom ends at its
-    black border line, and has no orange beyond it).  The box's top and bottom first move
-    in past white rows and out through orange ones (a tracked box lags or holds part of
-    the object or of its band).
-
-    Args:
-        frame: BGR uint8 image.
-        box: the coloured part ``(x, y, w, h)`` in pixels (a track's anchor).
-        cfg: tracker configuration (``cone_*``).
-
-    Returns:
-        True when a band separates the box from more orange above or below it (or inside
-        it), or a white band caps a box taller than wide that widens downward; False for a
-        box less than ``cone_min_px`` high or without enough orange.
-    """
-    H, W = frame.shape[:2]
-    bx, by = int(round(box[0])), int(round(box[1]))
-    bw, bh = int(round(box[2])), int(round(box[3]))
-    bx0, by0 = max(0, bx), max(0, by)
-    bx1, by1 = min(W, bx + bw), min(H, by + bh)
-    if bh < cfg.cone_min_px or bx1 - bx0 < 2 or by1 - by0 < 2:
-        return False
-    f0, f1 = max(0, bx - bw // 2), min(W, bx + bw + bw // 2)
-    gap = max(2, int(round(0.15 * bh)))
-    reach = bh + 2 * gap + 2
-    r0, r1 = max(0, by - reach), min(H, by + bh + reach)
-    wide = np.ascontiguousarray(frame[r0:r1, f0:f1])
-    hsv = cv2.cvtColor(wide, cv2.COLOR_BGR2HSV)
-    luma = cv2.cvtColor(wide, cv2.COLOR_BGR2GRAY)
-    fy0, fy1, fx0, fx1 = by0 - r0, by1 - r0, bx0 - f0, bx1 - f0
-    # the face's colour: the saturation-weighted hue mode over the box's middle (a target
-    # model's hue can be that of the surroundings its first box held) and the median
-    # saturation there; orange: that hue range, at least cone_sat_rel as saturated (a
-    # pale or brownish background of a similar hue is not the object's)
-    mid = hsv[fy0 + (fy1 - fy0) // 4:fy1 - (fy1 - fy0) // 4,
-              fx0 + (fx1 - fx0) // 4:fx1 - (fx1 - fx0) // 4].reshape(-1, 3)
-    mid = mid[(mid[:, 1] >= cfg.cone_min_saturation) & (mid[:, 2] >= 50)]
-    if mid.shape[0] < 4:
-        return False
-    hist = np.bincount(mid[:, 0] // 4, weights=mid[:, 1].astype(np.float64), minlength=45)
-    hue = int(np.argmax(hist)) * 4 + 2
-
-    def near(h: np.ndarray) -> np.ndarray:
-        d = np.abs(h.astype(np.int16) - hue)
-        return np.minimum(d, 180 - d) <= cfg.cone_hue_tolerance
-
-    s_face = float(np.median(mid[near(mid[:, 0]), 1]))
-    orange = near(hsv[..., 0]) & (hsv[..., 2] >= 50) & (
-        hsv[..., 1] >= max(cfg.cone_min_saturation, cfg.cone_sat_rel * s_face))
-    face = orange[fy0:fy1, fx0:fx1]
-    if np.count_nonzero(face) < 4:
-        return False
-    y_ref = float(np.median(luma[fy0:fy1, fx0:fx1][face]))
-    v_ref = float(np.median(hsv[fy0:fy1, fx0:fx1, 2][face]))
-    white = (hsv[..., 1] <= cfg.cone_white_s_max) & (luma >= cfg.cone_white_luma * y_ref)
-    open_rows = open_background_rows(white[:, :fx0], white[:, fx1:], max(1, bw // 4))
-    if open_rows is not None:
-        white = white & ~open_rows[:, None]
-    dark = hsv[..., 2] < cfg.cone_dark_rel * v_ref
-    # the strip: the middle third of the box's columns (a cone's band above its body is
-    # narrower than the body: its top is about a fifth of its base) around the box's centre
-    # or around the face's colour (the box may hold some background of a similar hue)
-    half = max(1, int(round(bw * cfg.cone_strip / 2)))
-    centres = {(fx0 + fx1) // 2, int(round(float(np.median(np.nonzero(face)[1])))) + fx0}
-    run = max(2, int(round(cfg.cone_band_rows * bh)))
-    beyond = max(3, int(round(0.1 * bh)))
-    for cx in sorted(centres):
-        s0, s1 = max(0, cx - half), min(wide.shape[1], cx + half + 1)
-        o_s, w_s = orange[:, s0:s1], white[:, s0:s1]
-        # a tracked box need not end where the object's colour ends (it lags, holds only
-        # part of the object or part of its band): its edges move out through the rows
-        # that are still orange and in past the white ones
-        is_w = w_s.mean(axis=1) >= 0.5
-        is_o = (o_s.mean(axis=1) >= 0.2) & ~is_w
-        top, bottom = fy0, fy1
-        while top < bottom - 1 and is_w[top]:
-            top += 1
-        while bottom - 1 > top and is_w[bottom - 1]:
-            bottom -= 1
-        while top > 0 and is_o[top - 1]:
-            top -= 1
-        while bottom < is_o.size and is_o[bottom]:
-            bottom += 1
-        if banded_rows(o_s, w_s, dark[:, s0:s1], top, bottom, run, gap, bh + gap, beyond):
-            return True
-        if bh >= bw and row_taper(face.astype(np.uint8)) <= cfg.cone_taper \
-                and white_cap(w_s, fy0, run, gap):
-            return True
-    return False

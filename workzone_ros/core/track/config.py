@@ -256,39 +256,6 @@ class TrackerConfig:
             is at most this (a target like its surroundings, a dusk sign on orange-brown
             ground, makes a bigger box cost the score little: the set grew the box past the
             sign, dusk tuning curve_dusk 3509 19 -> 14 covered; 1 = always).
-        cone_test: a track running on its own is published only when :func:`cone_like`
-            finds no drum or cone around its anchor (not in the seed): the colour
-            detector's intermittent false detections of a cone's body (often the orange
-            part right below its white band, which lies outside the box, so the white gate
-            inside the shape does not see it) coasted on real dashcam clips (charlotte /
-            denver sign-free ranges: 0.37 / 1.48 tracking-only outputs per frame, 0.25 /
-            0.56 with the test).  Off by default (opt-in for camera-only use among cones):
-            it also fires on signs, e.g. a diamond over its grey post with dry tan grass
-            below (tuning random 3613: 7 -> 5 detector misses covered; fresh held-out bags
-            144 -> 128 of 209).
-        cone_min_px: ... for anchors at least this high (a band of a couple of rows and
-            the taper of a small blob are noise: a 10 px diamond in front of pale sky
-            passed the cap test).
-        cone_strip: the test's strip over the box's columns (share of its width) around
-            the box's centre and around its orange pixels' median column (a cone's band
-            above its body is narrower than the body).
-        cone_sat_rel, cone_hue_tolerance, cone_min_saturation: orange is within
-            ``cone_hue_tolerance`` of the face's (saturation-weighted) hue mode and at
-            least ``max(cone_min_saturation, cone_sat_rel x`` the face's median
-            saturation) (pale or brownish ground of a similar hue is not the object's).
-        cone_white_s_max, cone_white_luma: white is at most ``cone_white_s_max``
-            saturated and at least ``cone_white_luma`` times as bright (luma) as the
-            orange face (the detector's ``white_s_max``, ``band_white_luma``).
-        cone_band_rows: a band holds at least this times the anchor's height of rows at
-            least half white (the detector's ``band_min_rows`` is 0.12 of its blob; a
-            tracked box also holds a cone's base and blur).
-        cone_taper: the white cap counts over an anchor taller than wide whose
-            :func:`~workzone_ros.core.profiles.row_taper` is at most this.
-        cone_dark_rel: a row at least 90 % darker than this times the face's value ends
-            the search (a regulatory sign's white bottom ends at its black border line).
-        cone_sticky: a track judged a cone stays so (not published on its own) until its
-            next detection (the test flickers with the band's blur; real clips 0.29 / 0.71
-            without).
     """
 
     mode: str = 'detection_and_tracking'
@@ -358,18 +325,6 @@ class TrackerConfig:
     perspective_max: float = 1.3
     perspective_min_detections: int = 3
     perspective_max_background: float = 0.5
-    cone_test: bool = False
-    cone_min_px: int = 16
-    cone_strip: float = 0.33
-    cone_sat_rel: float = 0.5
-    cone_sticky: bool = True
-    cone_hue_tolerance: int = 12
-    cone_min_saturation: int = 70
-    cone_white_s_max: int = 45
-    cone_white_luma: float = 1.25
-    cone_band_rows: float = 0.08
-    cone_taper: float = 0.88
-    cone_dark_rel: float = 0.6
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -413,4 +368,4 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
                    truncated_aspect=0.0, anchor_kind_ratio=0.0,
                    min_hits_to_coast=2, min_hits_to_fuse=2, duplicate_containment=1.0,
                    ring_margin=-1.0, size_history=0, min_hits_after_loss=1,
-                   min_approach_speed=0.0, perspective_scale=False, cone_test=False)
+                   min_approach_speed=0.0, perspective_scale=False)

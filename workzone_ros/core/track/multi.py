@@ -16,7 +16,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from workzone_ros.core.track.appearance import TargetModel, build_target, cone_like
+from workzone_ros.core.track.appearance import TargetModel, build_target
 from workzone_ros.core.track.config import TrackerConfig, TrackingError
 from workzone_ros.core.track.meanshift import (
     SearchWindow,
@@ -105,7 +105,6 @@ class _Track:
     motion: list = field(default_factory=list)      # (frame, cx, cy, w, h) of the anchor
     approach: Optional[float] = None  # last approach_rate (None: not judged)
     size_fit: Optional[tuple] = None  # (key, inverse_size_fit of det_sizes), cached
-    cone: bool = False               # looked like part of a drum or cone (cone_like)
 
 
 @dataclass
@@ -320,7 +319,6 @@ class MultiTracker:
             if ti in t_match:
                 di, sim = t_match[ti]
                 dm = dets[di]
-                tr.cone = False          # judged afresh when it runs on its own again
                 if tracking and cfg.association == 'fuse' and dm.target is not None \
                         and self._confident(tr) \
                         and min(tr.pred_box[2], tr.pred_box[3]) >= cfg.fuse_min_px:
@@ -373,7 +371,7 @@ class MultiTracker:
             survivors.append(tr)
             if tr.hits >= cfg.min_hits_to_coast and self._may_coast(tr.target) \
                     and (not tr.was_lost or tr.hits >= cfg.min_hits_after_loss) \
-                    and self._approaching(tr, W, H) and not self._cone(frame, tr):
+                    and self._approaching(tr, W, H):
                 out_trk.append(self._payload(tr, 'tracking'))
 
         # 4. Unmatched detections start tracks.
@@ -493,7 +491,7 @@ class MultiTracker:
 
     def _may_coast(self, target: TargetModel) -> bool:
         """The track may be published while it runs on its own: a coloured target that does
-        not look like its surroundings, nor like a drum or cone (white bands in the shape)."""
+        not look like its surroundings, nor have white bands in the shape (drums, cones)."""
         cfg = self.config
         bg = target.background_similarity
         if not target.colored or bg > min(cfg.max_background_similarity,
@@ -505,17 +503,6 @@ class MultiTracker:
         if target.white_below >= cfg.white_bottom_share:
             return True       # white bottom under an orange top: a regulatory sign's face
         return not (cfg.anchor_on_color and target.white_fraction > cfg.max_coast_white_fraction)
-
-    def _cone(self, frame: np.ndarray, tr: _Track) -> bool:
-        """The track's coloured anchor looks like part of a drum or cone
-        (:func:`cone_like` around it, ``cone_test``)."""
-        cfg = self.config
-        if not cfg.cone_test or not tr.target.colored:
-            return False
-        if tr.cone and cfg.cone_sticky:
-            return True
-        tr.cone = cone_like(frame, tr.anchor, cfg)
-        return tr.cone
 
     def _confident(self, tr: _Track) -> bool:
         """The track may outvote a detection: detected often enough, tracked well."""

@@ -10,7 +10,6 @@ from workzone_ros.core.detect import (
     ColorDetector,
     DetectorConfig,
     box_metrics,
-    estimate_horizon,
     fit_rgb_lp,
     nms,
     rgb_histograms,
@@ -473,87 +472,6 @@ def test_saturation_norm_finds_hazy_signs_and_ignores_warm_grey():
     vivid = _background(4)                                        # blue sky, grass, asphalt
     vivid[300:420, 100:500] = (95, 130, 165)                     # dry lawn, S ~ 108
     assert ColorDetector(normed, cfg).detect(vivid) == []
-
-
-def _road(horizon, seed=0, shape=(480, 640)):
-    """Sky above ``horizon``, asphalt below, and four lane lines meeting at (320, horizon)."""
-    H, W = shape
-    rng = np.random.default_rng(seed)
-    img = np.empty((H, W, 3), np.uint8)
-    img[:horizon] = (205, 175, 150)
-    img[horizon:] = (85, 88, 84)
-    for xb in (-300, 60, 580, 940):
-        # from the bottom edge towards the vanishing point, stopping short of it
-        x1 = int(320 + (xb - 320) * 0.25)
-        y1 = int(horizon + (H - horizon) * 0.25)
-        cv2.line(img, (xb, H - 1), (x1, y1), (235, 235, 235), 5)
-    return cv2.add(img, rng.integers(0, 12, img.shape, dtype=np.uint8))
-
-
-@pytest.mark.parametrize('horizon', [200, 240, 300])
-def test_horizon_from_lane_lines(horizon):
-    row = estimate_horizon(_road(horizon))
-    assert row is not None and abs(row - horizon) < 8, row
-
-
-def test_horizon_unreliable_frames():
-    """No lane lines, or lines that do not meet in one point: no estimate (the detector
-    then switches the mounting-height test off)."""
-    assert estimate_horizon(np.full((480, 640, 3), 90, np.uint8)) is None
-    img = _background()
-    assert estimate_horizon(img) is None
-    for x in range(40, 640, 90):                  # parallel slanted stripes: no single point
-        cv2.line(img, (x, 479), (x + 120, 250), (240, 240, 240), 4)
-    assert estimate_horizon(img) is None
-    assert estimate_horizon(np.zeros((8, 8, 3), np.uint8)) is None
-
-
-def test_geometry_measured_from_the_estimated_horizon(model):
-    """Trained limits are relative to the horizon: a camera whose horizon is 90 px lower
-    sees a sign 90 px lower, which the fixed reference row rejects and the estimated
-    horizon keeps; an orange blob on the road below that horizon is still rejected; with no
-    reliable horizon the test is off."""
-    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
-                        {'geometry': np.array([0.5, 0.26])})
-    # _diamond's border is not the catalogue's (a 4 px orange margin outside a thin line),
-    # which the brightness refinement assumes: boxes here come from the orange mask
-    cfg = DetectorConfig(colors=('orange',), use_prior=False, use_geometry=True,
-                            diamond_refine=False)
-    img = _road(330)
-    sign = _diamond(img, 540, 290, 30)             # bottom 0.1 sign heights below 330
-    drum = _diamond(img, 150, 420, 20)             # far below the horizon: on the road
-    fixed = ColorDetector(geo, cfg)
-    assert not [d for d in fixed.detect(img) if d.box.iou(Box(*map(float, sign))) > 0.3]
-    hz = ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
-    dets = hz.detect(img)
-    assert hz.horizon() is not None and abs(hz.horizon() - 330) < 10
-    _one(dets, sign)
-    assert not [d for d in dets if d.box.iou(Box(*map(float, drum))) > 0.3]
-    # no lane lines: no horizon, no mounting-height test (both blobs kept)
-    flat = _background()
-    s2 = _diamond(flat, 540, 290, 30)
-    d2 = _diamond(flat, 150, 420, 20)
-    hz2 = ColorDetector(geo, replace_cfg(cfg, geometry_reference='horizon'))
-    dets = hz2.detect(flat)
-    assert hz2.horizon() is None
-    _one(dets, s2)
-    _one(dets, d2)
-    with pytest.raises(ValueError):
-        DetectorConfig(geometry_reference='sky')
-
-
-def test_horizon_history_is_smoothed_and_reset(model):
-    det = ColorDetector(model, DetectorConfig(colors=('orange',), use_prior=False,
-                                                    geometry_reference='horizon',
-                                                    horizon_every=1, horizon_window=5))
-    geo = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, {},
-                        {'geometry': np.array([0.5, 0.26])})
-    det = ColorDetector(geo, det.config)
-    for h in (240, 240, 300, 240, 240):
-        det.detect(_road(h))
-    assert abs(det.horizon() - 240) < 8            # one outlier frame does not move it
-    det.reset()
-    assert det.horizon() is None
 
 
 def replace_cfg(cfg, **kw):

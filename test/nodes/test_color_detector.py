@@ -195,17 +195,6 @@ def test_no_rois_publisher_means_no_wait(ros, model_path):
     assert time.monotonic() - start < 4.0 and not node._pending
 
 
-def test_geometry_reference_parameter(ros, model_path):
-    """The mounting-height test's reference (fixed row or estimated horizon) is a node
-    parameter with checked choices."""
-    node = _node(ros, model_path, geometry_reference='horizon')
-    assert node._detector.config.geometry_reference == 'horizon'
-    assert node.set_parameters([Parameter('geometry_reference', value='fixed')])[0].successful
-    assert node._detector.config.geometry_reference == 'fixed'
-    assert not node.set_parameters([Parameter('geometry_reference',
-                                              value='sky')])[0].successful
-
-
 def test_camera_info_decides_whether_the_model_prior_applies(ros, tmp_path):
     """The model's fixed-camera prior applies to its own camera's frames only: CameraInfo
     of the training camera keeps it, another lens at the same 640x480 size does not, and an

@@ -44,7 +44,7 @@ _CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'mi
          'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
          'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
          'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
-         'lidar_only_threshold', 'geometry_reference', 'camera_match', 'foreign_prior',
+         'lidar_only_threshold', 'camera_match', 'foreign_prior',
          'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
          'diamond_search', 'blur_fit', 'outline_evidence', 'rect_needs_edges', 'v_hysteresis',
          'grow_level')
@@ -141,10 +141,6 @@ class ColorDetectorNode(WorkzoneNode):
               min=0.0, max=0.3),
         Param('use_geometry', True, "reject orange blobs lower than the training signs' "
               'mounting height (model extra geometry)'),
-        Param('geometry_reference', 'fixed', "mounting-height test measured from the model's "
-              'fixed reference row (fixed: our camera) or from the horizon estimated from the '
-              "lane lines' vanishing point (horizon: any camera; off while unreliable)",
-              choices=('fixed', 'horizon')),
         Param('camera_info_topic', '/camera/camera_info', "the frames' CameraInfo: the model's "
               "spatial prior and fixed mounting row apply only to its own camera's frames "
               '(camera_match); empty = judge by the frame size alone', read_only=True),

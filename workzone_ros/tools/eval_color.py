@@ -42,7 +42,6 @@ import json
 import sys
 import time
 from collections import defaultdict
-from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterable, Optional, Sequence
 
@@ -278,7 +277,7 @@ def evaluate_bags(bags: Sequence[str], detectors: dict, args, tiles: list) -> di
             gts[g.header.stamp.to_ns()] = g
         chain = lidar_chain_rois(bag) if any(v[1] for v in detectors.values()) else {}
         for det, _ in detectors.values():
-            det.reset()            # a new clip: forget the horizon history
+            det.reset()            # a new clip
         n = 0
         topics = ['/camera/image_raw', '/camera/image_raw/compressed']
         for topic, _, msg in read_messages(bag, topics):
@@ -433,7 +432,7 @@ def evaluate_real(folder: Path, detectors: dict, args, tiles: list) -> dict:
 
 
 def build_detectors(model: cm.ColorModel, methods: Sequence[str], lidar: bool,
-                    threshold: float, geometry_reference: str = 'fixed') -> dict:
+                    threshold: float) -> dict:
     """name -> (ColorDetector, uses_lidar) for the requested methods."""
     lp = None
     if 'rgb_lp_thresholds' in model.extras:
@@ -445,15 +444,10 @@ def build_detectors(model: cm.ColorModel, methods: Sequence[str], lidar: bool,
                   'skipped', file=sys.stderr)
             continue
         if m == 'learned':
-            cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold,
-                                    geometry_reference='horizon' if geometry_reference
-                                    == 'horizon' else 'fixed')
+            cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold)
         else:        # the seeds' baselines: no prior (they have none), full resolution
             cfg = dt.DetectorConfig(method=m, colors=('orange',), use_prior=False, scale=1)
         out[m] = (dt.ColorDetector(model, cfg, lp), False)
-        if m == 'learned' and geometry_reference == 'both':
-            out['learned-horizon'] = (dt.ColorDetector(
-                model, replace(cfg, geometry_reference='horizon'), lp), False)
         if m == 'learned' and lidar:
             out['learned+lidar'] = (dt.ColorDetector(model, cfg, lp), True)
     return out
@@ -472,10 +466,6 @@ def main(argv: Optional[list[str]] = None) -> int:
                    choices=dt.METHODS)
     p.add_argument('--no-lidar', action='store_true', help='skip the LiDAR-guided run')
     p.add_argument('--threshold', type=float, default=0.5, help='posterior threshold tau')
-    p.add_argument('--geometry-reference', choices=('fixed', 'horizon', 'both'),
-                   default='fixed',
-                   help='learned: mounting-height test from the fixed row or the estimated '
-                        'horizon; both: learned (fixed) and learned-horizon (default fixed)')
     p.add_argument('--min-px', type=float, default=16.0, help='eligible GT: shorter side')
     p.add_argument('--min-visible', type=float, default=0.9, help='eligible GT: visible share')
     p.add_argument('--every', type=int, default=1, help='use every n-th frame')
@@ -498,8 +488,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                               'rois': 'real LiDAR chain: core.lidar_clustering + persistence, '
                                       'projector nearest sync + core.projection (no GT)'}
     report['model_metadata'].pop('metrics', None)
-    detectors = build_detectors(model, args.methods, not args.no_lidar, args.threshold,
-                                args.geometry_reference)
+    detectors = build_detectors(model, args.methods, not args.no_lidar, args.threshold)
     if args.bags:
         tiles: list = []
         report['bags'] = list(args.bags)
@@ -516,10 +505,6 @@ def main(argv: Optional[list[str]] = None) -> int:
             # on another camera it is the part to recalibrate, so report both
             real_dets['learned-nogeo'] = (real_dets['learned'][0].with_config(
                 use_geometry=False), False)
-            if args.geometry_reference != 'horizon' and 'learned-horizon' not in real_dets:
-                # the mounting-height test from the horizon estimated on the clip itself
-                real_dets['learned-horizon'] = (real_dets['learned'][0].with_config(
-                    geometry_reference='horizon'), False)
         args_real = argparse.Namespace(**vars(args))
         args_real.sheet_method = 'learned'
         report['real'] = evaluate_real(Path(args.real), real_dets, args_real, tiles)

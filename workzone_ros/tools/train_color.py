@@ -223,8 +223,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--geometry-from', nargs='+', default=None, metavar='DIR',
                    help='mounting geometry from the masks of these folders instead of the '
                         'training folders: renders from our fixed camera (synth pixels '
-                        '--fixed-camera), whose horizon is the --horizon-row; the detector '
-                        'compares with the horizon it estimates per frame')
+                        '--fixed-camera), whose horizon is the --horizon-row, while the table '
+                        'and the prior learn from jittered cameras')
     p.add_argument('--camera', type=float, nargs=4, metavar=('FX', 'FY', 'CX', 'CY'),
                    help='intrinsics (pixels) of the camera the training frames come from, '
                         'stored in the model (metadata camera): the detector applies the '

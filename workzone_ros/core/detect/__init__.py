@@ -6,8 +6,8 @@
 :mod:`.measure` (the sign measurement), :mod:`.filters` (false-positive filters),
 :mod:`.warning` with :mod:`.diamond`, :mod:`.diamond_search` and :mod:`.edges` (the diamond
 fit), :mod:`.rectangle` (the rectangle fit), :mod:`.plaque` (the two-colour extension),
-:mod:`.recovery` (peel, grow, merge), :mod:`.lidar` (LiDAR fusion), :mod:`.baselines`
-(RGB-LP with MSER) and :mod:`.horizon` (the lane lines' vanishing point).  The row and band
+:mod:`.recovery` (peel, grow, merge), :mod:`.lidar` (LiDAR fusion) and :mod:`.baselines`
+(RGB-LP with MSER).  The row and band
 profiles the detector shares with the tracker are in :mod:`workzone_ros.core.profiles`.
 
 Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A):
@@ -105,10 +105,9 @@ from workzone_ros.core.detect.baselines import (
 from workzone_ros.core.detect.candidates import Candidate, box_metrics, dominant_color, nms
 from workzone_ros.core.detect.config import METHODS, DetectorConfig
 from workzone_ros.core.detect.detector import ColorDetector
-from workzone_ros.core.detect.horizon import estimate_horizon
 
 __all__ = [
     'METHODS', 'DetectorConfig', 'Candidate', 'ColorDetector', 'RgbLpModel',
     'candidate_rgb_thresholds', 'fit_rgb_lp', 'rgb_histograms', 'nms', 'box_metrics',
-    'dominant_color', 'estimate_horizon',
+    'dominant_color',
 ]

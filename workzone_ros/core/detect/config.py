@@ -328,15 +328,6 @@ class DetectorConfig:
     lidar_only_max_share: float = 0.9
     #: confidence of lidar-only detections
     lidar_only_confidence: float = 0.3
-    #: mounting-height test from ``fixed`` (the model's row) or ``horizon`` (the lane lines'
-    #: vanishing point)
-    geometry_reference: str = 'fixed'
-    #: estimate the horizon every this many frames
-    horizon_every: int = 3
-    #: median of the last this-many reliable estimates
-    horizon_window: int = 15
-    #: forget an estimate after this many frames
-    horizon_memory: int = 90
     #: apply the model's fixed-camera prior and mounting row only to its own camera's frames
     camera_match: bool = True
     #: location-free prior on another camera (0: the model prior's mean relative to the table's
@@ -361,8 +352,6 @@ class DetectorConfig:
             raise ValueError('threshold must be in (0, 1)')
         if int(self.scale) < 1:
             raise ValueError('scale must be >= 1')
-        if self.geometry_reference not in ('fixed', 'horizon'):
-            raise ValueError("geometry_reference must be 'fixed' or 'horizon'")
         if not 0.0 <= self.foreign_prior <= 1.0:
             raise ValueError("foreign_prior must be in [0, 1] (0: the model prior's mean)")
         if not 0.0 < self.diamond_max_change <= 1.0:

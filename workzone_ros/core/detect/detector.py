@@ -34,7 +34,6 @@ from workzone_ros.core.detect.candidates import Candidate, _iou, nms
 from workzone_ros.core.detect.common import _P_SCALE
 from workzone_ros.core.detect.config import DetectorConfig
 from workzone_ros.core.detect.filters import FilterMixin
-from workzone_ros.core.detect.horizon import estimate_horizon
 from workzone_ros.core.detect.lidar import LidarMixin
 from workzone_ros.core.detect.mask import MaskMixin
 from workzone_ros.core.detect.measure import MeasureMixin
@@ -86,8 +85,6 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         g = model.extras.get('geometry')
         self._geometry = ((float(g[0]), float(g[1]), float(g[2] if len(g) >= 3 else g[1]))
                           if g is not None and len(g) >= 2 else None)
-        self._frame_no = 0
-        self._horizons: list[tuple[int, float]] = []      # (frame number, row)
         self._ref_row: Optional[float] = None             # this frame's reference row
         self._peels_left = 0                               # peels this frame may still do
         # half-diagonals (a, b) of this frame's faces measured on sharp edges: their box
@@ -129,24 +126,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
                                       self.config.camera_tolerance)
 
     def reset(self) -> None:
-        """Forget the horizon history (a new camera or clip)."""
-        self._frame_no = 0
-        self._horizons = []
-
-    def horizon(self) -> Optional[float]:
-        """The smoothed horizon row of the last frame (None: no reliable estimate)."""
-        cfg = self.config
-        recent = [r for k, r in self._horizons if self._frame_no - k <= cfg.horizon_memory]
-        return float(np.median(recent)) if recent else None
-
-    def _update_horizon(self, bgr: np.ndarray) -> None:
-        cfg = self.config
-        self._frame_no += 1
-        if (self._frame_no - 1) % max(1, cfg.horizon_every) == 0:
-            row = estimate_horizon(bgr)
-            if row is not None:
-                self._horizons.append((self._frame_no, row))
-                self._horizons = self._horizons[-max(1, cfg.horizon_window):]
+        """A new camera or clip (the detector keeps no state between frames today)."""
 
     def with_config(self, **changes) -> 'ColorDetector':
         """A detector sharing the model with some parameters changed."""
@@ -204,13 +184,9 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         self._ref_row = None
         self._peels_left = cfg.peel_max
         self._sharp_faces = set()
-        if self._geometry is not None and cfg.use_geometry:
-            if cfg.geometry_reference == 'horizon':
-                self._update_horizon(bgr)
-                self._ref_row = self.horizon()
-            elif own:
-                # the training camera's horizon row; on another camera the row is unknown
-                self._ref_row = self._geometry[0] * height
+        if self._geometry is not None and cfg.use_geometry and own:
+            # the training camera's horizon row; on another camera the row is unknown
+            self._ref_row = self._geometry[0] * height
         # LiDAR ROIs in mask coordinates, expanded by roi_margin.
         lboxes = []
         for r in rois:

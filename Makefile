@@ -6,7 +6,7 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 DEMO_BAG := bags/demo
 
-.PHONY: all install demo test lint bench contact-sheet clean
+.PHONY: all install demo test soak lint bench contact-sheet clean
 
 all: test
 
@@ -27,6 +27,11 @@ demo: $(DEMO_BAG)/metadata.yaml
 
 test: $(STAMP) lint
 	$(BIN)/python -m pytest -q test
+
+# minutes of live graph (issue 37: loop, kills, lost sensors, load, 10 min RSS soak);
+# `make test` skips them (marker soak); WORKZONE_SOAK_S shortens the soak
+soak: $(STAMP) $(DEMO_BAG)/metadata.yaml
+	$(BIN)/python -m pytest -q -m soak test/reliability
 
 lint: $(STAMP)
 	$(BIN)/ruff check workzone_ros test

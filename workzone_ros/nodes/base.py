@@ -13,7 +13,13 @@ Every workzone_ros node subclasses :class:`WorkzoneNode` and declares a ``PARAMS
   principle 4);
 * publishes a ``diagnostic_msgs/DiagnosticArray`` on ``/diagnostics`` at 1 Hz with message,
   drop, age, publisher-count and processing-time figures per input topic, and detects the
-  classic QoS mismatch (publishers exist, nothing arrives).
+  classic QoS mismatch (publishers exist, nothing arrives) and an input that stopped (its
+  upstream killed, a sensor lost);
+* notices a time jump backwards in the inputs' stamps (a looping bag, a restarted replay)
+  and calls :meth:`WorkzoneNode.on_time_jump` once per jump, so each node resets what it
+  keeps by stamp (counted in ``/diagnostics``);
+* with ``use_sim_time`` and no ``/clock`` yet, says so once in the log and in
+  ``/diagnostics`` (:meth:`WorkzoneNode.clock_running`) instead of stamping time 0.
 
 Usage::
 
@@ -41,6 +47,7 @@ import threading
 import time
 import traceback
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
@@ -68,10 +75,16 @@ from rclpy.qos import (
 from workzone_ros.core.sync import FrameGaps
 from workzone_ros.nodes.conversions import InputError
 
-__all__ = ['Param', 'WorkzoneNode', 'run_node', 'InputError', 'ConfigError', 'TopicStats']
+__all__ = ['Param', 'WorkzoneNode', 'run_node', 'InputError', 'ConfigError', 'TopicStats',
+           'TIME_JUMP_NS']
 
 HARDWARE_ID = 'workzone_ros'
 _TIMING_WINDOW = 200            # processing times kept per topic for p50/p99
+#: an input stamp older than the newest one seen by more than this is a time jump backwards
+#: (a looping bag): the node resets; by less, a late or repeated message (counted only)
+TIME_JUMP_NS = 2_000_000_000
+#: wall seconds after a jump during which the other inputs' jumps are the same one
+JUMP_SETTLE_S = 2.0
 _INT_MIN, _INT_MAX = -2 ** 63, 2 ** 63 - 1
 
 # Arguments rclpy.init() got in run_node(), for finding --params-file in the global args.
@@ -291,10 +304,75 @@ class WorkzoneNode(Node):
         self._warn_undeclared()
         self._log_configuration()
 
+        self._jump: Optional[list] = None   # [wall, new stamp, newest since] of the last jump
+        self.time_jumps = 0
+        self._clock_waiting_since: Optional[float] = None
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._wall_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._diag_timer = self.create_timer(self._diag_period_s, self._publish_diagnostics,
                                              clock=self._wall_clock)
+        if self._sim_time():
+            self._clock_timer = self.create_timer(0.1, self._check_clock,
+                                                  clock=self._wall_clock)
+            self._check_clock()
+
+    # --- time -----------------------------------------------------------------------------
+
+    def _sim_time(self) -> bool:
+        return self.has_parameter('use_sim_time') and \
+            bool(self.get_parameter('use_sim_time').value)
+
+    def clock_running(self) -> bool:
+        """False while ``use_sim_time`` is on and no ``/clock`` has come yet (time 0).
+
+        A node must not stamp or age anything with its clock then: it waits (the base logs
+        it once and ``/diagnostics`` says ``waiting for /clock``).
+        """
+        return not self._sim_time() or self.get_clock().now().nanoseconds > 0
+
+    def _check_clock(self) -> None:
+        if self.clock_running():
+            if self._clock_waiting_since is not None:
+                self.get_logger().info(
+                    f'/clock is running (waited '
+                    f'{time.monotonic() - self._clock_waiting_since:.1f} s)')
+            self._clock_waiting_since = None
+            self.destroy_timer(self._clock_timer)
+            return
+        if self._clock_waiting_since is None:
+            self._clock_waiting_since = time.monotonic()
+            self.get_logger().warning('use_sim_time is true and no /clock yet: waiting for it '
+                                      '(nothing is stamped from the clock until it comes)')
+
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """Hook: the inputs' stamps jumped back from ``old_ns`` to ``new_ns`` (a looping bag).
+
+        Called once per jump, before the callback of the message that showed it.  Nodes
+        reset here whatever they keep by stamp (buffers, synchronisers, pose histories,
+        tracks); the base already logged the jump and counts it in ``/diagnostics``.
+        """
+
+    def _note_stamp(self, ns: int, jumped_from: Optional[int]) -> Optional[str]:
+        """``'jump'`` for a new time jump, ``'late'`` for a message from before the last one.
+
+        ``jumped_from`` is the previous stamp of the same topic when this one is older by
+        more than ``TIME_JUMP_NS`` (per topic: a CameraInfo stamped 0 next to live images is
+        no jump).  The other inputs follow within ``JUMP_SETTLE_S``: the same jump, not a new
+        one; a message of the old pass still in flight then is ``'late'``.
+        """
+        now = time.monotonic()
+        j = self._jump
+        if j is not None and now - j[0] < JUMP_SETTLE_S:
+            if ns > j[2] + TIME_JUMP_NS:
+                return 'late'
+            j[2] = max(j[2], ns)
+            return None
+        if jumped_from is None:
+            return None
+        self._jump = [now, ns, ns]
+        self.time_jumps += 1
+        return 'jump'
+
 
     # --- parameters -----------------------------------------------------------------------
 
@@ -520,18 +598,30 @@ class WorkzoneNode(Node):
                 if stamp is not None and not 0 <= stamp.nanosec < 1_000_000_000:
                     bad_stamp, stamp = stamp, None
                 previous = stats.last_stamp
+                jump = None
                 if stamp is not None:
                     stats.last_stamp = stamp
                     ns = int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+                    jumped_from = None
                     if previous is not None:
                         before = int(previous.sec) * 1_000_000_000 + int(previous.nanosec)
+                        jumped_from = before if ns < before - TIME_JUMP_NS else None
                         stats.stamps_repeated += ns == before
                         stats.stamps_out_of_order += ns < before
                     if stats.gaps is not None:
                         stats.gaps.add(ns)
+                    jump = self._note_stamp(ns, jumped_from)
             try:
                 if bad_stamp is not None:
                     raise InputError(f'stamp nanosec {bad_stamp.nanosec} is outside [0, 1e9)')
+                if jump == 'late':
+                    raise InputError('stamped before the time jumped back (still in flight '
+                                     'from before the jump)')
+                if jump == 'jump':
+                    self.get_logger().info(
+                        f'time jumped back {(before - ns) * 1e-9:.1f} s on {stats.topic} '
+                        '(a looping bag?): buffers reset')
+                    self.on_time_jump(before, ns)
                 callback(msg)
             except InputError as exc:
                 self.drop(stats.topic, str(exc))
@@ -659,6 +749,14 @@ class WorkzoneNode(Node):
             silent_since = max(arrival if arrival is not None else -math.inf,
                                stats.publishers_since if stats.publishers_since is not None
                                else math.inf)
+            if stats.subscription is not None and publishers == 0 and age is not None \
+                    and age > self._silent_warn_s:
+                # it was flowing and its publisher is gone (a killed upstream node, a lost
+                # driver): a gap, not a configuration problem
+                level = DiagnosticStatus.WARN
+                text = f'no message on {topic} for {age:.1f} s and no publisher left'
+                self.warn_throttled(f'silent:{topic}', text)
+                problems.append(text)
             if stats.subscription is not None and publishers > 0 \
                     and now - silent_since > self._silent_warn_s:
                 level = DiagnosticStatus.WARN
@@ -679,6 +777,10 @@ class WorkzoneNode(Node):
         transport = getattr(self, '_image_transport', None)
         if transport is not None:
             values.append(('image transport', transport))
+        values.append(('time jumps back', str(self.time_jumps)))
+        if not self.clock_running():
+            level = DiagnosticStatus.WARN
+            problems.append('use_sim_time is true and no /clock yet: waiting for it')
         try:
             values += list(self.extra_diagnostics())
         except Exception as exc:  # noqa: BLE001 - a subclass's figures never kill diagnostics
@@ -712,7 +814,9 @@ class WorkzoneNode(Node):
     def _publish_diagnostics(self) -> None:
         try:
             msg = DiagnosticArray()
-            msg.header.stamp = self.get_clock().now().to_msg()
+            # system time while a simulated clock has not started (never time 0)
+            clock = self.get_clock() if self.clock_running() else Clock()
+            msg.header.stamp = clock.now().to_msg()
             msg.status = [self.diagnostic_status()]
             self._diag_pub.publish(msg)
         except Exception as exc:  # noqa: BLE001 - diagnostics must never kill the node
@@ -803,7 +907,16 @@ def run_node(node_factory: Callable[[], Node], args: Optional[list[str]] = None)
     global _GLOBAL_ARGS
     _GLOBAL_ARGS = list(args) if args is not None else list(sys.argv)
     _one_thread()
-    rclpy.init(args=args)
+    missing = [f for f in _params_files(_GLOBAL_ARGS) if not Path(f).is_file()]
+    if missing:
+        print(f'configuration error: params file not found: {missing[0]}', file=sys.stderr)
+        return 2
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # noqa: BLE001 - RCLError: an unparsable params file or argument
+        text = ' '.join(str(exc).split())
+        print(f'configuration error: {text}', file=sys.stderr)
+        return 2
     node = None
     code = 0
     try:

@@ -13,6 +13,12 @@ so a listener can tell a quiet scene from a dead camera.  Boxes the classifier r
 to classify, or mostly outside the image, is published as ``unknown`` with the reason, never
 as a guess.  ``/workzone/debug_image`` (sensor QoS) shows the frame with the signs and a
 banner with the phase of ``/workzone/state``; ``debug_image: false`` turns it off.
+
+With ``general_signs: true`` (the default) every frame that gets a ``Signs`` payload is also
+searched for general US signs (:mod:`workzone_ros.core.general`: stop, yield, do-not-enter,
+warning, speed limit, guide signs, mile markers); they are published with category
+``general`` and never change the work-zone state.  ``false`` costs nothing: the recogniser
+is not even loaded.
 """
 from __future__ import annotations
 
@@ -24,7 +30,7 @@ from std_msgs.msg import String
 
 from workzone_ros import interfaces as I
 from workzone_ros.core.overlay import draw_debug
-from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
+from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer, general_signs
 from workzone_ros.core.sign_distance import focal_from_fov
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
@@ -63,6 +69,8 @@ class ClassifierNode(WorkzoneNode):
         Param('min_visible', 0.5, 'boxes with less than this share inside the image are '
               'published as unknown', min=0.0, max=1.0),
         Param('read_speed', True, 'read the value of work-zone speed limit signs'),
+        Param('general_signs', True, 'also recognise general signs (stop, yield, '
+              'do-not-enter, warning, speed limit, guide, mile markers) on the whole frame'),
         Param('assumed_hfov_deg', 60.0, 'horizontal field of view used for distances until a '
               'CameraInfo arrives', min=1.0, max=179.0),
         Param('image_buffer', 10, 'images kept while waiting for their boxes', min=1,
@@ -77,6 +85,7 @@ class ClassifierNode(WorkzoneNode):
         p = self.params
         self._model = self._load_model(p.model_path)
         self._recognizer = SignRecognizer(self._model, self._recognition_config())
+        self._general = self._general_detector() if p.general_signs else None
         if p.read_speed:
             from workzone_ros.core.digits import warm_up
             warm_up()       # the digit classifier and templates, before the first frame
@@ -106,8 +115,17 @@ class ClassifierNode(WorkzoneNode):
                                  min_visible=p.min_visible, read_speed=p.read_speed)
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        """Apply live changes of margin, min_size, min_visible and read_speed."""
+        """Apply live changes of margin, min_size, min_visible, read_speed, general_signs."""
         self._recognizer.config = self._recognition_config()
+        if not self.params.general_signs:
+            self._general = None
+        elif self._general is None:
+            self._general = self._general_detector()
+
+    @staticmethod
+    def _general_detector():
+        from workzone_ros.core.general import GeneralSignDetector
+        return GeneralSignDetector()
 
     def _load_model(self, path: str):
         from workzone_ros.core import classifier as core
@@ -119,6 +137,13 @@ class ClassifierNode(WorkzoneNode):
             raise ConfigError(f'classifier model: {exc}') from None
         self.get_logger().info(f'classifier model {path}: {len(model.classes)} classes')
         return model
+
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag: the images, boxes and ROIs waiting by stamp are from the old pass."""
+        self._images.clear()
+        self._pending.clear()
+        self._rois.clear()
+        self._last_ns = None
 
     # --- callbacks ------------------------------------------------------------------------
 
@@ -188,8 +213,12 @@ class ClassifierNode(WorkzoneNode):
 
     def _classify(self, frame, items, rois) -> tuple[list[I.Sign], list[I.Box]]:
         """Signs of one frame, and the boxes rejected as background."""
-        signs, rejected = self._recognizer.recognize(frame, items,
-                                                     self._focal_px(frame.shape[1]), rois)
+        focal = self._focal_px(frame.shape[1])
+        signs, rejected = self._recognizer.recognize(frame, items, focal, rois)
+        if self._general is not None:
+            extra = general_signs(self._general.detect(frame), focal, rois, signs)
+            self.counts['general'] += len(extra)
+            signs = signs + extra
         self.counts['signs'] += sum(1 for s in signs if s.category != 'unknown')
         self.counts['unknown'] += sum(1 for s in signs if s.category == 'unknown')
         self.counts['rejected'] += len(rejected)

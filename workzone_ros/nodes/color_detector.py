@@ -237,6 +237,15 @@ class ColorDetectorNode(WorkzoneNode):
         except (ModelError, ValueError) as exc:
             self.get_logger().error(f'parameter change not applied: {exc}')
 
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag: the ROIs of the old pass are forgotten, images held for theirs go
+        on colour alone now (their ROIs will not come)."""
+        self._rois.clear()
+        for _, image, header in list(self._pending.values()):
+            self._held_counts['time jump'] += 1
+            self._detect(image, header)
+        self._pending.clear()
+
     # -- callbacks --
     def _on_info(self, msg: CameraInfo) -> None:
         """The frames' intrinsics, for the detector's camera match (an invalid CameraInfo

@@ -13,7 +13,13 @@ builds: a restarted fusion never publishes a false ``none``.  Inputs that go qui
 chain, the camera, the LiDAR, odometry) are listed in ``stale_inputs``; the state then
 degrades visibly, it never goes silently to ``none``.  A stamp that jumps backwards (a
 looping bag) resets the fusion's memory (counted in ``/diagnostics``); a frame repeated or
-up to 2 s out of order is dropped with its reason instead.
+up to 2 s out of order is dropped with its reason instead.  The stale list is checked at
+10 Hz and a change of it is published at once (not at the next ``publish_rate_hz`` tick), so
+a lost input shows in the state at most 0.1 s after its limit: ``stale_periods`` times the
+90th percentile of its own recent arrival intervals, between ``stale_min_s`` and
+``stale_after_s`` (:mod:`workzone_ros.core.liveness`: a 15 Hz camera is stale after 0.25 s,
+a sign chain that a loaded machine slows down does not flicker in and out of the list).  With
+``use_sim_time`` the state waits for ``/clock`` (nothing is stamped with time 0).
 """
 from __future__ import annotations
 
@@ -33,6 +39,7 @@ from std_msgs.msg import Bool, Float32, String
 
 from workzone_ros import interfaces as I
 from workzone_ros.core.fusion import FusionConfig, WorkzoneFusion
+from workzone_ros.core.liveness import InputLiveness, LivenessConfig
 from workzone_ros.core.odometry import TravelledDistance
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
@@ -43,6 +50,8 @@ _SCALARS = (bool, int, float, str)
 #: signs older than the last fused frame by more than this are a time jump (a looping bag:
 #: the memory resets); by less, a repeated or reordered frame (dropped, counted)
 JUMP_BACK_NS = 2_000_000_000
+#: how often the stale inputs are checked (a change is published at once)
+STALE_CHECK_S = 0.1
 
 
 def _core_params() -> tuple[Param, ...]:
@@ -86,8 +95,12 @@ class FusionNode(WorkzoneNode):
         Param('likelihood_topic', '/workzone/likelihood', 'output Float32', read_only=True),
         Param('publish_rate_hz', 2.0, 'state re-published at this rate while no signs '
               'arrive', min=0.1, max=100.0),
-        Param('stale_after_s', 1.0, 'an input seen before and silent for longer is stale',
-              min=0.05, max=60.0),
+        Param('stale_after_s', 1.0, 'an input seen before and silent for longer is stale '
+              '(the longest limit)', min=0.05, max=60.0),
+        Param('stale_min_s', 0.25, 'an input is never stale sooner than this after its last '
+              'message', min=0.01, max=60.0),
+        Param('stale_periods', 2.0, "between the two: this many times the 90th percentile of "
+              "the input's own recent arrival intervals", min=0.1, max=100.0),
         Param('resume_file', '', 'where the phase is checkpointed, so that a fusion '
               'restarted mid-zone stays unknown (never a false none) until evidence rebuilds '
               '(empty: $WORKZONE_RUN_DIR/<node>_phase.json when the launcher sets it)',
@@ -108,7 +121,7 @@ class FusionNode(WorkzoneNode):
         self._odom = TravelledDistance()
         self._odom_seen = False
         self._channelizers: collections.OrderedDict[int, int] = collections.OrderedDict()
-        self._last_seen: dict[str, float] = {}      # input name -> monotonic arrival
+        self._liveness = InputLiveness(self._liveness_config())
         self._last_publish = 0.0
         self._last_stamp: Optional[I.Time] = None
         self._signs_ns: Optional[int] = None
@@ -130,14 +143,18 @@ class FusionNode(WorkzoneNode):
         self._lidar_sub = (self.reliable_subscription(
             String, p.lidar_topic, self._seen('lidar', lambda m: conv.string_to_payload(
                 m, I.Rois))) if p.lidar_topic else None)
-        self._timer = self.create_timer(1.0 / p.publish_rate_hz, self._on_timer)
+        self._published_stale: tuple[str, ...] = ()
+        self._timer = self.create_timer(min(STALE_CHECK_S, 1.0 / p.publish_rate_hz),
+                                        self._on_timer)
         self._resume_path = self._resume_file()
         self._saved_phase: Optional[str] = None
         self._resume()
-        self._publish(self._fusion.tick(self._now_time(), stale_inputs=()))
+        if self.clock_running():        # else the first timer tick after /clock publishes
+            self._publish(self._fusion.tick(self._now_time(), stale_inputs=()))
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Apply a new fusion configuration (the memory is kept when the core allows)."""
+        self._liveness.config = self._liveness_config()
         try:
             cfg = config_from_params(self.params)
         except ValueError as exc:
@@ -185,12 +202,16 @@ class FusionNode(WorkzoneNode):
         malformed one raises ConversionError: dropped with its reason, not a sign of life)."""
         def callback(msg: Any) -> None:
             check(msg)
-            self._last_seen[name] = time.monotonic()
+            self._liveness.seen(name, time.monotonic())
         return callback
 
     def _stale(self) -> list[str]:
-        now, limit = time.monotonic(), self.params.stale_after_s
-        return sorted(k for k, t in self._last_seen.items() if now - t > limit)
+        return self._liveness.stale(time.monotonic())
+
+    def _liveness_config(self) -> LivenessConfig:
+        p = self.params         # the parameters' ranges make every combination valid
+        return LivenessConfig(min_s=min(p.stale_min_s, p.stale_after_s),
+                              max_s=p.stale_after_s, periods=p.stale_periods)
 
     def _on_odom(self, msg: Odometry) -> None:
         pos = msg.pose.pose.position
@@ -200,7 +221,7 @@ class FusionNode(WorkzoneNode):
         except ValueError as exc:
             raise InputError(str(exc)) from None
         self._odom_seen = True
-        self._last_seen['odom'] = time.monotonic()
+        self._liveness.seen('odom', time.monotonic())
 
     def _on_detections(self, msg: String) -> None:
         dets = conv.string_to_payload(msg, I.Detections)
@@ -218,7 +239,7 @@ class FusionNode(WorkzoneNode):
             raise InputError(f'signs stamped {ns * 1e-9:.3f} are not after the last fused '
                              f'frame ({last * 1e-9:.3f}): repeated or out of order')
         self._signs_ns = ns
-        self._last_seen['signs'] = time.monotonic()
+        self._liveness.seen('signs', time.monotonic())
         resets = self._fusion.resets
         state = self._fusion.update(
             signs, odom_distance_m=self._odom.distance_m if self._odom_seen else None,
@@ -228,11 +249,30 @@ class FusionNode(WorkzoneNode):
             self._channelizers.clear()
             self._last_stamp = None         # the state's stamps restart with the new time
         self._publish(state)
-        lag = self.get_clock().now().nanoseconds - ns
-        self._latency_ms.append(lag * 1e-6)
+        if self.clock_running():
+            lag = self.get_clock().now().nanoseconds - ns
+            self._latency_ms.append(lag * 1e-6)
+
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag (seen on odometry or the camera): the state restarts at ``unknown``
+        with an empty memory, its stamps restart with the new time."""
+        self._fusion.reset()
+        self._fusion.resets += 1
+        # where the vehicle is now is not known: no none before evidence (END or timeout)
+        self._fusion.hold_none('the time jumped back (a looping bag?)')
+        self._channelizers.clear()
+        self._odom = TravelledDistance()
+        self._odom_seen = False
+        self._signs_ns = None
+        self._last_stamp = None
+        self.get_logger().info('time jumped back: fusion memory reset, state unknown')
 
     def _on_timer(self) -> None:
-        if time.monotonic() - self._last_publish < 0.9 / self.params.publish_rate_hz:
+        if not self.clock_running():
+            return                      # use_sim_time and no /clock yet: the base says so
+        changed = tuple(self._stale()) != self._published_stale
+        if not changed and \
+                time.monotonic() - self._last_publish < 0.9 / self.params.publish_rate_hz:
             return
         state = self._fusion.tick(self._now_time(),
                                   odom_distance_m=self._odom.distance_m if self._odom_seen
@@ -252,6 +292,7 @@ class FusionNode(WorkzoneNode):
             state = msgspec.structs.replace(state, header=msgspec.structs.replace(
                 state.header, stamp=self._last_stamp))
         self._last_stamp = state.header.stamp
+        self._published_stale = tuple(state.stale_inputs)
         self._state_pub.publish(conv.payload_to_string(state))
         self._active_pub.publish(Bool(data=bool(state.active)))
         self._likelihood_pub.publish(Float32(data=float(state.likelihood)))

@@ -203,6 +203,12 @@ class LidarClusterNode(WorkzoneNode):
         """The last scan's funnel, rejections, persistence and why nothing was published."""
         return self._stream.status()
 
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag: forget the poses and the persistence tracks (the learned intensity
+        scale and the road plane belong to the sensor, not to the time, and are kept)."""
+        self._poses = PoseBuffer()
+        self._stream.tracker.reset()
+
     def _on_odom(self, msg: Odometry) -> None:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         t = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec

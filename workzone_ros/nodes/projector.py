@@ -187,6 +187,15 @@ class ProjectorNode(WorkzoneNode):
         """Apply live changes (the synchroniser restarts empty)."""
         self._configure()
 
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag: the synchronisers, the poses and the held images restart empty
+        (stored by stamp, the old pass's would outrank or discard the new one's)."""
+        self._poses = PoseBuffer()
+        self._image_stamps.clear()
+        self._held.clear()
+        self._configure()
+        self._counts['time jumps (synchroniser reset)'] += 1
+
     # --- inputs --------------------------------------------------------------------------
 
     def _on_info(self, msg: CameraInfo) -> None:

@@ -236,6 +236,13 @@ class TrackerNode(WorkzoneNode):
         except ValueError as exc:
             self.warn_throttled('reconfigure', f'tracker configuration rejected: {exc}')
 
+    def on_time_jump(self, old_ns: int, new_ns: int) -> None:
+        """A looping bag: tracks and the images / detections waiting by stamp restart."""
+        self._tracker.reset()
+        self._images.clear()
+        self._pending.clear()
+        self._last_ns = None
+
     # --- callbacks ------------------------------------------------------------------------
 
     def _on_image(self, msg: Any) -> None:

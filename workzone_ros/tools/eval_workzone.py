@@ -91,6 +91,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
+import numpy as np
+
 from workzone_ros.bagio import BagError
 from workzone_ros.core import signs as catalogue
 from workzone_ros.core.fusion import ACTIVE_PHASES, FusionConfig, WorkzoneFusion
@@ -276,6 +278,7 @@ def run_bag(bag: str, opts: EvalOptions) -> tuple[GtWorkzone, list[Frame], dict]
     focal: Optional[float] = None
     images: dict[int, Any] = {}
     frames: list[Frame] = []
+    fusion_ms: list[float] = []
     topics = list(_TOPICS[:4]) + (list(_TOPICS[4:]) if images_too else [])
     for topic, _, msg in read_messages(bag, topics):
         if topic == '/groundtruth/workzone':
@@ -302,13 +305,16 @@ def run_bag(bag: str, opts: EvalOptions) -> tuple[GtWorkzone, list[Frame], dict]
             if images_too and image is None:
                 continue
             frames.append(_step(fusion, source, gt, image, focal, (ns - t0) * 1e-9,
-                                odo.distance_m, opts))
+                                odo.distance_m, opts, fusion_ms))
     if hasattr(source, 'flush'):
         source.flush()
     if gtw is None or not frames:
         raise EvalError('no /groundtruth/workzone or no camera frames with /groundtruth/'
                         'signs: not a synthetic bag (workzone-ros synth)?')
-    return gtw, frames, {'unknown_classes': fusion.unknown_classes, 'resets': fusion.resets}
+    stages = {k: list(v) for k, v in getattr(source, 'timings', {}).items() if v}
+    stages['fusion'] = fusion_ms
+    return gtw, frames, {'unknown_classes': fusion.unknown_classes, 'resets': fusion.resets,
+                         '_stage_ms': stages}
 
 
 def _decode(data, cls):
@@ -319,11 +325,13 @@ def _decode(data, cls):
 
 
 def _step(fusion: WorkzoneFusion, source, gt: GtSigns, image, focal, t: float,
-          odom_m: float, opts: EvalOptions) -> Frame:
+          odom_m: float, opts: EvalOptions, fusion_ms: list) -> Frame:
     """One frame: signs from the source, the fusion's state, what the report needs."""
     signs, channel = source(gt, image, focal)
+    t0 = time.perf_counter()
     st = fusion.update(Signs(header=gt.header, signs=signs),
                        odom_distance_m=odom_m if opts.odom else None, channelizers=channel)
+    fusion_ms.append((time.perf_counter() - t0) * 1e3)
     f = Frame(t=t, odom_m=odom_m, phase=st.phase, likelihood=st.likelihood,
               speed=st.speed_limit_mph, lane_shift=st.lane_shift,
               lanes_closed=tuple(st.lanes_closed))
@@ -551,14 +559,35 @@ def evaluate_bag(bag: str, opts: EvalOptions) -> dict:
         gtw, frames, counters = run_bag(bag, opts)
     except (BagError, EvalError) as exc:
         return {'bag': bag, 'error': ' '.join(str(exc).split())}
+    stages = counters.pop('_stage_ms')
     res = {'bag': bag, **score(frames, gtw, opts.tolerance_s, opts.legible_px), **counters,
+           'stage_ms': {k: stage_summary(v) for k, v in stages.items()},
            'wall_s': round(time.monotonic() - started, 2)}
+    res['_stage_ms'] = stages           # raw times for the pooled figures and the histogram
     if opts.keep_frames:
         res['_frames'] = frames
     return res
 
 
+def stage_summary(ms: list[float]) -> dict:
+    """Frames, p50, p99 and max (ms) of one stage's processing times."""
+    if not ms:
+        return {'frames': 0, 'p50': None, 'p99': None, 'max': None}
+    a = np.asarray(ms, float)
+    return {'frames': int(a.size), 'p50': _r(float(np.percentile(a, 50)), 2),
+            'p99': _r(float(np.percentile(a, 99)), 2), 'max': _r(float(a.max()), 2)}
+
+
 # --- pooled figures and printing ------------------------------------------------------------
+
+def pooled_stage_ms(results: list[dict]) -> dict[str, list[float]]:
+    """Every bag's per-frame processing times, per stage, in pipeline order."""
+    out: dict[str, list[float]] = {}
+    for r in results:
+        for k, v in r.get('_stage_ms', {}).items():
+            out.setdefault(k, []).extend(v)
+    return out
+
 
 def summarise(results: list[dict]) -> dict:
     """Figures pooled over the bags that could be evaluated."""
@@ -576,6 +605,7 @@ def summarise(results: list[dict]) -> dict:
         'frames': sum(r['frames'] for r in ok),
         'phase_accuracy': _r(sum(r['phase_accuracy'] * r['frames'] for r in ok)
                              / max(1, sum(r['frames'] for r in ok)), 4),
+        'stage_ms': {k: stage_summary(v) for k, v in pooled_stage_ms(ok).items()},
     }
     for key in ('zone_begin', 'zone_end'):
         e = errs(key)
@@ -637,6 +667,10 @@ def print_summary(s: dict, out=sys.stdout) -> None:
         print(f"   {key}: |error| mean {_fmt(s[key + '_abs_error_s_mean'])} s, max "
               f"{_fmt(s[key + '_abs_error_s_max'])} s, within 1 s: {s[key + '_within_1s']}",
               file=out)
+    if s.get('stage_ms'):
+        print('   processing per frame (ms, in process) p50/p99: ' + ', '.join(
+            f"{k} {_fmt(v['p50'])}/{_fmt(v['p99'])}" for k, v in s['stage_ms'].items()),
+            file=out)
 
 
 # --- CLI ------------------------------------------------------------------------------------
@@ -770,6 +804,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         print(f'report: {path}')
     for r in results:
         r.pop('_frames', None)
+        r.pop('_stage_ms', None)
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)

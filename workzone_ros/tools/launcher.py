@@ -14,6 +14,9 @@ What ``ros2 launch`` would do for this package, without the ROS CLI:
   exits 0 after the bag and a short drain;
 * SIGINT / SIGTERM: SIGINT to every child group, SIGKILL after a deadline, all gone within
   5 s; children also get SIGKILL from the kernel if the launcher itself is killed;
+* ``--loop`` replays the bag over and over (time jumps back at each pass; ``--duration``
+  ends the run), ``--cut TOPIC:START:DURATION`` withholds a topic for a window of bag time
+  (a lost sensor; see ``workzone-ros play``), ``--duration S`` stops after S s of playing;
 * ``--single-process``: every node class (``NODE_CLASS``) in one executor in this process;
 * ``--report``: counts and rates of the ``/workzone/*`` outputs, drops from ``/diagnostics``
   and, with ``/groundtruth/signs`` in the bag, frames with ground-truth signs vs frames with
@@ -461,6 +464,7 @@ class Launcher:
         self._inproc_nodes: list = []
         self._run_dir: Optional[str] = None
         self._t_start = time.monotonic()
+        self._play_t0: Optional[float] = None
 
     def log(self, text: str) -> None:
         """One ``[launch]`` line."""
@@ -710,6 +714,8 @@ class Launcher:
         self._player = BagPlayer(self.reader, rate=self.args.rate, context=self._ctx,
                                  node_name='workzone_player', quiet=self.args.quiet_play,
                                  wait_for=wait_for, wait_timeout=5.0,
+                                 loop=bool(getattr(self.args, 'loop', False)),
+                                 cuts=getattr(self.args, 'cuts', ()),
                                  log=lambda text: self.say('play', text.removeprefix('[play] ')))
         self._play_t0 = time.monotonic()
         self.log(f'playing {self.reader.summary()} at rate {self.args.rate:g}')
@@ -797,10 +803,15 @@ class Launcher:
         state = 'waiting' if self.reader is not None else 'running'
         wait_deadline = time.monotonic() + self.args.ready_timeout
         drain_until = 0.0
+        duration = getattr(self.args, 'duration', None)
         while not self._stop.is_set():
             now = time.monotonic()
             self._supervise(now)
             if self._stop.is_set():
+                break
+            if duration and state in ('playing', 'running') and \
+                    now - (self._play_t0 or self._t_start) >= duration:
+                self._stop_reason = f'--duration {duration:g} s'
                 break
             if state == 'waiting':
                 if self._graph_ready() or now > wait_deadline:
@@ -853,6 +864,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help='seconds to keep running after the bag ends (2)')
     p.add_argument('--ready-timeout', type=float, default=30.0, metavar='S',
                    help='longest wait for the nodes before playing the bag (30)')
+    p.add_argument('--loop', action='store_true', help='replay the bag over and over (the '
+                   'time jumps back at each pass; --duration ends the run)')
+    p.add_argument('--cut', action='append', default=[], metavar='TOPIC:START:DURATION',
+                   help='withhold TOPIC (and the topics under it) from the nodes for DURATION '
+                   's from START s of bag time, on every pass (repeatable): a lost sensor')
+    p.add_argument('--duration', type=float, metavar='S', help='stop (exit 0) after S s of '
+                   'playing the bag (or of running, without a bag)')
     p.add_argument('--quiet-play', action='store_true', help='no bag progress lines')
     p.add_argument('--state', action='store_true', help='print /workzone/state changes as a '
                    'planner sees them (phase, speed limit, lanes, evidence)')
@@ -875,6 +893,15 @@ def main(argv: Optional[list[str]] = None) -> int:
     args = build_parser().parse_args(argv)
     if args.rate < 0:
         print('workzone-ros launch: error: --rate must be >= 0', file=sys.stderr)
+        return EXIT_BAG
+    from workzone_ros.tools.player import parse_cut
+    try:
+        args.cuts = [parse_cut(c) for c in args.cut]
+    except ValueError as exc:
+        print(f'workzone-ros launch: error: {exc}', file=sys.stderr)
+        return EXIT_BAG
+    if args.duration is not None and not args.duration > 0:
+        print('workzone-ros launch: error: --duration must be > 0', file=sys.stderr)
         return EXIT_BAG
     params = Path(args.params) if args.params else default_params_file()
     if params is None or not params.is_file():

@@ -13,6 +13,11 @@ reliable publishers), ``/workzone/state``, ``/workzone/active``, ``/groundtruth/
 and anything recorded as transient local / latched: reliable + transient local depth 1;
 everything else reliable depth 100.
 
+``--cut TOPIC:START:DURATION`` (repeatable) withholds a topic for a window of bag time, on
+every pass of a loop: a sensor that goes quiet on a running graph (``TOPIC`` also names
+every topic under it: ``/camera`` cuts ``/camera/image_raw/compressed`` and
+``/camera/camera_info``).  ``/clock`` keeps running.
+
 A missing, empty or corrupt bag is one line on stderr and exit code 2.  :class:`BagPlayer`
 is the same player for in-process use (tests, the launcher).
 """
@@ -30,8 +35,8 @@ from typing import Any, Callable, Iterable, Optional, Sequence, TextIO, Union
 
 from workzone_ros.bagio import BagError, BagReader, open_reader
 
-__all__ = ['BagPlayer', 'PlayStats', 'SENSOR_TYPES', 'TRANSIENT_TOPICS', 'main',
-           'parse_remaps', 'message_class']
+__all__ = ['BagPlayer', 'Cut', 'PlayStats', 'SENSOR_TYPES', 'TRANSIENT_TOPICS', 'main',
+           'parse_cut', 'parse_remaps', 'message_class']
 
 #: Types replayed with the sensor profile (reliable, depth 10).
 SENSOR_TYPES = frozenset({'sensor_msgs/msg/Image', 'sensor_msgs/msg/CompressedImage',
@@ -56,6 +61,42 @@ class PlayStats:
     clock_published: int = 0
     loops: int = 0
     interrupted: bool = False
+    withheld: dict[str, int] = field(default_factory=dict)   # messages held back by cuts
+
+
+@dataclass(frozen=True)
+class Cut:
+    """A topic withheld from ``start_s`` to ``start_s + duration_s`` of bag time (from the
+    start of the bag, on every pass); ``topic`` also covers the topics under it."""
+
+    topic: str
+    start_s: float
+    duration_s: float
+
+    def covers(self, topic: str, bag_s: float) -> bool:
+        """Whether a message on ``topic`` at ``bag_s`` is withheld."""
+        under = topic == self.topic or topic.startswith(self.topic.rstrip('/') + '/')
+        return under and self.start_s <= bag_s < self.start_s + self.duration_s
+
+
+def parse_cut(text: str) -> Cut:
+    """``'/camera:10:5'`` -> ``Cut('/camera', 10.0, 5.0)``.
+
+    Raises:
+        ValueError: not ``TOPIC:START:DURATION`` with a topic starting with ``/`` and
+            non-negative numbers.
+    """
+    topic, _, rest = text.partition(':')
+    start, _, duration = rest.partition(':')
+    try:
+        cut = Cut(topic, float(start), float(duration))
+    except ValueError:
+        raise ValueError(f'bad cut {text!r}; expected TOPIC:START:DURATION '
+                         '(seconds of bag time)') from None
+    if not topic.startswith('/') or not cut.start_s >= 0 or not cut.duration_s > 0:
+        raise ValueError(f'bad cut {text!r}; the topic starts with /, START >= 0, '
+                         'DURATION > 0')
+    return cut
 
 
 def parse_remaps(items: Optional[Iterable[str]]) -> dict[str, str]:
@@ -112,7 +153,8 @@ class BagPlayer:
                  wait_timeout: float = 10.0, context: Any = None,
                  node_name: str = 'workzone_player',
                  progress_stream: Optional[TextIO] = None,
-                 log: Optional[Callable[[str], None]] = None) -> None:
+                 log: Optional[Callable[[str], None]] = None,
+                 cuts: Sequence[Cut] = ()) -> None:
         """Open the bag (rclpy is not touched until :meth:`run`).
 
         Args:
@@ -134,6 +176,7 @@ class BagPlayer:
             node_name: the player node's name.
             progress_stream: where progress goes (default stderr).
             log: callable for one-line notes (default: print to ``progress_stream``).
+            cuts: topics withheld for a window of bag time (:class:`Cut`).
 
         Raises:
             BagError: missing, empty, corrupt bag, or nothing to play on ``topics``.
@@ -156,6 +199,8 @@ class BagPlayer:
         self._log = log or (lambda text: print(text, file=self._stream, flush=True))
         self._stop = threading.Event()
         self.stats = PlayStats()
+        self.cuts = list(cuts)
+        self._cutting: set[Cut] = set()
         known = self.reader.topics
         if topics is None:
             self.topics = sorted(known)
@@ -353,6 +398,8 @@ class BagPlayer:
             if entry is None:  # skipped after a conversion error
                 continue
             self._publish_clock(clock, t_ns)
+            if self.cuts and self._withheld(msg.topic, (t_ns - self.reader.start_time) / 1e9):
+                continue
             pub = entry[0]
             try:
                 data = self.reader.to_cdr(msg)
@@ -376,6 +423,22 @@ class BagPlayer:
             self._log(f'[play] {"stopped" if self._stop.is_set() else "done"}: '
                       f'{stats.published} messages, bag {stats.bag_s:.1f} s in wall '
                       f'{stats.wall_s:.1f} s')
+
+    def _withheld(self, topic: str, bag_s: float) -> bool:
+        """Whether a cut withholds this message; logs each cut as it starts and ends."""
+        hit = False
+        for cut in self.cuts:
+            inside = cut.start_s <= bag_s < cut.start_s + cut.duration_s
+            if inside and cut not in self._cutting:
+                self._cutting.add(cut)
+                self._log(f'[play] cut {cut.topic} at {bag_s:.2f} s for {cut.duration_s:g} s')
+            elif not inside and cut in self._cutting:
+                self._cutting.discard(cut)
+                self._log(f'[play] cut {cut.topic} over at {bag_s:.2f} s')
+            hit = hit or cut.covers(topic, bag_s)
+        if hit:
+            self.stats.withheld[topic] = self.stats.withheld.get(topic, 0) + 1
+        return hit
 
     def _progress(self, tty: bool, bag_ns: int, wall_s: float) -> float:
         total = self.duration_s
@@ -406,6 +469,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='wait S seconds after creating publishers')
     p.add_argument('--wait-for', nargs='+', default=[], metavar='T',
                    help="wait (up to 10 s) until these topics have a subscriber ('*' = all)")
+    p.add_argument('--cut', action='append', default=[], metavar='TOPIC:START:DURATION',
+                   help='withhold TOPIC (and the topics under it) for DURATION s from START s '
+                   'of bag time, on every pass (repeatable): a sensor lost on a running graph')
     p.add_argument('--quiet', action='store_true', help='no progress output')
     return p
 
@@ -415,6 +481,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         remap = parse_remaps(args.remap)
+        cuts = [parse_cut(c) for c in args.cut]
     except ValueError as exc:
         print(f'workzone-ros play: error: {exc}', file=sys.stderr)
         return 2
@@ -422,7 +489,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         player = BagPlayer(args.bag, rate=0.0 if args.max else args.rate, start=args.start,
                            loop=args.loop, topics=args.topics, remap=remap,
                            clock_hz=args.clock_hz, quiet=args.quiet, delay=args.delay,
-                           wait_for=args.wait_for)
+                           wait_for=args.wait_for, cuts=cuts)
     except (BagError, ValueError) as exc:
         print(f'workzone-ros play: error: {exc}', file=sys.stderr)
         return 2

@@ -10,7 +10,9 @@ The chain the nodes run, in process and in frame order, from ``workzone_ros.core
   are ``unknown`` (never guessed), ``background`` answers are not published, a work-zone
   speed limit's value is read with ``core.digits.read_speed_limit`` on its crop, and the
   distance comes from the apparent size and CameraInfo's focal length
-  (``core.sign_distance.estimate_distance``; no LiDAR ROIs here).
+  (``core.sign_distance.estimate_distance``; no LiDAR ROIs here);
+* the general signs of the whole frame (``core.general.GeneralSignDetector``, as the
+  classifier node's ``general_signs: true``; ``opts.general_signs = False`` leaves them out).
 
 Each frame's channelizer count is the colour detector's (``ColorDetector.channelizers``:
 the blobs it rejected as banded drums or cones, one per place), as the ``color_detector``
@@ -25,6 +27,8 @@ from __future__ import annotations
 
 import json
 import os
+import time
+from collections import defaultdict
 from pathlib import Path
 from typing import Optional
 
@@ -36,7 +40,7 @@ __all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN
 MIN_SIZE = 12           # classifier node: min_size
 MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
-_CACHE_VERSION = 2      # 2: frames carry the colour detector's channelizer count
+_CACHE_VERSION = 3      # 2: frames carry the colour detector's channelizer count; 3: general signs
 
 
 def _classifier_path(opts) -> str:
@@ -105,6 +109,11 @@ class CachedSource:
             encode(Signs(header=gt.header, signs=out)))}))
         return out, channel
 
+    @property
+    def timings(self) -> dict[str, list[float]]:
+        """Per-stage times of the frames computed in this run (none for cached frames)."""
+        return self.inner.timings if self.inner is not None else {}
+
     def flush(self) -> None:
         """Write the computed frames (the whole bag) to the cache file."""
         if self.new:
@@ -131,16 +140,36 @@ class PipelineSource:
         self.model = load_model(_classifier_path(opts))
         self.recognizer = SignRecognizer(self.model, RecognitionConfig(
             margin=MARGIN, min_size=MIN_SIZE, min_visible=MIN_VISIBLE))
+        #: processing time per stage and frame (ms): detector, tracker, classifier, general
+        self.timings: dict[str, list[float]] = defaultdict(list)
+        self.general = None
+        if getattr(opts, 'general_signs', True):
+            from workzone_ros.core.general import GeneralSignDetector
+            self.general = GeneralSignDetector()
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:
         """Signs of one frame (the classifier node's output) and its channelizer count."""
+        t0 = time.perf_counter()
         dets = self.detector(image, gt)
+        t1 = time.perf_counter()
         found = getattr(self.detector.det, 'channelizers', None)
         channel = None if found is None else len(found)
         tracks = self.tracker.step(image, dets, stamp=gt.header.stamp.to_ns() * 1e-9)
+        t2 = time.perf_counter()
+        self.timings['color_detector'].append((t1 - t0) * 1e3)
+        self.timings['tracker'].append((t2 - t1) * 1e3)
         return self.classify(image, tracks, focal), channel
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""
-        return self.recognizer.recognize(frame, items, focal)[0]
+        t0 = time.perf_counter()
+        signs = self.recognizer.recognize(frame, items, focal)[0]
+        t1 = time.perf_counter()
+        self.timings['classifier'].append((t1 - t0) * 1e3)
+        if self.general is None:
+            return signs
+        from workzone_ros.core.recognition import general_signs
+        signs = signs + general_signs(self.general.detect(frame), focal, (), signs)
+        self.timings['general_signs'].append((time.perf_counter() - t1) * 1e3)
+        return signs

@@ -6,7 +6,9 @@ recognised o/x / sign images / precision / recall), the timing of each bag and, 
 seed 000's Fig. 3 for one bag, drawn with OpenCV (no plotting library): frames on x, the
 work-zone classes on y, legible ground-truth signs as green circles and the signs given to
 the fusion as red crosses; under it the fusion's likelihood (orange) and two bands, truth
-and prediction, shaded by phase.
+and prediction, shaded by phase.  ``DIR/stage_latency.png`` holds one histogram per stage
+of its processing time per frame (in process, log scale, p50 and p99 marked), with the
+table beside it in the Markdown.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import numpy as np
 
 from workzone_ros.core import signs as catalogue
 
-__all__ = ['write_report', 'draw_timeline', 'PHASE_COLORS']
+__all__ = ['write_report', 'draw_timeline', 'draw_stage_histograms', 'PHASE_COLORS']
 
 #: BGR colour of each phase in the bands.
 PHASE_COLORS = {'unknown': (200, 200, 200), 'none': (245, 245, 245),
@@ -119,6 +121,65 @@ def _legend(img, y: int) -> None:
 
 # --- Markdown -------------------------------------------------------------------------------
 
+#: Histogram range (ms, log-spaced bins) of the stage processing times.
+_HIST_MS = (0.01, 1000.0)
+_HIST_BINS = 50
+
+
+def draw_stage_histograms(stage_ms: dict) -> np.ndarray:
+    """One row per stage: the histogram of its per-frame processing time (ms, log x axis),
+    p50 (blue) and p99 (red) marked; a BGR image."""
+    import cv2
+    w, left, row = 900, 150, 90
+    img = np.full((30 + row * max(1, len(stage_ms)) + 30, w, 3), 255, np.uint8)
+    lo, hi = np.log10(_HIST_MS[0]), np.log10(_HIST_MS[1])
+    edges = np.linspace(lo, hi, _HIST_BINS + 1)
+    span = w - left - 20
+
+    def x_of(ms: float) -> int:
+        v = np.log10(min(max(ms, _HIST_MS[0]), _HIST_MS[1]))
+        return int(left + (v - lo) / (hi - lo) * span)
+    _text(img, 'processing time per frame (ms, in process; blue p50, red p99)', (left, 20), 0.5)
+    for i, (name, ms) in enumerate(stage_ms.items()):
+        top = 30 + i * row
+        _text(img, name, (8, top + row // 2), 0.45)
+        a = np.log10(np.clip(np.asarray(ms, float), *_HIST_MS)) if len(ms) else np.zeros(0)
+        counts, _ = np.histogram(a, edges)
+        peak = max(1, int(counts.max()) if counts.size else 1)
+        for k, c in enumerate(counts):
+            if c:
+                x0 = int(left + (edges[k] - lo) / (hi - lo) * span)
+                x1 = int(left + (edges[k + 1] - lo) / (hi - lo) * span) - 1
+                y0 = top + row - 10 - int((row - 25) * c / peak)
+                cv2.rectangle(img, (x0, y0), (x1, top + row - 10), (150, 150, 150), -1)
+        if len(ms):
+            for q, colour in ((50, (200, 80, 0)), (99, (30, 30, 220))):
+                x = x_of(float(np.percentile(ms, q)))
+                cv2.line(img, (x, top + 8), (x, top + row - 10), colour, 2)
+        cv2.line(img, (left, top + row - 10), (w - 20, top + row - 10), (0, 0, 0), 1)
+    y = img.shape[0] - 8
+    for ms in (0.01, 0.1, 1, 10, 100, 1000):
+        _text(img, f'{ms:g}', (x_of(ms) - 8, y), 0.4)
+    return img
+
+
+def _latency_lines(summary: dict, out: Path, stage_ms: dict) -> list[str]:
+    import cv2
+    rows = summary.get('stage_ms') or {}
+    if not rows:
+        return []
+    lines = ['## Processing time per stage', '',
+             'Measured in process, per frame, on this machine (the nodes report the same '
+             'figures live in `/diagnostics`: `<topic> processing p50/p99 ms`).', '',
+             '| stage | frames | p50 ms | p99 ms | max ms |', '|---|---|---|---|---|']
+    lines += [f"| {k} | {v['frames']} | {_cell(v['p50'])} | {_cell(v['p99'])} | "
+              f"{_cell(v['max'])} |" for k, v in rows.items()]
+    if stage_ms:
+        cv2.imwrite(str(out / 'stage_latency.png'), draw_stage_histograms(stage_ms))
+        lines += ['', '![processing time per stage](stage_latency.png)']
+    return lines + ['']
+
+
 def _cell(v) -> str:
     return '-' if v is None else (f'{v:.3f}' if isinstance(v, float) else str(v))
 
@@ -209,6 +270,8 @@ def write_report(folder: str, results: list[dict], summary: dict, opts,
         lines += [f'## {name}', ''] + _bag_lines(r) + ['', f'![timeline]({png})', '']
     if opts.signs == 'pipeline':
         lines += _confusion(results)
+    from workzone_ros.tools.eval_workzone import pooled_stage_ms
+    lines += _latency_lines(s, out, pooled_stage_ms([r for r in results if 'error' not in r]))
     path = out / 'README.md'
     path.write_text('\n'.join(lines) + '\n')
     return str(path)

@@ -1,0 +1,185 @@
+"""Tests of the general sign recogniser (workzone_ros/core/general): templates, colours,
+the orange guard, mile numbers and input checks.  Signs are our own sign art pasted on a
+road-like background (sky, trees, asphalt)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from workzone_ros.core.general import (
+    GeneralConfig,
+    GeneralSign,
+    GeneralSignDetector,
+    GeneralSignError,
+)
+from workzone_ros.sim.signart import over, sign_face
+
+RED = ('stop', 'yield', 'do_not_enter')
+
+
+@pytest.fixture(scope='module')
+def detector() -> GeneralSignDetector:
+    return GeneralSignDetector()
+
+
+def scene(h: int = 360, w: int = 640, seed: int = 0) -> np.ndarray:
+    """Sky, a tree line and asphalt with a little noise (uint8 BGR)."""
+    rng = np.random.default_rng(seed)
+    img = np.zeros((h, w, 3), np.float32)
+    img[:] = (200, 170, 140)
+    img[int(0.35 * h):int(0.5 * h)] = (40, 90, 50)
+    img[int(0.5 * h):] = (95, 100, 100)
+    img += rng.normal(0, 4, img.shape)
+    return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def paste(img: np.ndarray, key: str, size: int, x: int, y: int, **kw) -> tuple:
+    """Composite the sign art of ``key`` at (x, y); returns its box."""
+    face = sign_face(key, size, **kw)
+    h, w = face.shape[:2]
+    img[y:y + h, x:x + w] = np.clip(over(face, img[y:y + h, x:x + w].astype(np.float32)),
+                                    0, 255).astype(np.uint8)
+    return (x, y, w, h)
+
+
+def iou(a, b) -> float:
+    ix = max(0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    return ix * iy / float(a[2] * a[3] + b[2] * b[3] - ix * iy)
+
+
+@pytest.mark.parametrize('key', RED)
+@pytest.mark.parametrize('size', (28, 56, 120))
+def test_red_template_matches_its_own_sign(detector, key, size):
+    img = scene()
+    box = paste(img, key, size, 300, 100)
+    found = detector.detect(img)
+    assert len(found) == 1, found
+    g = found[0]
+    assert g.class_key == key and g.template == key and g.colour == 'red'
+    assert iou(g.box, box) > 0.6
+    assert g.template_ncc >= 0.7 and 0 < g.template_score <= 1
+    assert g.shape == {'stop': 'octagon', 'yield': 'triangle', 'do_not_enter': 'square'}[key]
+
+
+@pytest.mark.parametrize('key', RED)
+def test_red_template_rejects_the_others(detector, key):
+    """The sign's own template correlates clearly better than the other two."""
+    from workzone_ros.core.general import colour, templates
+    cfg = detector.config
+    img = scene()
+    paste(img, key, 64, 300, 100)
+    work = colour.working_image(img, cfg)
+    blob = max(colour.blobs(colour.clean(colour.red_mask(work.hsv, cfg, 45), cfg), 8),
+               key=lambda b: b.area)
+    crop = templates.prepare_crop(img, blob.box, blob.mask, work.gains, cfg)
+    m = templates.match_templates(crop, cfg)
+    own = m.scores[key][1]
+    assert m.key == key
+    assert all(own - v[1] > 0.15 for k, v in m.scores.items() if k != key), m.scores
+
+
+def test_paper_rule_is_available(detector):
+    """select_by='score' picks by Cahail et al.'s share of good positions."""
+    det = GeneralSignDetector(GeneralConfig(select_by='score'))
+    img = scene()
+    paste(img, 'yield', 64, 300, 100)
+    assert [g.class_key for g in det.detect(img)] == ['yield']
+
+
+def test_yellow_diamond_is_a_warning_sign(detector):
+    img = scene()
+    box = paste(img, 'warning_diamond', 64, 200, 80)
+    found = detector.detect(img)
+    assert [(g.class_key, g.colour, g.shape) for g in found] == \
+        [('warning_diamond', 'yellow', 'diamond')]
+    assert iou(found[0].box, box) > 0.5
+
+
+@pytest.mark.parametrize('key', ('road_work_ahead', 'lane_shift_left', 'other_workzone'))
+@pytest.mark.parametrize('hue_shift', (-4, 0, 4))
+def test_orange_workzone_diamond_is_not_a_general_sign(detector, key, hue_shift):
+    import cv2
+    hsv = np.uint8([[[13 + hue_shift, 240, 240]]])
+    orange = tuple(int(c) for c in cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)[0, 0])
+    img = scene()
+    paste(img, key, 64, 200, 80, orange=orange)
+    paste(img, key, 30, 420, 120, orange=orange)
+    assert detector.detect(img) == []
+
+
+def test_red_symbol_on_a_warning_sign_stays_a_warning_sign(detector):
+    """Cahail et al., Fig. 3.8: a small red octagon on a yellow diamond is its symbol."""
+    img = scene()
+    paste(img, 'warning_diamond', 96, 200, 60)
+    paste(img, 'stop', 24, 236, 96)
+    assert [g.class_key for g in detector.detect(img)] == ['warning_diamond']
+
+
+def test_white_and_green_panels(detector):
+    img = scene()
+    paste(img, 'speed_limit', 80, 100, 90)
+    paste(img, 'guide', 140, 300, 60)
+    found = sorted(g.class_key for g in detector.detect(img))
+    assert found == ['guide', 'speed_limit']
+
+
+def test_mile_marker_number_is_read(detector):
+    img = scene()
+    paste(img, 'mile_marker', 150, 300, 60, speed_value=247)
+    found = detector.detect(img)
+    assert len(found) == 1 and found[0].class_key == 'mile_marker', found
+    assert found[0].mile == 247 and found[0].mile_confidence >= 0.8
+
+
+def test_small_mile_marker_number_is_none(detector):
+    img = scene()
+    paste(img, 'mile_marker', 40, 300, 60, speed_value=247)
+    found = detector.detect(img)
+    assert [g.class_key for g in found] == ['mile_marker']
+    assert found[0].mile is None and found[0].mile_confidence is None
+
+
+def test_rois_restrict_the_search(detector):
+    img = scene()
+    paste(img, 'stop', 48, 100, 100)
+    paste(img, 'yield', 48, 400, 100)
+    assert [g.class_key for g in detector.detect(img, rois=[(380, 80, 100, 100)])] == ['yield']
+    assert detector.detect(img, rois=[]) == []
+
+
+def test_hd_frame(detector):
+    import cv2
+    img = cv2.resize(scene(), (1280, 720))
+    paste(img, 'stop', 80, 900, 200)
+    assert [g.class_key for g in detector.detect(img)] == ['stop']
+
+
+@pytest.mark.parametrize('bad', [
+    np.zeros((0, 0, 3), np.uint8), np.zeros((10, 10, 3), np.float32),
+    np.zeros((10, 10), np.uint8), np.zeros((10, 10, 4), np.uint8), [[1, 2, 3]], None])
+def test_bad_image_is_a_clear_value_error(detector, bad):
+    with pytest.raises(ValueError, match='image must be') as exc:
+        detector.detect(bad)
+    assert '\n' not in str(exc.value)
+
+
+def test_bad_roi_and_config():
+    with pytest.raises(ValueError, match='roi'):
+        GeneralSignDetector().detect(scene(), rois=[(0, 0, -1, 5)])
+    with pytest.raises(GeneralSignError, match='max_aspect'):
+        GeneralConfig(max_aspect=0.5)
+    with pytest.raises(ValueError, match='select_by'):
+        GeneralConfig(select_by='best')
+    with pytest.raises(ValueError, match='yellow_hue'):
+        GeneralConfig(yellow_hue=(40, 20))
+    with pytest.raises(ValueError, match='config'):
+        GeneralSignDetector(config={'max_aspect': 2})
+
+
+def test_result_type(detector):
+    img = scene()
+    paste(img, 'stop', 48, 100, 100)
+    g = detector.detect(img)[0]
+    assert isinstance(g, GeneralSign)
+    assert all(isinstance(v, int) for v in g.box) and 0.0 <= g.score <= 1.0

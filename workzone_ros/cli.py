@@ -25,6 +25,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
                         'hard-negative crops for the classifier from real video'),
     'real-pixels': ('workzone_ros.tools.real_pixels',
                     'colour-training images and masks from labelled video frames'),
+    'inventory': ('workzone_ros.tools.inventory',
+                  'sign inventory (CSV / GeoJSON, one row per physical sign) from bags'),
 }
 
 

@@ -1,6 +1,8 @@
 """Tests of the ``tracker`` node with real topics (private rclpy context, DDS isolation)."""
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import rclpy
@@ -9,6 +11,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image
 from std_msgs.msg import String
 
+from workzone_ros.core.track import TrackerConfig
 from workzone_ros.interfaces import (
     Box,
     Detection,
@@ -128,3 +131,28 @@ def test_tracker_node_drops_malformed_detections(ros):
     assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
                                    dropped() >= 1)[1])
     assert 'schema' in node.topic_stats()['/workzone/detections'].last_drop_reason
+
+
+def test_tracker_node_parameters_are_the_tracker_config(ros):
+    """Every TrackerConfig field is a node parameter (default, description, range from its
+    knob); out-of-range changes are rejected and accepted ones reach the tracker."""
+    node = ros.add(TrackerNode(context=ros.context))
+    core = TrackerConfig()
+    for f in dataclasses.fields(TrackerConfig):
+        want = 0.0 if f.name == 'min_approach_speed' else getattr(core, f.name)  # node: off
+        got = getattr(node.params, f.name)
+        assert got == want, f.name
+        desc = node.describe_parameter(f.name)
+        assert desc.description.startswith(f.metadata['doc']), f.name
+    assert dataclasses.replace(node._tracker.config, min_approach_speed=10.0) == core
+
+    def reason(name, value):
+        result = node.set_parameters([Parameter(name, value=value)])[0]
+        return None if result.successful else result.reason
+
+    assert 'out of range' in reason('min_similarity', 1.5)
+    assert 'out of range' in reason('hue_bins', 1)
+    assert "is not one of 'fuse', 'overwrite'" in reason('association', 'blend')
+    assert reason('min_similarity', 0.6) is None and reason('association', 'overwrite') is None
+    assert node._tracker.config.min_similarity == 0.6
+    assert node._tracker.config.association == 'overwrite'

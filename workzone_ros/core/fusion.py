@@ -77,10 +77,11 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 from typing import Any, Hashable, Optional, Sequence
 
 from workzone_ros.core import signs as catalogue
+from workzone_ros.core.knobs import knob
 from workzone_ros.interfaces import Evidence, Header, Signs, Time, WorkzoneState
 
 __all__ = ['FusionConfig', 'WorkzoneFusion', 'PHASES', 'ACTIVE_PHASES', 'ROLES', 'MPH',
@@ -116,8 +117,9 @@ def role_of(class_key: str) -> Optional[str]:
 
 def _knob(default: Any, doc: str, lo: Optional[float] = None, hi: Optional[float] = None,
           open_lo: bool = False):
-    return field(default=default, metadata={'doc': doc, 'min': lo, 'max': hi,
-                                            'open_lo': open_lo})
+    """A FusionConfig field (:func:`~workzone_ros.core.knobs.knob`); ``open_lo``: the lower
+    bound itself is excluded (the node parameter's range stays closed)."""
+    return knob(default, doc, lo, hi, open_lo=open_lo)
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ from typing import Optional
 
 import numpy as np
 
+from workzone_ros.core.knobs import knob
 from workzone_ros.core.lidar_geometry import (
     GroundPlane,
     LidarGeometryError,
@@ -118,7 +119,9 @@ class ClusterParams:
     """Every threshold of the LiDAR candidate stage.
 
     Positions are in the level frame (x forward, y left, from the sensor), heights are above
-    the road, intensities in 0-255 units.
+    the road, intensities in 0-255 units.  Each field is a
+    :func:`~workzone_ros.core.knobs.knob`: its one-line description and range there are the
+    ``lidar_cluster`` node parameter's.
 
     Attributes:
         min_intensity: pre-filter, intensity at least this, 0-255 units (retroreflective
@@ -173,41 +176,82 @@ class ClusterParams:
         voxel: voxel side for the graph; 0 means ``d0 / sqrt(3)`` (the exactness bound).
     """
 
-    min_intensity: float = 120.0
-    intensity_scale: float = 0.0
-    lidar_in_base: tuple = (1.0, 0.0, 1.95, 0.0, 0.0, 0.0)
-    ground_fit: bool = True
-    min_point_height: float = 0.25
-    max_point_height: float = 10.0
-    min_top_height: float = 1.55
-    thin_height: float = 0.4
-    max_aspect: float = 4.0
-    range_min: float = 3.0
-    range_max: float = 110.0
-    x_min: float = 1.0
-    right_max: float = 25.0
-    left_max: float = 25.0
-    cluster_d0: float = 0.3
-    cluster_k: float = 0.012
-    min_points: int = 3
-    max_width: float = 5.0
-    max_height: float = 3.5
-    min_size: float = 0.05
-    flat_min_points: int = 8
-    flat_min_spread: float = 0.12
-    flat_thickness: float = 0.06
-    flat_thickness_k: float = 0.002
-    max_normal_z: float = 0.6
-    max_incidence: float = 85.0
-    min_contrast: float = 1.8
-    hollow_gap: float = 0.6
-    hollow_gap_k: float = 0.01
-    hollow_frac: float = 0.5
-    below_clearance: float = 0.25
-    below_margin: float = 0.4
-    below_gap: float = 0.1
-    max_bright_below: int = 2
-    voxel: float = 0.0
+    min_intensity: float = knob(
+        120.0, 'pre-filter: minimum intensity, 0-255 units (after intensity_scale)', min=0.0,
+        max=255.0)
+    intensity_scale: float = knob(
+        0.0, 'raw intensity -> 0-255 units; 0 = learned from the datatype and values (0-1 float '
+        'x255, 0-255 x1, 0-65535 x255/65535)', min=0.0, max=1e6)
+    lidar_in_base: tuple = knob(
+        (1.0, 0.0, 1.95, 0.0, 0.0, 0.0), 'the sensor in base_link (on the road, x forward, y '
+        'left, z up): x y z roll pitch yaw, m and rad; z = height above the road, the rotation '
+        'gives the axes (x right / y forward: yaw -1.5708)')
+    ground_fit: bool = knob(
+        True, 'fit the road plane per scan where it is visible (slopes, pitch)')
+    min_point_height: float = knob(
+        0.25, 'pre-filter: lowest point height above the road, m', min=-5.0, max=20.0)
+    max_point_height: float = knob(
+        10.0, 'pre-filter: highest point height above the road, m', min=-5.0, max=50.0)
+    min_top_height: float = knob(
+        1.55, 'check-to-add: the cluster top must reach this height above the road (sign height), '
+        'm', min=-5.0, max=50.0)
+    thin_height: float = knob(
+        0.4, 'check-to-add: clusters taller than this are tested for poles, m', min=0.0, max=100.0)
+    max_aspect: float = knob(
+        4.0, 'check-to-add: a pole is taller than max_aspect x its width', min=0.0, max=1000.0)
+    range_min: float = knob(3.0, 'pre-filter: nearest horizontal range, m', min=0.0, max=500.0)
+    range_max: float = knob(110.0, 'pre-filter: farthest horizontal range, m', min=0.0, max=500.0)
+    x_min: float = knob(
+        1.0, 'pre-filter: only points at least this far ahead, m', min=-500.0, max=500.0)
+    right_max: float = knob(
+        25.0, 'pre-filter: reach of the region to the right, m', min=0.0, max=500.0)
+    left_max: float = knob(
+        25.0, 'pre-filter: reach of the region to the left, m (4 = ego and next lane only)',
+        min=0.0, max=500.0)
+    cluster_d0: float = knob(
+        0.3, 'region growing: distance threshold at range 0, m', min=0.01, max=10.0)
+    cluster_k: float = knob(
+        0.012, 'region growing: threshold growth per metre of range', min=0.0, max=1.0)
+    min_points: int = knob(3, 'check-to-add: minimum points per cluster', min=1, max=100000)
+    max_width: float = knob(
+        5.0, 'check-to-add: maximum horizontal bbox diagonal, m', min=0.0, max=100.0)
+    max_height: float = knob(3.5, 'check-to-add: maximum vertical extent, m', min=0.0, max=100.0)
+    min_size: float = knob(
+        0.05, 'check-to-add: minimum of the largest extent, m', min=0.0, max=100.0)
+    flat_min_points: int = knob(8, 'plate tests: points needed to test', min=3, max=100000)
+    flat_min_spread: float = knob(
+        0.12, 'plate tests: second PCA axis std needed to test, m', min=0.0, max=10.0)
+    flat_thickness: float = knob(
+        0.06, 'flatness: max plate thickness (third-axis std) at range 0, m', min=0.0, max=10.0)
+    flat_thickness_k: float = knob(
+        0.002, 'flatness: thickness allowance per metre of range', min=0.0, max=1.0)
+    max_normal_z: float = knob(
+        0.6, 'flatness: max |normal z| of a (vertical) sign plate', min=0.0, max=1.0)
+    max_incidence: float = knob(
+        85.0, 'facing: max angle between the plate normal and the line of sight, deg', min=1.0,
+        max=90.0)
+    min_contrast: float = knob(
+        1.8, 'retroreflective: median intensity / p90 of the dull returns around the cluster at '
+        'least this (0 disables)', min=0.0, max=100.0)
+    hollow_gap: float = knob(
+        0.6, 'hollow test: widest inner gap in a ring at range 0, m', min=0.0, max=100.0)
+    hollow_gap_k: float = knob(
+        0.01, 'hollow test: gap growth per metre of range', min=0.0, max=1.0)
+    hollow_frac: float = knob(
+        0.5, 'hollow test: gap must also exceed this fraction of the width (>= 1 disables)',
+        min=0.0, max=10.0)
+    below_clearance: float = knob(
+        0.25, 'reflectors test: ignore bright returns this close to the road, m', min=0.0,
+        max=10.0)
+    below_margin: float = knob(0.4, 'reflectors test: footprint margin, m', min=0.0, max=10.0)
+    below_gap: float = knob(
+        0.1, 'reflectors test: counted only this far below the cluster bottom, m', min=0.0,
+        max=10.0)
+    max_bright_below: int = knob(
+        2, 'reflectors test: reject with more bright returns under the cluster (-1 disables)',
+        min=-1, max=100000)
+    voxel: float = knob(
+        0.0, 'voxel side of the clustering graph (0 = d0/sqrt(3))', min=0.0, max=10.0)
 
     def __post_init__(self) -> None:
         """Reject inconsistent thresholds with a one-line message naming them."""

@@ -24,7 +24,6 @@ a sign chain that a loaded machine slows down does not flicker in and out of the
 from __future__ import annotations
 
 import collections
-import dataclasses
 import json
 import os
 import time
@@ -43,10 +42,10 @@ from workzone_ros.core.liveness import InputLiveness, LivenessConfig
 from workzone_ros.core.odometry import TravelledDistance
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.params import params_from_dataclass
 
 __all__ = ['FusionNode', 'NODE_CLASS', 'main']
 
-_SCALARS = (bool, int, float, str)
 #: signs older than the last fused frame by more than this are a time jump (a looping bag:
 #: the memory resets); by less, a repeated or reordered frame (dropped, counted)
 JUMP_BACK_NS = 2_000_000_000
@@ -54,22 +53,8 @@ JUMP_BACK_NS = 2_000_000_000
 STALE_CHECK_S = 0.1
 
 
-def _core_params() -> tuple[Param, ...]:
-    """One node parameter per scalar field of FusionConfig (same name, same default)."""
-    out = []
-    for f in dataclasses.fields(FusionConfig):
-        default = getattr(FusionConfig(), f.name)
-        if isinstance(default, _SCALARS):
-            meta = f.metadata or {}
-            bounds = {k: type(default)(meta[k]) for k in ('min', 'max')
-                      if meta.get(k) is not None and isinstance(default, (int, float))
-                      and not isinstance(default, bool)}
-            out.append(Param(f.name, default, meta.get('doc') or f'fusion: {f.name}',
-                             **bounds))
-    return tuple(out)
-
-
-_CORE_PARAMS = _core_params()
+#: One parameter per FusionConfig field: default, description and range from its knob().
+_CORE_PARAMS = params_from_dataclass(FusionConfig)
 
 
 def config_from_params(params: Any) -> FusionConfig:

@@ -40,71 +40,12 @@ from workzone_ros.core.projection import euler_matrix
 from workzone_ros.core.sync import PoseBuffer, SyncError
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import array_to_pointcloud2, pointcloud2_to_array
+from workzone_ros.nodes.params import params_from_dataclass
 
 __all__ = ['LidarClusterNode', 'NODE_CLASS', 'main', 'CORE_PARAMS']
 
-_D = ClusterParams()
-_HELP = {
-    'min_intensity': ('pre-filter: minimum intensity, 0-255 units (after intensity_scale)',
-                      0.0, 255.0),
-    'intensity_scale': ('raw intensity -> 0-255 units; 0 = learned from the datatype and '
-                        'values (0-1 float x255, 0-255 x1, 0-65535 x255/65535)', 0.0, 1e6),
-    'lidar_in_base': ('the sensor in base_link (on the road, x forward, y left, z up): x y z '
-                      'roll pitch yaw, m and rad; z = height above the road, the rotation '
-                      'gives the axes (x right / y forward: yaw -1.5708)', None, None),
-    'ground_fit': ('fit the road plane per scan where it is visible (slopes, pitch)', None,
-                   None),
-    'min_point_height': ('pre-filter: lowest point height above the road, m', -5.0, 20.0),
-    'max_point_height': ('pre-filter: highest point height above the road, m', -5.0, 50.0),
-    'min_top_height': ('check-to-add: the cluster top must reach this height above the road '
-                       '(sign height), m', -5.0, 50.0),
-    'thin_height': ('check-to-add: clusters taller than this are tested for poles, m', 0.0,
-                    100.0),
-    'max_aspect': ('check-to-add: a pole is taller than max_aspect x its width', 0.0, 1000.0),
-    'range_min': ('pre-filter: nearest horizontal range, m', 0.0, 500.0),
-    'range_max': ('pre-filter: farthest horizontal range, m', 0.0, 500.0),
-    'x_min': ('pre-filter: only points at least this far ahead, m', -500.0, 500.0),
-    'right_max': ('pre-filter: reach of the region to the right, m', 0.0, 500.0),
-    'left_max': ('pre-filter: reach of the region to the left, m (4 = ego and next lane '
-                 'only)', 0.0, 500.0),
-    'cluster_d0': ('region growing: distance threshold at range 0, m', 0.01, 10.0),
-    'cluster_k': ('region growing: threshold growth per metre of range', 0.0, 1.0),
-    'min_points': ('check-to-add: minimum points per cluster', 1, 100000),
-    'max_width': ('check-to-add: maximum horizontal bbox diagonal, m', 0.0, 100.0),
-    'max_height': ('check-to-add: maximum vertical extent, m', 0.0, 100.0),
-    'min_size': ('check-to-add: minimum of the largest extent, m', 0.0, 100.0),
-    'flat_min_points': ('plate tests: points needed to test', 3, 100000),
-    'flat_min_spread': ('plate tests: second PCA axis std needed to test, m', 0.0, 10.0),
-    'flat_thickness': ('flatness: max plate thickness (third-axis std) at range 0, m', 0.0,
-                       10.0),
-    'flat_thickness_k': ('flatness: thickness allowance per metre of range', 0.0, 1.0),
-    'max_normal_z': ('flatness: max |normal z| of a (vertical) sign plate', 0.0, 1.0),
-    'max_incidence': ('facing: max angle between the plate normal and the line of sight, deg',
-                      1.0, 90.0),
-    'min_contrast': ('retroreflective: median intensity / p90 of the dull returns around '
-                     'the cluster at least this (0 disables)', 0.0, 100.0),
-    'hollow_gap': ('hollow test: widest inner gap in a ring at range 0, m', 0.0, 100.0),
-    'hollow_gap_k': ('hollow test: gap growth per metre of range', 0.0, 1.0),
-    'hollow_frac': ('hollow test: gap must also exceed this fraction of the width '
-                    '(>= 1 disables)', 0.0, 10.0),
-    'below_clearance': ('reflectors test: ignore bright returns this close to the road, m',
-                        0.0, 10.0),
-    'below_margin': ('reflectors test: footprint margin, m', 0.0, 10.0),
-    'below_gap': ('reflectors test: counted only this far below the cluster bottom, m', 0.0,
-                  10.0),
-    'max_bright_below': ('reflectors test: reject with more bright returns under the '
-                         'cluster (-1 disables)', -1, 100000),
-    'voxel': ('voxel side of the clustering graph (0 = d0/sqrt(3))', 0.0, 10.0),
-}
-
-
-def _default(value: Any) -> Any:
-    return list(value) if isinstance(value, tuple) else value
-
-
-CORE_PARAMS = tuple(
-    Param(f.name, _default(getattr(_D, f.name)), _HELP[f.name][0], min=_HELP[f.name][1],
-          max=_HELP[f.name][2]) for f in fields(ClusterParams))
+#: One parameter per ClusterParams field: default, description and range from its knob().
+CORE_PARAMS = params_from_dataclass(ClusterParams)
 _UNDECLARED = re.compile(r"'(\w+)' is not a parameter")
 
 

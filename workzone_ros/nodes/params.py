@@ -1,17 +1,21 @@
 """Node parameters: the declared table (:class:`Param`: default, type, range, choices,
-description) and the parameter-file helpers the base uses to warn about keys no node
-declares.  rclpy types only for the descriptors; no node logic.
+description), the table of a core configuration dataclass (:func:`params_from_dataclass`,
+from its :func:`~workzone_ros.core.knobs.knob` fields) and the parameter-file helpers the
+base uses to warn about keys no node declares.  rclpy types only for the descriptors; no
+node logic.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence
+from typing import Any, Collection, Mapping, Optional, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-__all__ = ['ConfigError', 'Param', 'params_files', 'yaml_sections', 'section_matches']
+__all__ = ['ConfigError', 'Param', 'params_from_dataclass', 'params_files', 'yaml_sections',
+           'section_matches']
 
 _INT_MIN, _INT_MAX = -2 ** 63, 2 ** 63 - 1
 
@@ -132,6 +136,90 @@ def _scalar_kind(value: Any, strict: bool = True) -> str:
     if strict:
         raise ConfigError(f'unsupported parameter default {value!r}')
     return type(value).__name__
+
+
+# --- parameters of a core configuration dataclass ------------------------------------------
+
+_SCALARS = (bool, int, float, str)
+
+
+def _parameter_default(value: Any) -> Optional[Any]:
+    """The Param default of a field default: a scalar, a list for a tuple of scalars, else
+    None (not a parameter)."""
+    if isinstance(value, _SCALARS):
+        return value
+    if isinstance(value, (tuple, list)) and value and all(isinstance(v, _SCALARS)
+                                                          for v in value):
+        return list(value)
+    return None
+
+
+def params_from_dataclass(cls: type, *, only: Optional[Collection[str]] = None,
+                          skip: Collection[str] = (), prefix: str = '',
+                          defaults: Optional[Mapping[str, Any]] = None) -> tuple[Param, ...]:
+    """One :class:`Param` per field of the configuration dataclass ``cls``, in field order.
+
+    Every field whose default is a scalar (bool, int, float, str) or a non-empty tuple of
+    scalars (a list parameter) becomes the parameter ``prefix + name`` with that default and
+    the field's metadata as :func:`workzone_ros.core.knobs.knob` stores it: ``doc`` (the
+    description, required), ``min`` / ``max`` (converted to the default's type) and
+    ``choices``.  Other fields (no default, nested objects) are not parameters.
+
+    Args:
+        cls: a dataclass (its fields are read, it is not instantiated).
+        only: just these fields (each must be a parameter field of ``cls``).
+        skip: fields left out (the node declares them itself, or they are not for users).
+        prefix: put before every parameter name (``'fusion.'`` -> attribute ``fusion_x``).
+        defaults: node defaults that differ from the dataclass's, by field name; the
+            description then ends with the dataclass default.
+
+    Raises:
+        ConfigError: a parameter field without ``doc`` (at the node module's import, so an
+            undocumented knob never ships), or a name in ``only`` / ``skip`` / ``defaults``
+            that is no parameter field of ``cls``.
+    """
+    if not dataclasses.is_dataclass(cls):
+        raise ConfigError(f'{cls!r} is not a dataclass')
+    defaults = dict(defaults or {})
+    table: dict[str, tuple[Any, dataclasses.Field]] = {}
+    for f in dataclasses.fields(cls):
+        if not f.init:
+            continue
+        if f.default is not dataclasses.MISSING:
+            value = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            value = f.default_factory()
+        else:
+            continue
+        value = _parameter_default(value)
+        if value is not None:
+            table[f.name] = (value, f)
+    unknown = sorted((set(only or ()) | set(skip) | set(defaults)) - set(table))
+    if unknown:
+        raise ConfigError(f'{cls.__name__}: {", ".join(unknown)} not a parameter field '
+                          f'(parameter fields: {", ".join(table)})')
+    out = []
+    for name, (value, f) in table.items():
+        if name in skip or (only is not None and name not in only):
+            continue
+        meta = f.metadata or {}
+        doc = meta.get('doc')
+        if not isinstance(doc, str) or not doc.strip():
+            raise ConfigError(f'{cls.__name__}.{name} has no description: declare it with '
+                              f'knob(default, doc, ...) (workzone_ros.core.knobs)')
+        if name in defaults:
+            core, value = value, _parameter_default(defaults[name])
+            doc = f'{doc} [{cls.__name__} default: {core}]'
+        kind = Param(prefix + name, value, doc).kind().removesuffix('[]')
+        bounds = {}
+        for key in ('min', 'max'):
+            bound = meta.get(key)
+            if bound is not None:
+                bounds[key] = {'int': int, 'float': float}.get(kind, lambda b: b)(bound)
+        choices = meta.get('choices')
+        out.append(Param(prefix + name, value, doc, choices=tuple(choices)
+                         if choices is not None else None, **bounds))
+    return tuple(out)
 
 
 # --- params-file parsing ------------------------------------------------------------------

@@ -15,14 +15,7 @@ from typing import Any, Optional
 from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
-from workzone_ros.core.track import (
-    ASSOCIATIONS,
-    METHODS,
-    MODES,
-    OUR_SCALES,
-    MultiTracker,
-    TrackerConfig,
-)
+from workzone_ros.core.track import MultiTracker, TrackerConfig
 from workzone_ros.interfaces import Detections, Tracks
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
@@ -32,163 +25,14 @@ from workzone_ros.nodes.conversions import (
     stamp_to_time,
     string_to_payload,
 )
+from workzone_ros.nodes.params import params_from_dataclass
 
 __all__ = ['TrackerNode', 'NODE_CLASS', 'main']
 
-_D = TrackerConfig()
-
-#: Parameters that map one to one onto TrackerConfig fields.
-_CORE_PARAMS = (
-    Param('mode', _D.mode, 'detection_only (seed 001 baseline) or detection_and_tracking',
-          choices=MODES),
-    Param('method', _D.method, 'meanshift (seed 001) or camshift (OpenCV peer)',
-          choices=METHODS),
-    Param('hue_bins', _D.hue_bins, 'hue bins nh of the target histogram', min=2, max=180),
-    Param('sat_bins', _D.sat_bins, 'saturation bins ns of the target histogram', min=2,
-          max=256),
-    Param('scales', list(OUR_SCALES), 'candidate kernel sizes relative to the previous box '
-          '(seed 001: 1.0 1.02 1.05 1.07 1.10)'),
-    Param('max_iterations', _D.max_iterations, 'mean-shift iterations per candidate', min=1,
-          max=100),
-    Param('shift_threshold_px', _D.shift_threshold_px, 'stop when the centre moves less',
-          min=0.0, max=10.0),
-    Param('max_samples', _D.max_samples, 'pixels sampled inside a box', min=16,
-          max=100000),
-    Param('search_margin', _D.search_margin, 'search window beyond the largest candidate '
-          '(half-boxes)', min=0.0, max=5.0),
-    Param('use_velocity', _D.use_velocity, 'start from the constant-velocity prediction'),
-    Param('min_similarity', _D.min_similarity, 'Bhattacharyya coefficient below which a '
-          'track is lost', min=0.0, max=1.0),
-    Param('max_lost_frames', _D.max_lost_frames, 'lost frames before a track ends', min=0,
-          max=100),
-    Param('max_coast_frames', _D.max_coast_frames, 'frames without a detection before a '
-          'track ends', min=0, max=10000),
-    Param('min_hits_to_coast', _D.min_hits_to_coast, 'detections before a track may run on '
-          'its own', min=1, max=100),
-    Param('min_hits_to_fuse', _D.min_hits_to_fuse, 'detections before the tracked box may '
-          'outvote a detection (fuse)', min=1, max=100),
-    Param('max_background_similarity', _D.max_background_similarity, 'a target this '
-          'similar to its surroundings never runs on its own', min=0.0, max=1.0),
-    Param('iou_gate', _D.iou_gate, 'IoU at which a detection agrees with a track', min=0.0,
-          max=1.0),
-    Param('agree_iou', _D.agree_iou, 'IoU with the tracked box at which a detection '
-          'corrects the track', min=0.0, max=1.0),
-    Param('similarity_gate', _D.similarity_gate, 'histogram similarity at which an '
-          'overlapping detection agrees', min=0.0, max=1.0),
-    Param('model_update', _D.model_update, 'weight of a correcting detection in the model',
-          min=0.0, max=1.0),
-    Param('max_box_fraction', _D.max_box_fraction, 'end when the box is wider/taller than '
-          'this image fraction', min=0.0, max=1.0),
-    Param('min_inside_fraction', _D.min_inside_fraction, 'end when less of the box than '
-          'this is inside the image', min=0.0, max=1.0),
-    Param('min_box_px', _D.min_box_px, 'ignore smaller detections', min=1, max=1000),
-    Param('anchor_on_color', _D.anchor_on_color, 'track the coloured part and keep the box '
-          'geometry (regulatory two-colour guard)'),
-    Param('duplicate_iou', _D.duplicate_iou, 'overlap at which the weaker of two tracks '
-          'ends', min=0.0, max=1.0),
-    Param('duplicate_containment', _D.duplicate_containment, "share of a track's anchor "
-          "inside another track's box at which the weaker ends (1 = off)", min=0.0, max=1.0),
-    Param('duplicate_area_ratio', _D.duplicate_area_ratio, 'containment duplicates only up '
-          'to this box area ratio', min=1.0, max=1000.0),
-    Param('background_weighting', _D.background_weighting, 'corrected background-weighted '
-          'histogram in the mean-shift weights'),
-    Param('surround_weight', _D.surround_weight, 'penalty of sign colour around a '
-          'candidate in the scale choice (0 = seed)', min=0.0, max=5.0),
-    Param('surround_size', _D.surround_size, 'outer size of that band', min=1.0, max=3.0),
-    Param('association', _D.association, 'fuse (ours) or overwrite (seed 001): how an '
-          'associated detection updates a confident track', choices=ASSOCIATIONS),
-    Param('fuse_temperature', _D.fuse_temperature, 'score scale of the fusion weights',
-          min=1e-3, max=1000.0),
-    Param('size_sigma', _D.size_sigma, 'log-size tolerance of the size-consistency factor',
-          min=1e-3, max=10.0),
-    Param('size_history', _D.size_history, 'fuse: detected sizes whose 1/size trend '
-          'predicts the size the detection is compared with (0 = last size)', min=0,
-          max=100),
-    Param('fuse_iou', _D.fuse_iou, 'anchor IoU at which tracked and detected boxes are '
-          'averaged rather than chosen', min=0.0, max=1.0),
-    Param('fuse_bias', _D.fuse_bias, "added to the detection's score in the fusion",
-          min=-1.0, max=1.0),
-    Param('fuse_min_px', _D.fuse_min_px, 'smaller tracks are overwritten, not fused',
-          min=0.0, max=1000.0),
-    Param('prefer_detection', _D.prefer_detection, 'fuse: an agreeing, complete detection '
-          'gives the box (false: blend)'),
-    Param('max_coast_background_similarity', _D.max_coast_background_similarity,
-          'a target this similar to its surroundings is never published on its own '
-          '(1 = off)', min=0.0, max=1.0),
-    Param('max_coast_white_fraction', _D.max_coast_white_fraction, 'a coloured shape this '
-          'white (drum, cone bands) is never published on its own (1 = off)', min=0.0,
-          max=1.0),
-    Param('white_bottom_share', _D.white_bottom_share, 'a shape with at least this share '
-          'of its white below its colour (regulatory white bottom) is exempt from the white '
-          'gate (> 1 = off)', min=0.0, max=2.0),
-    Param('truncated_aspect', _D.truncated_aspect, 'two-colour guard: a detection is '
-          "truncated only when its height/width is below this times the track's (0 = off)",
-          min=0.0, max=1.0),
-    Param('anchor_kind_ratio', _D.anchor_kind_ratio, 'two-colour guard: a detection is '
-          "extended only when its coloured anchor's height/width is at most this times the "
-          "track's (0 = off)", min=0.0, max=10.0),
-    Param('min_saturation_contrast', _D.min_saturation_contrast, 'sign-likeness: a target '
-          'less saturated than this above its surroundings is never published on its own '
-          '(-1 = off)', min=-1.0, max=1.0),
-    Param('saturation_reference', _D.saturation_reference, "sign-likeness: percentile of "
-          "the surroundings' saturation the face's upper decile is compared with (90 = the "
-          'previous rule)', min=0.0, max=100.0),
-    Param('min_chroma_contrast', _D.min_chroma_contrast, 'sign-likeness: a target whose '
-          'chroma (S*V) upper decile is less than this times that of its surroundings is '
-          'never published on its own (0 = off)', min=0.0, max=100.0),
-    Param('chroma_reference', _D.chroma_reference, "sign-likeness: percentile of the "
-          "surroundings' chroma the face's upper decile is compared with (90 = the previous "
-          'rule)', min=0.0, max=100.0),
-    Param('min_hits_after_loss', _D.min_hits_after_loss, 'a track that lost its target '
-          'since its last detection is published on its own again only with this many '
-          'detections (1 = always)', min=0, max=1000),
-    Param('ring_margin', _D.ring_margin, 'drift guard: the ring must also exceed the ring '
-          'at the last detection by this (< 0 = off)', min=-1.0, max=1.0),
-    Param('ring_margin_min_hits', _D.ring_margin_min_hits, 'ring_margin applies to tracks '
-          'with this many detections', min=0, max=1000),
-    Param('max_ring_similarity', _D.max_ring_similarity, 'drift guard: surroundings this '
-          'similar to the target lose a coasting track (1 = off)', min=0.0, max=1.0),
-    Param('max_growth_excess', _D.max_growth_excess, 'drift guard: growth beyond the '
-          "detections' perspective trend that ends a coasting track (0 = off)", min=0.0,
-          max=10.0),
-    Param('growth_guard_needs_trend', _D.growth_guard_needs_trend, 'the growth guard acts '
-          'only once two detections measured the trend'),
-    # Off unless configured (config/workzone.yaml turns it on): the node's own test draws a
-    # sign approached far slower (2 %/frame at 50 px) than the cue's minimum.
-    Param('min_approach_speed', 0.0, 'motion cue: a track that the camera approaches slower '
-          'than this (m/s, from the fall of its inverse size or offset from the focus of '
-          'expansion) is not published on its own (a vehicle ahead; 0 = off; core default '
-          f'{_D.min_approach_speed})', min=0.0, max=100.0),
-    Param('sign_size_m', _D.sign_size_m, 'motion cue: nominal sign face size (m)', min=0.05,
-          max=10.0),
-    Param('camera_hfov_deg', _D.camera_hfov_deg, "motion cue: the camera's horizontal field "
-          'of view (deg) for its focal length', min=1.0, max=179.0),
-    Param('frame_rate', _D.frame_rate, 'motion cue: frames per second until the image stamps '
-          'tell', min=0.1, max=1000.0),
-    Param('motion_window', _D.motion_window, 'motion cue: frames of track history used',
-          min=2, max=1000),
-    Param('motion_min_frames', _D.motion_min_frames, 'motion cue: judged only on a history '
-          'spanning at least this many frames', min=2, max=1000),
-    Param('focus_of_expansion', list(_D.focus_of_expansion), 'motion cue: focus of '
-          'expansion as image fractions [x, y] (straight ahead)'),
-    Param('radial_min_offset', _D.radial_min_offset, 'motion cue: the offset estimate '
-          'counts when the offset from the focus is at least this many box sizes',
-          min=0.0, max=100.0),
-    Param('approach_from_detections', _D.approach_from_detections, 'motion cue: also the '
-          "trend of the track's detected sizes (free of the tracker's own scale lag)"),
-    Param('perspective_max_background', _D.perspective_max_background, 'perspective scale: '
-          'only for targets whose background similarity is at most this (1 = always)',
-          min=0.0, max=1.0),
-    Param('perspective_scale', _D.perspective_scale, 'candidates also around the size the '
-          "Theil-Sen trend of the track's detected sizes predicts (static-sign perspective)"),
-    Param('perspective_min', _D.perspective_min, 'perspective scale: smallest predicted / '
-          'current size used', min=0.1, max=1.0),
-    Param('perspective_max', _D.perspective_max, 'perspective scale: largest predicted / '
-          'current size used', min=1.0, max=10.0),
-    Param('perspective_min_detections', _D.perspective_min_detections, 'perspective scale: '
-          'detections the trend needs (and it extrapolates no further than they span)',
-          min=3, max=1000),
-)
+#: One parameter per TrackerConfig field: default, description and range from its knob().
+#: The motion cue is off unless configured (config/workzone.yaml turns it on): the node's own
+#: test draws a sign approached far slower (2 %/frame at 50 px) than the cue's minimum.
+_CORE_PARAMS = params_from_dataclass(TrackerConfig, defaults={'min_approach_speed': 0.0})
 
 
 def config_from_params(params: Any) -> TrackerConfig:

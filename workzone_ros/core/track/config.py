@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Optional
 
+from workzone_ros.core.knobs import knob
+
 __all__ = [
     'MODES', 'METHODS', 'ASSOCIATIONS', 'SCALES', 'OUR_SCALES', 'TrackingError', 'TrackerConfig',
     'seed_config',
@@ -31,6 +33,10 @@ class TrackingError(ValueError):
 @dataclass(frozen=True)
 class TrackerConfig:
     """Tracker parameters (the node's ``tracker`` section maps onto these one to one).
+
+    Each field is a :func:`~workzone_ros.core.knobs.knob`: its one-line description and range
+    there are the ``tracker`` node parameter's (``ros2 param describe``); below, why each
+    default is what it is.
 
     Attributes:
         mode: ``detection_only`` (seed 001's baseline) or ``detection_and_tracking``.
@@ -258,73 +264,156 @@ class TrackerConfig:
             sign, dusk tuning curve_dusk 3509 19 -> 14 covered; 1 = always).
     """
 
-    mode: str = 'detection_and_tracking'
-    method: str = 'meanshift'
-    hue_bins: int = 20
-    sat_bins: int = 20
-    scales: tuple[float, ...] = OUR_SCALES
-    max_iterations: int = 10
-    shift_threshold_px: float = 0.3
-    max_samples: int = 900
-    search_margin: float = 0.6
-    use_velocity: bool = True
-    min_similarity: float = 0.75
-    max_lost_frames: int = 2
-    max_coast_frames: int = 45
-    min_hits_to_coast: int = 1
-    min_hits_to_fuse: int = 2
-    max_background_similarity: float = 0.9
-    iou_gate: float = 0.3
-    agree_iou: float = 0.0
-    similarity_gate: float = 0.8
-    model_update: float = 0.7
-    max_box_fraction: float = 0.5
-    min_inside_fraction: float = 0.6
-    min_box_px: int = 6
-    anchor_on_color: bool = True
-    duplicate_iou: float = 0.6
-    duplicate_containment: float = 0.5
-    duplicate_area_ratio: float = 4.0
-    background_weighting: bool = True
-    surround_weight: float = 0.5
-    surround_size: float = 1.2
-    association: str = 'fuse'
-    fuse_temperature: float = 0.05
-    size_sigma: float = 0.15
-    fuse_iou: float = 0.3
-    fuse_bias: float = 0.1
-    fuse_min_px: float = 0.0
-    prefer_detection: bool = True
-    truncated_aspect: float = 0.7
-    max_coast_background_similarity: float = 0.8
-    max_coast_white_fraction: float = 0.35
-    white_bottom_share: float = 0.9
-    min_saturation_contrast: float = 0.2
-    saturation_reference: float = 50.0
-    min_chroma_contrast: float = 1.5
-    chroma_reference: float = 50.0
-    anchor_kind_ratio: float = 1.5
-    growth_guard_needs_trend: bool = True
-    max_ring_similarity: float = 0.6
-    ring_margin: float = 0.1
-    ring_margin_min_hits: int = 3
-    max_growth_excess: float = 0.3
-    size_history: int = 8
-    min_hits_after_loss: int = 2
-    min_approach_speed: float = 10.0
-    sign_size_m: float = 1.2
-    camera_hfov_deg: float = 60.0
-    frame_rate: float = 15.0
-    motion_window: int = 15
-    motion_min_frames: int = 8
-    focus_of_expansion: tuple[float, float] = (0.5, 0.5)
-    radial_min_offset: float = 1.5
-    approach_from_detections: bool = True
-    perspective_scale: bool = True
-    perspective_min: float = 0.9
-    perspective_max: float = 1.3
-    perspective_min_detections: int = 3
-    perspective_max_background: float = 0.5
+    mode: str = knob(
+        'detection_and_tracking', 'detection_only (seed 001 baseline) or detection_and_tracking',
+        choices=MODES)
+    method: str = knob(
+        'meanshift', 'meanshift (seed 001) or camshift (OpenCV peer)', choices=METHODS)
+    hue_bins: int = knob(20, 'hue bins nh of the target histogram', min=2, max=180)
+    sat_bins: int = knob(20, 'saturation bins ns of the target histogram', min=2, max=256)
+    scales: tuple[float, ...] = knob(
+        OUR_SCALES, 'candidate kernel sizes relative to the previous box (seed 001: 1.0 1.02 1.05 '
+        '1.07 1.10)')
+    max_iterations: int = knob(10, 'mean-shift iterations per candidate', min=1, max=100)
+    shift_threshold_px: float = knob(0.3, 'stop when the centre moves less', min=0.0, max=10.0)
+    max_samples: int = knob(900, 'pixels sampled inside a box', min=16, max=100000)
+    search_margin: float = knob(
+        0.6, 'search window beyond the largest candidate (half-boxes)', min=0.0, max=5.0)
+    use_velocity: bool = knob(True, 'start from the constant-velocity prediction')
+    min_similarity: float = knob(
+        0.75, 'Bhattacharyya coefficient below which a track is lost', min=0.0, max=1.0)
+    max_lost_frames: int = knob(2, 'lost frames before a track ends', min=0, max=100)
+    max_coast_frames: int = knob(
+        45, 'frames without a detection before a track ends', min=0, max=10000)
+    min_hits_to_coast: int = knob(
+        1, 'detections before a track may run on its own', min=1, max=100)
+    min_hits_to_fuse: int = knob(
+        2, 'detections before the tracked box may outvote a detection (fuse)', min=1, max=100)
+    max_background_similarity: float = knob(
+        0.9, 'a target this similar to its surroundings never runs on its own', min=0.0, max=1.0)
+    iou_gate: float = knob(0.3, 'IoU at which a detection agrees with a track', min=0.0, max=1.0)
+    agree_iou: float = knob(
+        0.0, 'IoU with the tracked box at which a detection corrects the track', min=0.0, max=1.0)
+    similarity_gate: float = knob(
+        0.8, 'histogram similarity at which an overlapping detection agrees', min=0.0, max=1.0)
+    model_update: float = knob(
+        0.7, 'weight of a correcting detection in the model', min=0.0, max=1.0)
+    max_box_fraction: float = knob(
+        0.5, 'end when the box is wider/taller than this image fraction', min=0.0, max=1.0)
+    min_inside_fraction: float = knob(
+        0.6, 'end when less of the box than this is inside the image', min=0.0, max=1.0)
+    min_box_px: int = knob(6, 'ignore smaller detections', min=1, max=1000)
+    anchor_on_color: bool = knob(
+        True, 'track the coloured part and keep the box geometry (regulatory two-colour guard)')
+    duplicate_iou: float = knob(
+        0.6, 'overlap at which the weaker of two tracks ends', min=0.0, max=1.0)
+    duplicate_containment: float = knob(
+        0.5, "share of a track's anchor inside another track's box at which the weaker ends (1 = "
+        'off)', min=0.0, max=1.0)
+    duplicate_area_ratio: float = knob(
+        4.0, 'containment duplicates only up to this box area ratio', min=1.0, max=1000.0)
+    background_weighting: bool = knob(
+        True, 'corrected background-weighted histogram in the mean-shift weights')
+    surround_weight: float = knob(
+        0.5, 'penalty of sign colour around a candidate in the scale choice (0 = seed)', min=0.0,
+        max=5.0)
+    surround_size: float = knob(1.2, 'outer size of that band', min=1.0, max=3.0)
+    association: str = knob(
+        'fuse', 'fuse (ours) or overwrite (seed 001): how an associated detection updates a '
+        'confident track', choices=ASSOCIATIONS)
+    fuse_temperature: float = knob(
+        0.05, 'score scale of the fusion weights', min=1e-3, max=1000.0)
+    size_sigma: float = knob(
+        0.15, 'log-size tolerance of the size-consistency factor', min=1e-3, max=10.0)
+    fuse_iou: float = knob(
+        0.3, 'anchor IoU at which tracked and detected boxes are averaged rather than chosen',
+        min=0.0, max=1.0)
+    fuse_bias: float = knob(0.1, "added to the detection's score in the fusion", min=-1.0, max=1.0)
+    fuse_min_px: float = knob(
+        0.0, 'smaller tracks are overwritten, not fused', min=0.0, max=1000.0)
+    prefer_detection: bool = knob(
+        True, 'fuse: an agreeing, complete detection gives the box (false: blend)')
+    truncated_aspect: float = knob(
+        0.7, 'two-colour guard: a detection is truncated only when its height/width is below this '
+        "times the track's (0 = off)", min=0.0, max=1.0)
+    max_coast_background_similarity: float = knob(
+        0.8, 'a target this similar to its surroundings is never published on its own (1 = off)',
+        min=0.0, max=1.0)
+    max_coast_white_fraction: float = knob(
+        0.35, 'a coloured shape this white (drum, cone bands) is never published on its own (1 = '
+        'off)', min=0.0, max=1.0)
+    white_bottom_share: float = knob(
+        0.9, 'a shape with at least this share of its white below its colour (regulatory white '
+        'bottom) is exempt from the white gate (> 1 = off)', min=0.0, max=2.0)
+    min_saturation_contrast: float = knob(
+        0.2, 'sign-likeness: a target less saturated than this above its surroundings is never '
+        'published on its own (-1 = off)', min=-1.0, max=1.0)
+    saturation_reference: float = knob(
+        50.0, "sign-likeness: percentile of the surroundings' saturation the face's upper decile "
+        'is compared with (90 = the previous rule)', min=0.0, max=100.0)
+    min_chroma_contrast: float = knob(
+        1.5, 'sign-likeness: a target whose chroma (S*V) upper decile is less than this times '
+        'that of its surroundings is never published on its own (0 = off)', min=0.0, max=100.0)
+    chroma_reference: float = knob(
+        50.0, "sign-likeness: percentile of the surroundings' chroma the face's upper decile is "
+        'compared with (90 = the previous rule)', min=0.0, max=100.0)
+    anchor_kind_ratio: float = knob(
+        1.5, "two-colour guard: a detection is extended only when its coloured anchor's "
+        "height/width is at most this times the track's (0 = off)", min=0.0, max=10.0)
+    growth_guard_needs_trend: bool = knob(
+        True, 'the growth guard acts only once two detections measured the trend')
+    max_ring_similarity: float = knob(
+        0.6, 'drift guard: surroundings this similar to the target lose a coasting track (1 = '
+        'off)', min=0.0, max=1.0)
+    ring_margin: float = knob(
+        0.1, 'drift guard: the ring must also exceed the ring at the last detection by this (< 0 '
+        '= off)', min=-1.0, max=1.0)
+    ring_margin_min_hits: int = knob(
+        3, 'ring_margin applies to tracks with this many detections', min=0, max=1000)
+    max_growth_excess: float = knob(
+        0.3, "drift guard: growth beyond the detections' perspective trend that ends a coasting "
+        'track (0 = off)', min=0.0, max=10.0)
+    size_history: int = knob(
+        8, 'fuse: detected sizes whose 1/size trend predicts the size the detection is compared '
+        'with (0 = last size)', min=0, max=100)
+    min_hits_after_loss: int = knob(
+        2, 'a track that lost its target since its last detection is published on its own again '
+        'only with this many detections (1 = always)', min=0, max=1000)
+    min_approach_speed: float = knob(
+        10.0, 'motion cue: a track that the camera approaches slower than this (m/s, from the '
+        'fall of its inverse size or offset from the focus of expansion) is not published on its '
+        'own (a vehicle ahead; 0 = off)', min=0.0, max=100.0)
+    sign_size_m: float = knob(1.2, 'motion cue: nominal sign face size (m)', min=0.05, max=10.0)
+    camera_hfov_deg: float = knob(
+        60.0, "motion cue: the camera's horizontal field of view (deg) for its focal length",
+        min=1.0, max=179.0)
+    frame_rate: float = knob(
+        15.0, 'motion cue: frames per second until the image stamps tell', min=0.1, max=1000.0)
+    motion_window: int = knob(15, 'motion cue: frames of track history used', min=2, max=1000)
+    motion_min_frames: int = knob(
+        8, 'motion cue: judged only on a history spanning at least this many frames', min=2,
+        max=1000)
+    focus_of_expansion: tuple[float, float] = knob(
+        (0.5, 0.5), 'motion cue: focus of expansion as image fractions [x, y] (straight ahead)')
+    radial_min_offset: float = knob(
+        1.5, 'motion cue: the offset estimate counts when the offset from the focus is at least '
+        'this many box sizes', min=0.0, max=100.0)
+    approach_from_detections: bool = knob(
+        True, "motion cue: also the trend of the track's detected sizes (free of the tracker's "
+        'own scale lag)')
+    perspective_scale: bool = knob(
+        True, "candidates also around the size the Theil-Sen trend of the track's detected sizes "
+        'predicts (static-sign perspective)')
+    perspective_min: float = knob(
+        0.9, 'perspective scale: smallest predicted / current size used', min=0.1, max=1.0)
+    perspective_max: float = knob(
+        1.3, 'perspective scale: largest predicted / current size used', min=1.0, max=10.0)
+    perspective_min_detections: int = knob(
+        3, 'perspective scale: detections the trend needs (and it extrapolates no further than '
+        'they span)', min=3, max=1000)
+    perspective_max_background: float = knob(
+        0.5, 'perspective scale: only for targets whose background similarity is at most this (1 '
+        '= always)', min=0.0, max=1.0)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:

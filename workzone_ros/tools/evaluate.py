@@ -20,6 +20,7 @@ EVALUATIONS: dict[str, str] = {
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
     'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
     'ablation': 'each default-on switch of the colour stage turned off: Table I, real clips',
+    'general': 'general signs (stop, yield, warning, speed limit, guide, mile), seed 004 table',
     'reliability': 'the live graph under a looping bag, killed nodes, lost sensors, load',
     'faults': 'malformed messages on every subscription of every node: crashes, recovery',
 }

@@ -186,8 +186,8 @@ class GeneralSignDetector:
 
     def _yellow_sign(self, work: colour.Working, b: colour.Blob) -> Optional[GeneralSign]:
         """A yellow blob is a warning sign when it is a diamond: its box's corners empty,
-        the diamond inscribed in the box (less a rim) yellow or dark legend, the legend's
-        share of it in range."""
+        the diamond inscribed in the box (less a rim) yellow, dark legend or a saturated
+        symbol, the dark legend's share of it in range."""
         cfg = self.config
         x, y, w, h = b.box
         yy, xx = np.mgrid[0:h, 0:w]
@@ -203,7 +203,8 @@ class GeneralSignDetector:
             return None
         dark = patch[..., 2] < 0.5 * float(np.median(patch[..., 2][bright]))
         n_core = max(1, np.count_nonzero(core))
-        diamond_fill = np.count_nonzero(core & (yellow | dark)) / n_core
+        symbol = patch[..., 1] >= cfg.strict_saturation       # a coloured symbol (W3-1)
+        diamond_fill = np.count_nonzero(core & (yellow | dark | symbol)) / n_core
         share = np.count_nonzero(core & dark) / n_core
         if diamond_fill < cfg.min_diamond_fill or \
                 not cfg.legend_dark[0] <= share <= cfg.legend_dark[1]:

@@ -6,7 +6,7 @@ idea with stricter shape and legend tests:
 
 * ``speed_limit`` (R2-1): a white region of sign proportions (taller than wide) that fills
   its box, holds a dark legend in its upper and lower parts and is framed by a dark ring
-  (the black border line, or a darker background) on at least three sides.  White alone is
+  (the black border line, or a darker background) on every side.  White alone is
   everywhere (sky, lane lines, trailers): the legend and the border are what make a sign.
 * ``guide`` (D1-1 ...): a wide green rectangle with a white legend.
 * ``mile_marker`` (D10-1): a small tall green rectangle with a white legend; its number is
@@ -56,7 +56,7 @@ def _dark_sides(v: np.ndarray, box, ref: float, cfg: GeneralConfig) -> int:
 def _white_panel(hsv: np.ndarray, b: colour.Blob, cfg: GeneralConfig) -> Optional[Panel]:
     """A white blob is an R2-1 panel when, in its box, white and dark legend together fill
     it, the dark legend (measured in the box less a 10 % rim: a number merged with the border
-    line is outside the white blob) is in its upper and its lower part, three sides are
+    line is outside the white blob) is in its upper and its lower part, ``border_sides`` sides are
     framed dark, and no orange WORK ZONE plaque sits on top (that is a work-zone sign)."""
     x, y, w, h = b.box
     lo, hi = cfg.speed_limit_aspect

@@ -1,0 +1,368 @@
+"""``workzone-ros evaluate general``: seed 004's results table for the general sign
+recogniser (core/general) on held-out renders, and false signs on the real clips.
+
+Renders.  Every scenario seed is a :func:`random_scenario` (random weather, road, work zone,
+distractors) plus ten explicitly placed general signs (stop, yield, do not enter, yellow
+warning, speed limit, guide, mile marker; right or left side, post or stand, numbered mile
+markers) 80-760 m along the route.  Frames are rendered in-process with the full camera
+model every ``--every`` frames (15 fps) and come with exact ground truth
+(:class:`~workzone_ros.sim.camera.SignHit`, the category from the catalogue, as in
+``/groundtruth/signs``):
+
+* a general sign is *visible* when its box is at least ``--min-px`` (20) on the shorter side
+  and at least ``--min-visible`` (0.8) of its face is in view; the others are don't-care;
+* a detection *detects* a visible sign when their boxes have IoU >= 0.5 (one to one, best
+  IoU first), and *recognises* it when its class is the sign's; a wrong class is a false
+  recognition;
+* a *false detection* overlaps no general sign (visible or not) with IoU >= 0.3; those on a
+  work-zone sign (IoU >= 0.3) are counted apart too (orange must not come out).
+
+Cahail et al. report total signs, signs detected, false detections, signs recognised and
+false recognitions (counts, and percents of the signs; false detections as a percent of
+their images); we report the same per frame, in all and per class, and the mile numbers
+read (correct / wrong / unread) on visible mile markers.
+
+Real clips (``--real``, default ../shared/realdata/us_workzone_video): general signs per
+frame on every clip, by class; whether the STOP sign in houston (frames 150-200) and the
+yellow warning diamond in minneapolis (290-371) are recognised (share of those frames with a
+detection of that class in the right half of the image).
+
+Timing: milliseconds per frame (time.perf_counter) of :meth:`GeneralSignDetector.detect` on
+the rendered frames at their size and scaled to 1280x720, p50 / p99.
+
+Usage::
+
+    workzone-ros evaluate general --seeds 300-319 --every 4 --real --json out.json \\
+        --sheet docs/images/general_signs_sheet.jpg
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from collections import defaultdict
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import cv2
+import numpy as np
+
+from workzone_ros.core import signs as catalogue
+from workzone_ros.core.general import GENERAL_CLASSES, GeneralConfig, GeneralSignDetector
+
+__all__ = ['main', 'make_specs', 'Table', 'iou', 'REAL_TARGETS']
+
+REALDATA = Path(__file__).resolve().parents[2].parent / 'shared' / 'realdata'
+#: Real clip -> (class, first frame, last frame) of the general sign in it (README, by eye).
+REAL_TARGETS = {'houston.mp4': ('stop', 150, 200),
+                'minneapolis.mp4': ('warning_diamond', 290, 371)}
+REAL_CLIPS = ('charlotte.mp4', 'denver.mp4', 'houston.mp4', 'minneapolis.mp4', 'chicago.mp4',
+              'san_francisco.mp4')
+#: Explicit general signs per scenario, in this order (cycled).
+_PLACED = ('stop', 'yield', 'do_not_enter', 'warning_diamond', 'speed_limit', 'guide',
+           'mile_marker', 'stop', 'warning_diamond', 'speed_limit')
+_COLOURS = {'red': (40, 40, 230), 'yellow': (0, 220, 255), 'white': (255, 255, 255),
+            'green': (60, 200, 60)}
+
+
+def _seed_list(text: str) -> list[int]:
+    """'300-319' or '1,2,5' -> seeds."""
+    out: list[int] = []
+    for part in text.split(','):
+        lo, _, hi = part.partition('-')
+        out += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
+    return out
+
+
+def make_specs(seeds: Sequence[int]) -> list:
+    """(spec, seed) pairs: a random scenario per seed with ten general signs placed on it."""
+    from workzone_ros.sim import scenario as sc
+    specs = []
+    for seed in seeds:
+        rng = np.random.default_rng([seed, 0x6e5])
+        spec = sc.random_scenario(seed)
+        extra = []
+        for i, key in enumerate(_PLACED):
+            s = 80.0 + 75.0 * i + float(rng.uniform(-10, 10))
+            side = 'left' if rng.random() < 0.3 else 'right'
+            mount = 'stand' if key in ('warning_diamond', 'stop') and rng.random() < 0.3 \
+                else 'post'
+            value = int(rng.integers(1, 400)) if key == 'mile_marker' else (
+                int(rng.choice([55, 60, 65, 70])) if key == 'speed_limit' else None)
+            extra.append(sc.SignSpec(key, round(s, 1), side=side, speed_value=value,
+                                     mount=mount))
+        specs.append((replace(spec, name=f'{spec.name}_general',
+                              signs=spec.signs + tuple(extra)), seed))
+    return specs
+
+
+def iou(a, b) -> float:
+    """IoU of two (x, y, w, h) boxes."""
+    ix = max(0.0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0.0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return inter / union if union > 0 else 0.0
+
+
+def _match(dets: Sequence, gts: Sequence, tau: float) -> list[tuple[int, int]]:
+    """Greedy one-to-one (det, gt) pairs with IoU >= tau, best first."""
+    pairs = sorted(((iou(d.box, g.box), i, j) for i, d in enumerate(dets)
+                    for j, g in enumerate(gts)), reverse=True)
+    used_d, used_g, out = set(), set(), []
+    for v, i, j in pairs:
+        if v < tau or i in used_d or j in used_g:
+            continue
+        used_d.add(i)
+        used_g.add(j)
+        out.append((i, j))
+    return out
+
+
+class Table:
+    """Seed 004's table, in all and per class."""
+
+    def __init__(self) -> None:
+        self.n: dict = defaultdict(lambda: defaultdict(int))
+        self.frames = 0
+        self.frames_with_false = 0
+        self.mile = defaultdict(int)
+        self.confusion: dict = defaultdict(lambda: defaultdict(int))
+
+    def add(self, dets: Sequence, hits: Sequence, truth: dict, min_px: float,
+            min_visible: float) -> list:
+        """One frame: detections, every SignHit, sign id -> mile number.  Returns the
+        (gt, det or None) pairs of the visible general signs (for the sheet)."""
+        self.frames += 1
+        general = [h for h in hits if catalogue.get(h.class_key).category == 'general']
+        visible = [h for h in general if min(h.box[2:]) >= min_px
+                   and h.visible_fraction >= min_visible]
+        pairs = dict((j, i) for i, j in _match(dets, visible, 0.5))
+        for j, g in enumerate(visible):
+            row = self.n[g.class_key]
+            row['total'] += 1
+            if j not in pairs:
+                continue
+            d = dets[pairs[j]]
+            row['detected'] += 1
+            self.confusion[g.class_key][d.class_key] += 1
+            row['recognised' if d.class_key == g.class_key else 'false_recognition'] += 1
+            if g.class_key == 'mile_marker' and d.class_key == 'mile_marker':
+                want = truth.get(g.sign_id)
+                self.mile['read_correct' if d.mile == want else
+                          'unread' if d.mile is None else 'read_wrong'] += 1
+        matched = set(pairs.values())
+        false = 0
+        for i, d in enumerate(dets):
+            if i in matched or any(iou(d.box, h.box) >= 0.3 for h in general):
+                continue
+            false += 1
+            self.n[d.class_key]['false_detection'] += 1
+            if any(iou(d.box, h.box) >= 0.3 for h in hits
+                   if catalogue.get(h.class_key).category == 'workzone'):
+                self.n[d.class_key]['false_on_workzone_sign'] += 1
+        self.frames_with_false += bool(false)
+        return [(g, dets[pairs[j]] if j in pairs else None) for j, g in enumerate(visible)]
+
+    def summary(self) -> dict:
+        """The table: all classes and per class."""
+        def row(c: dict) -> dict:
+            t = c.get('total', 0)
+            out = {k: c.get(k, 0) for k in ('total', 'detected', 'recognised',
+                                            'false_recognition', 'false_detection',
+                                            'false_on_workzone_sign')}
+            for k in ('detected', 'recognised', 'false_recognition'):
+                out[f'{k}_pct'] = round(100.0 * out[k] / t, 2) if t else None
+            return out
+        total: dict = defaultdict(int)
+        for c in self.n.values():
+            for k, v in c.items():
+                total[k] += v
+        out = {'frames': self.frames, 'all': row(total),
+               'frames_with_false_detection_pct': round(
+                   100.0 * self.frames_with_false / max(1, self.frames), 2),
+               'false_detections_per_frame': round(total['false_detection']
+                                                   / max(1, self.frames), 4),
+               'per_class': {k: row(self.n[k]) for k in GENERAL_CLASSES if k in self.n},
+               'confusion': {k: dict(v) for k, v in self.confusion.items()},
+               'mile_numbers': dict(self.mile)}
+        return out
+
+
+def draw(img: np.ndarray, dets: Sequence, gts: Sequence = (), label: str = '') -> np.ndarray:
+    """Overlay: ground truth thin green, detections in their colour with class and score."""
+    out = img.copy()
+    for g in gts:
+        x, y, w, h = g
+        cv2.rectangle(out, (x, y), (x + w, y + h), (0, 255, 0), 1)
+    for d in dets:
+        x, y, w, h = d.box
+        col = _COLOURS.get(d.colour, (255, 0, 255))
+        cv2.rectangle(out, (x, y), (x + w, y + h), col, 2)
+        text = f'{d.class_key} {d.score:.2f}' + (f' mile {d.mile}' if d.mile is not None else '')
+        cv2.putText(out, text, (x, max(10, y - 3)), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 3)
+        cv2.putText(out, text, (x, max(10, y - 3)), cv2.FONT_HERSHEY_SIMPLEX, 0.4, col, 1)
+    if label:
+        cv2.putText(out, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 3)
+        cv2.putText(out, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1)
+    return out
+
+
+def sheet(tiles: list[np.ndarray], path: str, cols: int = 3, width: int = 340) -> None:
+    """Write ``tiles`` as a contact sheet (JPEG quality 75 for .jpg)."""
+    if not tiles:
+        return
+    tiles = [cv2.resize(t, (width, int(width * t.shape[0] / t.shape[1]))) for t in tiles]
+    h = max(t.shape[0] for t in tiles)
+    tiles = [cv2.copyMakeBorder(t, 0, h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in tiles]
+    while len(tiles) % cols:
+        tiles.append(np.zeros_like(tiles[0]))
+    img = np.vstack([np.hstack(tiles[i:i + cols]) for i in range(0, len(tiles), cols)])
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(path, img, [cv2.IMWRITE_JPEG_QUALITY, 75])
+
+
+def _pct(v: Sequence[float]) -> dict:
+    a = np.asarray(v, float) * 1e3
+    return {'p50': round(float(np.percentile(a, 50)), 3), 'p99': round(float(np.percentile(
+        a, 99)), 3), 'frames': int(a.size)} if a.size else {}
+
+
+def evaluate_renders(specs, det: GeneralSignDetector, args, tiles: list) -> dict:
+    """Seed 004's table over rendered frames of ``specs``; timing at native size and 720p."""
+    from workzone_ros.sim.camera import CameraRenderer
+    from workzone_ros.sim.scenario import FPS, build_scene
+    from workzone_ros.sim.world import DEFAULT_CAMERA
+    table, by_weather = Table(), defaultdict(Table)
+    times, times_hd, cpu, cpu_hd = [], [], [], []
+    for spec, seed in specs:
+        scene, ego, _ = build_scene(spec, seed)
+        truth = {s.object_id: (s.speed_value if s.speed_value is not None else 123)
+                 for s in scene.signs if s.class_key == 'mile_marker'}
+        renderer = CameraRenderer(scene, DEFAULT_CAMERA, seed=seed)
+        for k in range(0, int(spec.duration * FPS), args.every):
+            res = renderer.render(k / FPS, ego.base_pose(k / FPS), k)
+            t0, c0 = time.perf_counter(), time.process_time()
+            dets = det.detect(res.image)
+            times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+            if len(times_hd) < args.hd_frames and k % (2 * args.every) == 0:
+                hd = cv2.resize(res.image, (1280, 720), interpolation=cv2.INTER_LINEAR)
+                t0, c0 = time.perf_counter(), time.process_time()
+                det.detect(hd)
+                times_hd.append(time.perf_counter() - t0)
+                cpu_hd.append(time.process_time() - c0)
+            pairs = table.add(dets, res.signs, truth, args.min_px, args.min_visible)
+            by_weather[spec.weather].add(dets, res.signs, truth, args.min_px,
+                                         args.min_visible)
+            missed = any(d is None or d.class_key != g.class_key for g, d in pairs)
+            if tiles is not None and pairs and len(tiles) < args.sheet_n and (
+                    missed or k % (8 * args.every) == 0):
+                tiles.append(draw(res.image, dets, [g.box for g, _ in pairs],
+                                  f'{spec.name} {spec.weather} #{k}'))
+        print(f'{spec.name}: {table.frames} frames so far', file=sys.stderr, flush=True)
+    out = table.summary()
+    out['by_weather'] = {w: {'frames': t.frames, 'all': t.summary()['all'],
+                             'false_detections_per_frame': t.summary()[
+                                 'false_detections_per_frame']}
+                         for w, t in sorted(by_weather.items())}
+    # wall time (perf_counter) and the process's CPU time: on a shared machine the first
+    # includes waiting for a core
+    out['ms_per_frame'] = {'native': _pct(times), 'hd_1280x720': _pct(times_hd),
+                           'native_cpu': _pct(cpu), 'hd_1280x720_cpu': _pct(cpu_hd)}
+    out['frame_size'] = [DEFAULT_CAMERA.width, DEFAULT_CAMERA.height]
+    return out
+
+
+def evaluate_real(folder: Path, det: GeneralSignDetector, args, tiles: list) -> dict:
+    """Per clip: general signs per frame by class; the houston STOP and the minneapolis
+    warning diamond recognised (share of their frames)."""
+    out: dict[str, Any] = {}
+    for clip in REAL_CLIPS:
+        path = folder / clip
+        if not path.exists():
+            out[clip] = {'skipped': f'{path} not found'}
+            continue
+        target = REAL_TARGETS.get(clip)
+        cap = cv2.VideoCapture(str(path))
+        counts: dict = defaultdict(int)
+        frames, hit, in_range, k = 0, 0, 0, -1
+        while True:
+            ok, img = cap.read()
+            if not ok:
+                break
+            k += 1
+            frames += 1
+            dets = det.detect(img)
+            in_target = target is not None and target[1] <= k <= target[2]
+            for d in dets:
+                on_target = in_target and d.class_key == target[0] and \
+                    d.box[0] + d.box[2] / 2 > img.shape[1] / 2
+                counts['target' if on_target else d.class_key] += 1
+            if in_target:
+                in_range += 1
+                hit += any(d.class_key == target[0] and d.box[0] + d.box[2] / 2
+                           > img.shape[1] / 2 for d in dets)
+            if tiles is not None and (k % 60 == 30 or (in_target and k % 20 == 0)):
+                tiles.append(draw(img, dets, (), f'{clip} #{k}'))
+        cap.release()
+        others = {c: v for c, v in counts.items() if c != 'target'}
+        r: dict[str, Any] = {'frames': frames,
+                             'other_general_signs_per_frame': round(sum(others.values())
+                                                                    / max(1, frames), 4),
+                             'other_by_class': others}
+        if target is not None:
+            r['target'] = {'class': target[0], 'frames': list(target[1:]),
+                           'recognised_share': round(hit / max(1, in_range), 3)}
+        out[clip] = r
+    return out
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """Run the evaluation; prints JSON, returns the exit status."""
+    p = argparse.ArgumentParser(prog='workzone-ros evaluate general', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument('--seeds', default='300-319',
+                   help="scenario seeds, e.g. '300-319' (development seeds: 0-7)")
+    p.add_argument('--every', type=int, default=4, help='render every n-th frame (15 fps)')
+    p.add_argument('--min-px', type=float, default=20.0, help='visible: shorter side, px')
+    p.add_argument('--min-visible', type=float, default=0.8, help='visible: face share')
+    p.add_argument('--select-by', choices=('ncc', 'score'), default='ncc',
+                   help="red template rule: best correlation, or Cahail et al.'s score")
+    p.add_argument('--hd-frames', type=int, default=150, help='frames timed at 1280x720')
+    p.add_argument('--no-renders', action='store_true', help='skip the rendered frames')
+    p.add_argument('--real', nargs='?', const=str(REALDATA / 'us_workzone_video'),
+                   help='real clips folder (default ../shared/realdata/us_workzone_video)')
+    p.add_argument('--json', help='write the report here')
+    p.add_argument('--sheet', help='contact sheet of renders and real frames (.jpg / .png)')
+    p.add_argument('--sheet-n', type=int, default=9, help='render tiles on the sheet')
+    args = p.parse_args(argv)
+    cv2.setNumThreads(1)
+    det = GeneralSignDetector(GeneralConfig(select_by=args.select_by))
+    report: dict[str, Any] = {'seeds': args.seeds, 'every': args.every,
+                              'visible_rule': f'shorter side >= {args.min_px} px and '
+                                              f'visible fraction >= {args.min_visible}',
+                              'select_by': args.select_by}
+    tiles: Optional[list] = [] if args.sheet else None
+    if not args.no_renders:
+        report['renders'] = evaluate_renders(make_specs(_seed_list(args.seeds)), det, args,
+                                             tiles)
+    if args.real:
+        real_tiles: Optional[list] = [] if args.sheet else None
+        report['real'] = evaluate_real(Path(args.real), det, args, real_tiles)
+        if tiles is not None and real_tiles:
+            pick = [t for t in real_tiles]
+            tiles += pick[:: max(1, len(pick) // 9)][:9]
+    if args.sheet and tiles:
+        sheet(tiles, args.sheet)
+    text = json.dumps(report, indent=2, default=float)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

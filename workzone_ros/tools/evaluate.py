@@ -20,9 +20,10 @@ EVALUATIONS: dict[str, str] = {
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
     'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
     'ablation': 'each default-on switch of the colour stage turned off: Table I, real clips',
+    'shapes': 'sign-shape cascades, seed 002 Tables 3 and 4; drum / cone veto on real crops',
     'general': 'general signs (stop, yield, warning, speed limit, guide, mile), seed 004 table',
-    'reliability': 'the live graph under a looping bag, killed nodes, lost sensors, load',
     'faults': 'malformed messages on every subscription of every node: crashes, recovery',
+    'reliability': 'the live graph under a looping bag, killed nodes, lost sensors, load',
 }
 
 

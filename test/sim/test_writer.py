@@ -235,3 +235,15 @@ def test_exports(tiny, tmp_path):
     assert n == 3
     masks = sorted((tmp_path / 'px' / 'masks').glob('*.png'))
     assert len(masks) == 3 and any(cv2.imread(str(p), 0).max() == 255 for p in masks)
+
+
+def test_a_background_crop_never_shows_a_sign():
+    """A drum or a vehicle in front of a sign is not a background example (its crop would
+    teach the classifier that the sign is background)."""
+    from types import SimpleNamespace
+
+    from workzone_ros.sim.writer import _holds_sign
+    sign = SimpleNamespace(box=(100, 100, 40, 40))
+    assert _holds_sign((110, 110, 60, 80), [sign])          # covers most of the face
+    assert not _holds_sign((136, 100, 60, 80), [sign])      # grazes its edge (10 %)
+    assert not _holds_sign((300, 100, 60, 80), [sign])

@@ -610,6 +610,18 @@ def _crop(img: np.ndarray, box, size: int) -> Optional[np.ndarray]:
     return cv2.resize(patch, (size, size), interpolation=cv2.INTER_AREA)
 
 
+def _holds_sign(box, signs, share: float = 0.3) -> bool:
+    """Whether ``box`` (x, y, w, h) covers at least ``share`` of some visible sign's face."""
+    x, y, w, h = (float(v) for v in box)
+    for sign in signs:
+        sx, sy, sw, sh = (float(v) for v in sign.box)
+        iw = min(x + w, sx + sw) - max(x, sx)
+        ih = min(y + h, sy + sh) - max(y, sy)
+        if iw > 0 and ih > 0 and sw * sh > 0 and iw * ih >= share * sw * sh:
+            return True
+    return False
+
+
 def export_crops(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
                  per_class: int = 50, size: int = 64,
                  progress: Optional[Callable[[str], None]] = _progress_printer()) -> dict:
@@ -646,8 +658,10 @@ def export_crops(out_dir: str | Path, specs: list[ScenarioSpec], seed: int = 0,
             items = [(h.class_key, h.sign_id, h.box) for h in res.signs
                      if h.visible_fraction > 0.6 and min(h.box[2], h.box[3]) >= 8
                      and h.sign_id in by_id]
+            # a drum or vehicle in front of a sign is no background example: its crop shows
+            # the sign (a third of a sign's face inside it is too much)
             items += [('background', o.object_id, o.box) for o in res.distractors
-                      if min(o.box[2], o.box[3]) >= 8]
+                      if min(o.box[2], o.box[3]) >= 8 and not _holds_sign(o.box, res.signs)]
             # foliage / roadside patches away from every sign
             for _ in range(2):
                 side = float(rng.uniform(20, 80))

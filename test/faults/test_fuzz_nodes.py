@@ -153,7 +153,8 @@ FOUND = {
     'fusion': [
         # liveness inputs took any message as a sign of life
         ('camera_info', _fault('K zero', lambda m: setattr(m, 'k', [0.0] * 9)), 'K is zero'),
-        ('lidar', _fault('invalid JSON', lambda m: setattr(m, 'data', '{')), 'invalid'),
+        ('lidar', _fault('width past the data', lambda m: setattr(m, 'width', m.width + 5)),
+         'row_step'),
         # a signs stamp beyond int32 (no ROS time) was accepted
         ('signs', _fault('stamp out of range', _json(header__stamp__sec=2 ** 40)),
          '$.header.stamp.sec'),

@@ -33,7 +33,7 @@ from typing import Any, Optional
 import msgspec
 import numpy as np
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo
+from sensor_msgs.msg import CameraInfo, PointCloud2
 from std_msgs.msg import Bool, Float32, String
 
 from workzone_ros import interfaces as I
@@ -57,6 +57,14 @@ STALE_CHECK_S = 0.1
 _CORE_PARAMS = params_from_dataclass(FusionConfig)
 
 
+def _check_candidates(msg: PointCloud2) -> None:
+    """A candidates cloud must parse (the LiDAR chain is alive only if it does)."""
+    arr = conv.pointcloud2_to_array(msg)
+    missing = [f for f in ('x', 'y', 'z') if f not in (arr.dtype.names or ())]
+    if missing:
+        raise InputError(f'candidates cloud has no {"/".join(missing)} field')
+
+
 def config_from_params(params: Any) -> FusionConfig:
     """The core configuration from the node's ``params`` (ValueError when invalid)."""
     return FusionConfig(**{p.attr: getattr(params, p.attr) for p in _CORE_PARAMS})
@@ -73,7 +81,8 @@ class FusionNode(WorkzoneNode):
               'device counts (empty: none)', read_only=True),
         Param('camera_info_topic', '/camera/camera_info', 'camera liveness (stale_inputs)',
               read_only=True),
-        Param('lidar_topic', '/workzone/rois', 'LiDAR liveness (stale_inputs; empty: none)',
+        Param('lidar_topic', '/workzone/lidar/candidates', 'LiDAR liveness: the LiDAR chain '
+              'publishes a candidates cloud per scan (stale_inputs; empty: none)',
               read_only=True),
         Param('state_topic', '/workzone/state', 'output WorkzoneState', read_only=True),
         Param('active_topic', '/workzone/active', 'output Bool', read_only=True),
@@ -126,8 +135,8 @@ class FusionNode(WorkzoneNode):
             CameraInfo, p.camera_info_topic, self._seen('camera', conv.camera_info_to_numpy),
             depth=1) if p.camera_info_topic else None)
         self._lidar_sub = (self.reliable_subscription(
-            String, p.lidar_topic, self._seen('lidar', lambda m: conv.string_to_payload(
-                m, I.Rois))) if p.lidar_topic else None)
+            PointCloud2, p.lidar_topic, self._seen('lidar', _check_candidates), depth=5)
+            if p.lidar_topic else None)
         self._published_stale: tuple[str, ...] = ()
         self._timer = self.create_timer(min(STALE_CHECK_S, 1.0 / p.publish_rate_hz),
                                         self._on_timer)

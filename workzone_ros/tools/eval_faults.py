@@ -269,7 +269,7 @@ def _targets() -> dict[str, Target]:
             Input('input_topic', 'json', _good_tracks)),
             ('signs_topic', 'Signs', _check_signs), (('min_size', 10),)),
         'fusion': Target('fusion', 'fusion', (
-            odom, _INFO, Input('lidar_topic', 'json', _good_rois),
+            odom, _INFO, Input('lidar_topic', 'points', _good_candidates),
             Input('detections_topic', 'json', _good_detections),
             Input('signs_topic', 'json', _good_signs)),
             ('state_topic', 'WorkzoneState', lambda o, r: o.phase == 'approaching')),

@@ -13,6 +13,7 @@ import pytest
 from workzone_ros.core import classifier as cl
 from workzone_ros.core import cnn_classifier as cnn
 from workzone_ros.core.features import crop_sign
+from workzone_ros.core.model_files import digest
 from workzone_ros.resources import config_path
 from workzone_ros.sim import signart
 
@@ -178,19 +179,19 @@ def test_bad_files_are_refused_with_one_line(model, tmp_path):
     _one_line_error(tmp_path / 'md.npz', 'integrity')
     # another version (hash recomputed, so only the version is wrong)
     md3 = {**md, 'version': cnn.VERSION + 1}
-    md3['sha256'] = cl._digest(arrays, md3)
+    md3['sha256'] = digest(arrays, md3)
     np.savez_compressed(tmp_path / 'v2.npz', metadata=np.array(json.dumps(md3)), **arrays)
     _one_line_error(tmp_path / 'v2.npz', 'version')
     # a consistent hash over bytes that are not a network
     junk = {**arrays, 'onnx': np.frombuffer(b'not an onnx graph' * 20, np.uint8)}
     md4 = dict(md)
-    md4['sha256'] = cl._digest(junk, md4)
+    md4['sha256'] = digest(junk, md4)
     np.savez_compressed(tmp_path / 'junk.npz', metadata=np.array(json.dumps(md4)), **junk)
     _one_line_error(tmp_path / 'junk.npz', 'malformed')
     # a network whose output does not match the class list
     fewer = {**arrays, 'classes': arrays['classes'][:-1]}
     md5 = {**md, 'classes': list(arrays['classes'][:-1])}
-    md5['sha256'] = cl._digest(fewer, md5)
+    md5['sha256'] = digest(fewer, md5)
     np.savez_compressed(tmp_path / 'fewer.npz', metadata=np.array(json.dumps(md5)), **fewer)
     _one_line_error(tmp_path / 'fewer.npz', 'malformed')
 

@@ -8,6 +8,7 @@ import pytest
 
 from workzone_ros.core import classifier as cl
 from workzone_ros.core import features as ft
+from workzone_ros.core.model_files import digest
 from workzone_ros.sim import signart
 
 #: Visually distinct classes (orange diamond, orange/white rectangle, red octagon, green
@@ -177,7 +178,7 @@ def test_bad_model_files_are_refused_with_one_line(model, tmp_path):
     md = json.loads(str(files['metadata']))
     md['version'] = cl.VERSION + 1
     arrays = {k: v for k, v in files.items() if k != 'metadata'}
-    md['sha256'] = cl._digest(arrays, md)
+    md['sha256'] = digest(arrays, md)
     np.savez_compressed(tmp_path / 'v2.npz', metadata=np.array(json.dumps(md)), **arrays)
     _one_line_error(tmp_path / 'v2.npz', 'version')
     # another model kind altogether (the colour model's schema)

@@ -23,16 +23,14 @@ rest of the metadata, so a tampered file is refused like a truncated or foreign 
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
-import json
 import os
-import zipfile
 from dataclasses import dataclass
 from typing import Callable, Mapping, Optional, Sequence
 
 import numpy as np
 
 from workzone_ros.core import features as ft
+from workzone_ros.core.model_files import check_header, one_line, read_npz, write_npz
 
 __all__ = [
     'SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'METHODS', 'ModelError', 'Prediction',
@@ -418,33 +416,12 @@ def fit(crops: Sequence[np.ndarray], labels: Sequence[str], classes: Sequence[st
 
 # --- files ---------------------------------------------------------------------------------
 
-def _digest(arrays: Mapping[str, np.ndarray], metadata: Mapping) -> str:
-    """SHA-256 over every array (name, dtype, shape, bytes) and the metadata but its hash."""
-    h = hashlib.sha256()
-    for name in sorted(arrays):
-        a = np.ascontiguousarray(arrays[name])
-        h.update(f'{name}|{a.dtype.str}|{a.shape}|'.encode())
-        h.update(a.tobytes())
-    md = {k: v for k, v in metadata.items() if k != 'sha256'}
-    h.update(json.dumps(md, sort_keys=True).encode())
-    return h.hexdigest()
-
-
 def save_model(clf: SignClassifier, path: str | os.PathLike) -> None:
     """Write ``clf`` as a compressed ``.npz`` of arrays and JSON metadata (no pickles)."""
-    path = os.fspath(path)
-    os.makedirs(os.path.dirname(path) or '.', exist_ok=True)
     arrays = {f'p_{k}': v for k, v in clf.arrays.items()}
     arrays['classes'] = np.array(clf.classes)
-    md = {**clf.metadata, 'schema': SCHEMA, 'version': VERSION, 'classes': list(clf.classes)}
-    md['sha256'] = _digest(arrays, md)
-    tmp = path + '.tmp.npz'
-    np.savez_compressed(tmp, metadata=np.array(json.dumps(md, sort_keys=True)), **arrays)
-    os.replace(tmp, path)
-
-
-def _one_line(exc: BaseException) -> str:
-    return ' '.join(str(exc).split()) or type(exc).__name__
+    write_npz(path, arrays, {**clf.metadata, 'schema': SCHEMA, 'version': VERSION,
+                             'classes': list(clf.classes)})
 
 
 def load_model(path: str | os.PathLike) -> SignClassifier:
@@ -462,37 +439,14 @@ def load_model(path: str | os.PathLike) -> SignClassifier:
     if not os.path.isfile(path):
         raise ModelError(f'sign classifier {path!r} does not exist; train one with '
                          "'workzone-ros train classifier' or set the model path")
-    try:
-        z = np.load(path, allow_pickle=False)
-        if not isinstance(z, np.lib.npyio.NpzFile):
-            raise ModelError(f'{path!r} is not a workzone_ros sign classifier (not an .npz)')
-        with z:
-            if 'metadata' not in z.files:
-                raise ModelError(f'{path!r} is not a workzone_ros sign classifier '
-                                 '(no metadata)')
-            md = json.loads(str(z['metadata']))
-            arrays = {k: z[k] for k in z.files if k != 'metadata'}
-    except ModelError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError,
-            json.JSONDecodeError) as exc:
-        raise ModelError(f'cannot read sign classifier {path!r} (truncated or corrupt?): '
-                         f'{_one_line(exc)}') from None
+    arrays, md = read_npz(path, 'workzone_ros sign classifier', ModelError)
     if isinstance(md, dict) and md.get('schema') == SCHEMA + 'CNN':   # cnn_classifier.SCHEMA
         from workzone_ros.core import cnn_classifier  # the CNN run by cv2.dnn
         return cnn_classifier.from_contents(path, arrays, md)
-    if not isinstance(md, dict) or md.get('schema') != SCHEMA:
-        raise ModelError(f'{path!r} is not a workzone_ros sign classifier (schema '
-                         f'{md.get("schema") if isinstance(md, dict) else None!r})')
-    if md.get('version') != VERSION:
-        raise ModelError(f'{path!r} is sign classifier version {md.get("version")!r}; this '
-                         f'build reads version {VERSION} (retrain with workzone-ros train '
-                         'classifier)')
-    if md.get('sha256') != _digest(arrays, md):
-        raise ModelError(f'{path!r} fails its integrity check (arrays or metadata changed '
-                         'after training)')
+    check_header(path, arrays, md, what='workzone_ros sign classifier', schema=SCHEMA,
+                 version=VERSION, retrain='workzone-ros train classifier', error=ModelError)
     try:
         params = {k[2:]: v for k, v in arrays.items() if k.startswith('p_')}
         return SignClassifier([str(c) for c in arrays['classes']], params, md)
     except (KeyError, ValueError, TypeError, IndexError) as exc:
-        raise ModelError(f'sign classifier {path!r} is malformed: {_one_line(exc)}') from None
+        raise ModelError(f'sign classifier {path!r} is malformed: {one_line(exc)}') from None

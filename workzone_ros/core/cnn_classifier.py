@@ -30,7 +30,6 @@ classifier --model``) takes either model.
 """
 from __future__ import annotations
 
-import json
 import os
 from typing import Mapping, Sequence
 
@@ -40,6 +39,7 @@ import numpy as np
 from workzone_ros.core import classifier as _svm
 from workzone_ros.core.classifier import ModelError, Prediction
 from workzone_ros.core.features import _square
+from workzone_ros.core.model_files import check_header, one_line, write_npz
 
 __all__ = ['SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'CnnSignClassifier', 'ModelError',
            'Prediction', 'preprocess', 'save_model', 'load_model', 'from_contents']
@@ -178,15 +178,10 @@ class CnnSignClassifier:
 
 def save_model(clf: CnnSignClassifier, path: str | os.PathLike) -> None:
     """Write ``clf`` as a compressed ``.npz`` of arrays and JSON metadata (no pickles)."""
-    path = os.fspath(path)
-    os.makedirs(os.path.dirname(path) or '.', exist_ok=True)
     arrays = {'onnx': np.ascontiguousarray(clf.arrays['onnx'], np.uint8),
               'classes': np.array(clf.classes)}
-    md = {**clf.metadata, 'schema': SCHEMA, 'version': VERSION, 'classes': list(clf.classes)}
-    md['sha256'] = _svm._digest(arrays, md)
-    tmp = path + '.tmp.npz'
-    np.savez_compressed(tmp, metadata=np.array(json.dumps(md, sort_keys=True)), **arrays)
-    os.replace(tmp, path)
+    write_npz(path, arrays, {**clf.metadata, 'schema': SCHEMA, 'version': VERSION,
+                             'classes': list(clf.classes)})
 
 
 def from_contents(path: str, arrays: Mapping[str, np.ndarray], md: Mapping
@@ -196,21 +191,13 @@ def from_contents(path: str, arrays: Mapping[str, np.ndarray], md: Mapping
     Raises:
         ModelError: another version, a hash mismatch, or a network that does not load.
     """
-    if md.get('schema') != SCHEMA:
-        raise ModelError(f'{path!r} is not a workzone_ros CNN sign classifier (schema '
-                         f'{md.get("schema")!r})')
-    if md.get('version') != VERSION:
-        raise ModelError(f'{path!r} is CNN sign classifier version {md.get("version")!r}; '
-                         f'this build reads version {VERSION} (retrain with workzone-ros '
-                         'train cnn)')
-    if md.get('sha256') != _svm._digest(arrays, md):
-        raise ModelError(f'{path!r} fails its integrity check (arrays or metadata changed '
-                         'after training)')
+    check_header(path, arrays, md, what='workzone_ros CNN sign classifier', schema=SCHEMA,
+                 version=VERSION, retrain='workzone-ros train cnn', error=ModelError)
     try:
         return CnnSignClassifier(arrays['onnx'], [str(c) for c in arrays['classes']], md)
     except (KeyError, ValueError, TypeError, IndexError) as exc:
         raise ModelError(f'CNN sign classifier {path!r} is malformed: '
-                         f'{_svm._one_line(exc)}') from None
+                         f'{one_line(exc)}') from None
 
 
 def load_model(path: str | os.PathLike) -> CnnSignClassifier:

@@ -36,15 +36,14 @@ data, SHA-256 over all of it), read with ``allow_pickle=False``.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import os
-import zipfile
 from dataclasses import dataclass
 from typing import Callable, Mapping, Optional, Sequence
 
 import cv2
 import numpy as np
+
+from workzone_ros.core.model_files import check_header, one_line, read_npz, write_npz
 
 __all__ = [
     'SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'SHAPES', 'NONE', 'CATALOGUE_SHAPE', 'DEFAULT_SCALES',
@@ -336,15 +335,9 @@ class ShapeCascade:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the cascade as a compressed ``.npz`` (arrays + JSON metadata, no pickles)."""
-        path = os.fspath(path)
-        os.makedirs(os.path.dirname(path) or '.', exist_ok=True)
-        arrays = self._arrays()
         md = {**self.metadata, 'schema': SCHEMA, 'version': VERSION, 'shapes': list(SHAPES),
               'channels': list(CHANNELS), 'feature_types': list(FEATURE_TYPES)}
-        md['sha256'] = _digest(arrays, md)
-        tmp = path + '.tmp.npz'
-        np.savez_compressed(tmp, metadata=np.array(json.dumps(md, sort_keys=True)), **arrays)
-        os.replace(tmp, path)
+        write_npz(path, self._arrays(), md)
 
     @classmethod
     def load(cls, path: str | os.PathLike | None = None) -> 'ShapeCascade':
@@ -362,52 +355,17 @@ class ShapeCascade:
         if not os.path.isfile(path):
             raise FileNotFoundError(f'shape cascade {path!r} does not exist; train one with '
                                     "'workzone-ros train shapes'")
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                if 'metadata' not in z.files:
-                    raise ShapeModelError(f'{path!r} is not a shape cascade (no metadata)')
-                md = json.loads(str(z['metadata']))
-                arrays = {k: z[k] for k in z.files if k != 'metadata'}
-        except ShapeModelError:
-            raise
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile, KeyError,
-                json.JSONDecodeError, AttributeError) as exc:
-            raise ShapeModelError(f'cannot read shape cascade {path!r} (truncated or '
-                                  f'corrupt?): {_one_line(exc)}') from None
-        if not isinstance(md, dict) or md.get('schema') != SCHEMA:
-            raise ShapeModelError(f'{path!r} is not a shape cascade (schema '
-                                  f'{md.get("schema") if isinstance(md, dict) else None!r})')
-        if md.get('version') != VERSION:
-            raise ShapeModelError(f'{path!r} is shape cascade version {md.get("version")!r}; '
-                                  f'this build reads version {VERSION} (retrain with '
-                                  'workzone-ros train shapes)')
-        if md.get('sha256') != _digest(arrays, md):
-            raise ShapeModelError(f'{path!r} fails its integrity check (arrays or metadata '
-                                  'changed after training)')
+        arrays, md = read_npz(path, 'shape cascade', ShapeModelError)
+        check_header(path, arrays, md, what='shape cascade', schema=SCHEMA, version=VERSION,
+                     retrain='workzone-ros train shapes', error=ShapeModelError)
         try:
             feats = HaarFeatures(int(arrays['window']), arrays['f_types'], arrays['f_rects'],
                                  arrays['f_channels'])
             stages = _Stages(**{k: arrays[f's_{k}'] for k in _Stages.__dataclass_fields__})
         except (KeyError, ValueError, TypeError, IndexError) as exc:
             raise ShapeModelError(f'shape cascade {path!r} is malformed: '
-                                  f'{_one_line(exc)}') from None
+                                  f'{one_line(exc)}') from None
         return cls(feats, stages, md)
-
-
-def _digest(arrays: Mapping[str, np.ndarray], metadata: Mapping) -> str:
-    """SHA-256 over every array (name, dtype, shape, bytes) and the metadata but its hash."""
-    h = hashlib.sha256()
-    for name in sorted(arrays):
-        a = np.ascontiguousarray(arrays[name])
-        h.update(f'{name}|{a.dtype.str}|{a.shape}|'.encode())
-        h.update(a.tobytes())
-    md = {k: v for k, v in metadata.items() if k != 'sha256'}
-    h.update(json.dumps(md, sort_keys=True).encode())
-    return h.hexdigest()
-
-
-def _one_line(exc: BaseException) -> str:
-    return ' '.join(str(exc).split()) or type(exc).__name__
 
 
 # --- training ------------------------------------------------------------------------------

@@ -716,13 +716,19 @@ def _dur(qos: QoSProfile) -> str:
 
 
 def _one_thread() -> None:
-    """One OpenCV thread per node process (BLAS/OpenMP: the launcher sets their variables
-    before the interpreter starts): the graph runs one process per node on a few cores, where
-    each library's own thread pool only adds contention."""
+    """One OpenCV and one BLAS/OpenMP thread per node process: the graph runs one process per
+    node on a few cores, where each library's own thread pool only adds contention (the
+    launcher also sets the variables before the interpreter starts; a node started on its
+    own gets the limit here, after numpy loaded)."""
     try:
         import cv2
         cv2.setNumThreads(1)
     except ImportError:
+        pass
+    try:
+        from threadpoolctl import threadpool_limits
+        threadpool_limits(1)
+    except ImportError:             # scikit-learn's dependency; absent only in odd installs
         pass
 
 

@@ -19,6 +19,12 @@ __all__ = ['diamond_starts', 'diamond_holds', 'fit_blurred_diamond']
 
 
 _SQRT_HALF = math.sqrt(0.5)
+#: :func:`fit_blurred_diamond` fits within this many half-diagonals of the start's centre
+FIT_REACH = 3.0
+#: :func:`diamond_starts` tries every centre for small diamonds, and for a half-side of
+#: ``s`` turned pixels every ``s x START_STRIDE``-th (a start only needs to be near: the
+#: refinement moves it; big merged blobs cost seconds otherwise)
+START_STRIDE = 1.0 / 12.0
 
 
 def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a: float,
@@ -63,6 +69,9 @@ def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a:
     py = (uu - vv + voff) * c + 0.5
     sel = (px >= x) & (px <= x + w) & (py >= y) & (py <= y + h)
     uc, vc = uu[sel], vv[sel]
+    if uc.size == 0:
+        return []
+    u_first, v_first = int(uc.min()), int(vc.min())
 
     def mean(u0, u1, v0, v1):
         s_ = sums[v1, u1] - sums[v0, u1] - sums[v1, u0] + sums[v0, u0]
@@ -78,6 +87,9 @@ def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a:
         lw = max(1, int(round(line_rel * s / c)))
         t = max(1, int(round(0.7 * s)))
         ok = (uc >= s + lw) & (vc >= s + lw) & (uc + s + lw <= side) & (vc + s + lw <= side)
+        stride = max(1, int(s * START_STRIDE))
+        if stride > 1:
+            ok &= ((uc - u_first) % stride == 0) & ((vc - v_first) % stride == 0)
         u, v = uc[ok], vc[ok]
         if u.size == 0:
             continue
@@ -213,6 +225,14 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
         h, w = h // f, w // f
         chroma = chroma[:h * f, :w * f].reshape(h, f, w, f).mean(axis=(1, 3))
         cx, cy, a, b, max_sigma = cx / f, cy / f, a / f, b / f, max_sigma / f
+    # a window much larger than the diamond (a sign merged with a big orange surface) is cut
+    # to FIT_REACH half-diagonals around it: far pixels only cost time (the fit's SVDs grow
+    # with their count), the background plane is measured near the sign
+    x0, y0 = max(0, int(cx - FIT_REACH * a)), max(0, int(cy - FIT_REACH * b))
+    x1, y1 = min(w, int(math.ceil(cx + FIT_REACH * a))), min(h, int(math.ceil(cy + FIT_REACH * b)))
+    if (x0, y0, x1, y1) != (0, 0, w, h):
+        chroma = chroma[y0:y1, x0:x1]
+        h, w, cx, cy = y1 - y0, x1 - x0, cx - x0, cy - y0
     ys, xs = np.mgrid[0:h, 0:w]
     xs = xs.ravel() + 0.5
     ys = ys.ravel() + 0.5
@@ -257,4 +277,4 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
         return None
     if not (0.505 * a < fa < 1.99 * a and 0.505 * b < fb < 1.99 * b and fs < 0.99 * max_sigma):
         return None
-    return fcx * f, fcy * f, fa * f, fb * f, fs * f, face, bg
+    return (fcx + x0) * f, (fcy + y0) * f, fa * f, fb * f, fs * f, face, bg

@@ -7,12 +7,14 @@ import sys
 
 import pytest
 import yaml
+from rclpy.parameter import Parameter
 
+from workzone_ros.core.detect import DetectorConfig
 from workzone_ros.core.fusion import FusionConfig
 from workzone_ros.core.knobs import knob
 from workzone_ros.core.lidar_clustering import ClusterParams
 from workzone_ros.core.track import TrackerConfig
-from workzone_ros.nodes import fusion, lidar_cluster, tracker
+from workzone_ros.nodes import color_detector, fusion, lidar_cluster, tracker
 from workzone_ros.nodes.params import ConfigError, params_from_dataclass
 from workzone_ros.resources import config_path
 
@@ -71,7 +73,8 @@ def test_an_undocumented_field_is_an_error():
 
 def test_knobs_and_the_core_configs_import_without_rclpy():
     code = ('import sys; import workzone_ros.core.knobs, workzone_ros.core.track.config, '
-            'workzone_ros.core.fusion, workzone_ros.core.lidar_clustering; '
+            'workzone_ros.core.fusion, workzone_ros.core.lidar_clustering, '
+            'workzone_ros.core.detect.config; '
             "assert 'rclpy' not in sys.modules, 'rclpy imported'")
     subprocess.run([sys.executable, '-c', code], check=True)
 
@@ -110,7 +113,8 @@ def test_the_params_file_sets_only_what_differs_from_the_defaults():
     doc = yaml.safe_load(config_path('workzone.yaml').read_text())
     kept_on_purpose = {('lidar_cluster', 'lidar_in_base')}   # the line every vehicle edits
     for section, module in (('tracker', tracker), ('fusion', fusion),
-                            ('lidar_cluster', lidar_cluster)):
+                            ('lidar_cluster', lidar_cluster),
+                            ('color_detector', color_detector)):
         declared = {p.name: p for p in module.NODE_CLASS.PARAMS}
         for key, value in (doc[section]['ros__parameters'] or {}).items():
             assert key in declared, f'{section}.{key} is not a parameter'
@@ -119,3 +123,53 @@ def test_the_params_file_sets_only_what_differs_from_the_defaults():
             same = p.normalise(value) == p.normalise(p.default)
             assert not same or (section, key) in kept_on_purpose, \
                 f'{section}.{key} = {value!r} is the default: drop it from the params file'
+
+
+def test_the_color_detector_table_is_the_detector_config_knobs_for_its_names():
+    """The node's DetectorConfig parameters come from the fields' knobs (a chosen subset:
+    the other fields are measured refinement constants); none is declared twice by hand."""
+    declared = {p.name: p for p in color_detector.NODE_CLASS.PARAMS}
+    fields = {f.name: f for f in dataclasses.fields(DetectorConfig)}
+    assert [p.name for p in color_detector._CORE_PARAMS] == \
+        [n for n in fields if n in color_detector._CORE]
+    assert set(declared) & set(fields) == set(color_detector._CORE)
+    for name in color_detector._CORE:
+        p, f = declared[name], fields[name]
+        want = f.default
+        assert p.default == (list(want) if isinstance(want, tuple) else want), name
+        assert type(p.default) is (list if isinstance(want, tuple) else type(want)), name
+        assert p.description == f.metadata['doc'] and '``' not in p.description, name
+        assert (p.min, p.max, p.choices) == (f.metadata['min'], f.metadata['max'],
+                                             f.metadata['choices']), name
+        for bound, step in ((p.min, -1), (p.max, 1)):
+            if bound is not None:
+                assert p.check(bound) is None and p.check(bound + step) is not None, name
+                # the node's range lies inside what DetectorConfig itself accepts
+                DetectorConfig(**{name: bound})
+        if p.choices:
+            assert p.check('not-a-choice') is not None, name
+    # the node builds its DetectorConfig from exactly these parameters
+    assert DetectorConfig(**{p.attr: p.normalise(p.default)
+                             for p in color_detector._CORE_PARAMS}) == DetectorConfig()
+
+
+def test_color_detector_ranges_are_enforced_on_a_live_set(ros):
+    node = ros.add(color_detector.NODE_CLASS(context=ros.context))
+    assert node._detector.config == DetectorConfig()
+
+    def reason(name, value):
+        result = node.set_parameters([Parameter(name, value=value)])[0]
+        return None if result.successful else result.reason
+
+    assert 'out of range' in reason('threshold', 0.995)
+    assert 'out of range' in reason('scale', 5)
+    assert 'out of range' in reason('nms_iou', 1.5)
+    assert 'out of range' in reason('foreign_prior', -0.1)
+    assert "is not one of 'learned', 'rgb_lp', 'hsv'" in reason('method', 'cnn')
+    assert node._detector.config == DetectorConfig()        # nothing applied
+    for name, value in (('threshold', 0.99), ('scale', 1), ('grow_level', 0.0),
+                        ('colors', ['orange']), ('method', 'hsv')):
+        assert reason(name, value) is None, name
+    want = dataclasses.replace(DetectorConfig(), threshold=0.99, scale=1, grow_level=0.0,
+                               colors=('orange',), method='hsv')
+    assert node._detector.config == want

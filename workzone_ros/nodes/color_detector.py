@@ -28,10 +28,11 @@ from std_msgs.msg import String
 from workzone_ros import interfaces
 from workzone_ros.core import kernels
 from workzone_ros.core.color_model import ModelError, default_model, load_model
-from workzone_ros.core.detect import METHODS, ColorDetector, DetectorConfig, RgbLpModel
+from workzone_ros.core.detect import ColorDetector, DetectorConfig, RgbLpModel
 from workzone_ros.core.proposals import ProposalConfig, SignProposer, proposals_as_detections
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.params import params_from_dataclass
 from workzone_ros.resources import config_path
 
 __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
@@ -39,15 +40,19 @@ __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
 DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
 PROPOSALS_MODEL = str(config_path('models/color_proposals.npz'))
 
-# Parameters that map one to one onto DetectorConfig fields.
-_CORE = ('method', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px', 'min_radius_px',
-         'max_radius_px', 'min_area_px', 'nms_iou', 'extension', 'ext_min_aspect',
-         'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence', 'lidar_only',
-         'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry', 'roi_relax',
-         'lidar_only_threshold', 'camera_match', 'foreign_prior',
+# Parameters that map one to one onto DetectorConfig fields: default, description and range
+# from the field's knob (workzone_ros/core/detect/config.py).  The other ~115 fields are
+# refinement constants measured on the development bags (docs/detector_history.md), not
+# node parameters.
+_CORE = ('method', 'colors', 'threshold', 'scale', 'use_prior', 'open_px', 'close_px',
+         'min_radius_px', 'max_radius_px', 'min_area_px', 'nms_iou', 'extension',
+         'ext_min_aspect', 'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence',
+         'lidar_only', 'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry',
+         'roi_relax', 'lidar_only_threshold', 'camera_match', 'foreign_prior',
          'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
          'diamond_search', 'blur_fit', 'outline_evidence', 'rect_needs_edges', 'v_hysteresis',
          'grow_level')
+_CORE_PARAMS = params_from_dataclass(DetectorConfig, only=_CORE)
 
 
 class ColorDetectorNode(WorkzoneNode):
@@ -80,80 +85,14 @@ class ColorDetectorNode(WorkzoneNode):
               max=100),
         Param('proposal_threshold', 0.5, 'P(sign colour | pixel) of a proposal pixel',
               min=0.01, max=1.0),
-        Param('method', 'learned', 'learned (seed 000) | rgb_lp (seed 002) | hsv (seed 004)',
-              choices=METHODS),
-        Param('colors', ['orange', 'red', 'yellow'], 'colours to detect'),
-        Param('threshold', 0.5, 'posterior threshold tau', min=0.01, max=0.99),
-        Param('scale', 2, 'mask computed at 1/scale resolution', min=1, max=4),
-        Param('use_prior', True, 'spatial prior and its ROI (seed 000 Fig. 1)'),
-        Param('open_px', 2, 'opening kernel (mask pixels, 0 = off)', min=0, max=15),
-        Param('close_px', 3, 'closing kernel (mask pixels, 0 = off)', min=0, max=15),
-        Param('min_radius_px', 4.0, 'smallest sign radius (px)', min=0.0),
-        Param('max_radius_px', 240.0, 'largest sign radius (px)', min=1.0),
-        Param('min_area_px', 40.0, 'smallest blob area (px)', min=0.0),
-        Param('nms_iou', 0.3, 'non-maximum suppression IoU', min=0.0, max=1.0),
-        Param('extension', True, 'regulatory two-colour box extension (seed 000)'),
-        Param('diamond_refine', True, 'warning boxes from the face edges measured on the '
-              'brightness at sub-pixel precision (off: from the orange mask)'),
-        Param('rect_refine', True, "regulatory boxes from the orange part's edges measured "
-              'on the brightness (off: the orange hull grown by the border)'),
-        Param('peel', True, 'a blob that passes no test is judged again at higher likelihood '
-              'levels (a sign merged with an orange dusk sky or a brick wall)'),
-        Param('pixel_boxes', True, 'refined boxes in whole pixels: the pixels the measured '
-              'outline covers more than half, as box labels are drawn (off: sub-pixel)'),
-        Param('merge_fragments', True, 'two blobs that are the pieces of one diamond (a '
-              'symbol cuts the face from edge to edge) are measured as one'),
-        Param('diamond_search', True, 'when no start from the mask refines, the face '
-              'diamond is searched in the brightness (a sign merged with an orange dusk sky)'),
-        Param('blur_fit', True, 'when nothing refines (a faded or blurred sign, no border '
-              'line seen), the warning box from a blurred diamond fitted to the chroma R - B'),
-        Param('outline_evidence', True, 'a warning blob without a legend the dark test '
-              'sees (faded, rain-washed), or an unclear face below the usual mounting (behind '
-              'a guardrail), is kept when its diamond edges are measured'),
-        Param('rect_needs_edges', True, 'a rectangular orange blob with neither border '
-              'edges, nor a white part, nor a diamond found in it is dropped (dirt, a cone, '
-              'a vest, a brick wall; LiDAR-supported blobs are kept)'),
-        Param('v_hysteresis', 0.65, "pixels of the colour between this share of the model's "
-              'brightness gate and the gate join the bright blobs they connect, within their '
-              'box (an under-exposed plaque split by its legend); 0 = off', min=0.0, max=1.0),
-        Param('grow_level', 0.85, 'an orange blob that passes no test is measured again '
-              'grown into its neighbours above this share of the posterior threshold, and '
-              'kept as a diamond whose edges measure (a real face paler in part); 0 = off',
-              min=0.0, max=1.0),
-        Param('ext_min_aspect', 1.5, 'w/h from which an orange rectangle is examined',
-              min=0.5, max=10.0),
-        Param('roi_prior', 1.0, 'prior inside LiDAR ROIs', min=0.01, max=1.0),
-        Param('roi_threshold', 0.3, 'posterior threshold inside LiDAR ROIs', min=0.01,
-              max=0.99),
-        Param('roi_relax', 0.75, 'shape filters inside LiDAR ROIs are multiplied by this '
-              '(no legend and no mounting-height test there)', min=0.1, max=1.0),
-        Param('roi_margin', 0.25, 'ROI growth (fraction of its size)', min=0.0, max=2.0),
-        Param('lidar_confidence', 0.5, 'noisy-OR weight of LiDAR support', min=0.0, max=1.0),
-        Param('lidar_only', True, 'an ROI without a colour blob but with a sign-coloured '
-              'region of plausible size is reported as a lidar-only detection'),
-        Param('lidar_only_threshold', 0.25, 'likelihood of the lidar-only region', min=0.01,
-              max=0.99),
-        Param('lidar_only_confidence', 0.3, 'confidence of lidar-only detections', min=0.0,
-              max=1.0),
-        Param('smooth_px', 3, 'likelihood box filter before thresholding (mask pixels)',
-              min=0, max=9),
-        Param('border_frac', 0.04, 'box growth per side for the sign border (fraction of size)',
-              min=0.0, max=0.3),
-        Param('use_geometry', True, "reject orange blobs lower than the training signs' "
-              'mounting height (model extra geometry)'),
         Param('camera_info_topic', '/camera/camera_info', "the frames' CameraInfo: the model's "
               "spatial prior and fixed mounting row apply only to its own camera's frames "
               '(camera_match); empty = judge by the frame size alone', read_only=True),
-        Param('camera_match', True, "apply the model's fixed-camera prior and mounting row "
-              "only to frames of the model's camera (size and normalised intrinsics); other "
-              'cameras get a location-free prior (foreign_prior)'),
-        Param('foreign_prior', 0.0, 'location-free prior on another camera (0: the model '
-              "prior's ROI mean relative to its table's peak)", min=0.0, max=1.0),
         Param('rois_buffer', 30, 'ROIs messages kept for stamp matching', min=1, max=1000),
         Param('rois_wait', 0.25, 'hold an image at most this long (wall time, s) for its '
               'ROIs when the ROI topic has a publisher; 0 = never wait', min=0.0, max=5.0),
         Param('rois_queue', 4, 'images held for their ROIs at most', min=1, max=50),
-    )
+    ) + _CORE_PARAMS
     INPUT_TOPICS = ('image_topic', 'rois_topic', 'camera_info_topic')
 
     def __init__(self, **kwargs: Any) -> None:
@@ -203,7 +142,7 @@ class ColorDetectorNode(WorkzoneNode):
 
     def _make_detector(self) -> ColorDetector:
         p = self.params
-        cfg = DetectorConfig(colors=tuple(p.colors), **{k: getattr(p, k) for k in _CORE})
+        cfg = DetectorConfig(**{q.attr: getattr(p, q.attr) for q in _CORE_PARAMS})
         lp = None
         if 'rgb_lp_thresholds' in self._model.extras:
             lp = RgbLpModel(self._model.extras['rgb_lp_thresholds'])

@@ -14,7 +14,14 @@ from workzone_ros.core.fusion import FusionConfig
 from workzone_ros.core.knobs import knob
 from workzone_ros.core.lidar_clustering import ClusterParams
 from workzone_ros.core.track import TrackerConfig
-from workzone_ros.nodes import color_detector, fusion, lidar_cluster, tracker
+from workzone_ros.nodes import (
+    classifier,
+    color_detector,
+    fusion,
+    lidar_cluster,
+    projector,
+    tracker,
+)
 from workzone_ros.nodes.params import ConfigError, params_from_dataclass
 from workzone_ros.resources import config_path
 
@@ -111,10 +118,13 @@ def test_every_config_field_is_a_node_parameter_with_its_knob(section, cls, tabl
 
 def test_the_params_file_sets_only_what_differs_from_the_defaults():
     doc = yaml.safe_load(config_path('workzone.yaml').read_text())
-    kept_on_purpose = {('lidar_cluster', 'lidar_in_base')}   # the line every vehicle edits
+    # the extrinsics every vehicle edits are kept even at the simulator's values
+    kept_on_purpose = {('lidar_cluster', 'lidar_in_base'), ('projector', 'lidar_in_base'),
+                       ('projector', 'lidar_to_camera')}
     for section, module in (('tracker', tracker), ('fusion', fusion),
                             ('lidar_cluster', lidar_cluster),
-                            ('color_detector', color_detector)):
+                            ('color_detector', color_detector), ('projector', projector),
+                            ('classifier', classifier)):
         declared = {p.name: p for p in module.NODE_CLASS.PARAMS}
         for key, value in (doc[section]['ros__parameters'] or {}).items():
             assert key in declared, f'{section}.{key} is not a parameter'

@@ -122,10 +122,13 @@ class ClassifierNode(WorkzoneNode):
         elif self._general is None:
             self._general = self._general_detector()
 
-    @staticmethod
-    def _general_detector():
+    def _general_detector(self):
+        from workzone_ros.core.cnn_classifier import CnnSignClassifier
         from workzone_ros.core.general import GeneralSignDetector
-        return GeneralSignDetector()
+        # the general signs are verified by the CNN: the node's own model when it is the
+        # CNN (loaded once), else the default CNN file
+        model = self._model if isinstance(self._model, CnnSignClassifier) else None
+        return GeneralSignDetector(classifier=model)
 
     def _load_model(self, path: str):
         from workzone_ros.core import classifier as core

@@ -30,10 +30,15 @@ detection of that class in the right half of the image).
 Timing: milliseconds per frame (time.perf_counter) of :meth:`GeneralSignDetector.detect` on
 the rendered frames at their size and scaled to 1280x720, p50 / p99.
 
+``--verify cnn`` (default) evaluates the colour candidates verified by the CNN sign
+classifier (``--model``, default ``config/models/sign_classifier_cnn.npz``);
+``--verify templates`` the paper's pipeline (the baseline).
+
 Usage::
 
     workzone-ros evaluate general --seeds 300-319 --every 4 --real --json out.json \\
         --sheet docs/images/general_signs_sheet.jpg
+    workzone-ros evaluate general --verify templates --seeds 300-319 --every 4 --real
 """
 from __future__ import annotations
 
@@ -331,6 +336,11 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--min-visible', type=float, default=0.8, help='visible: face share')
     p.add_argument('--select-by', choices=('ncc', 'score'), default='ncc',
                    help="red template rule: best correlation, or Cahail et al.'s score")
+    p.add_argument('--verify', choices=('cnn', 'templates'), default='cnn',
+                   help="'cnn': colour candidates verified by the CNN sign classifier "
+                        "(default); 'templates': the paper's blob tests and red templates")
+    p.add_argument('--model', help='sign classifier for --verify cnn (default '
+                                   'config/models/sign_classifier_cnn.npz)')
     p.add_argument('--hd-frames', type=int, default=150, help='frames timed at 1280x720')
     p.add_argument('--no-renders', action='store_true', help='skip the rendered frames')
     p.add_argument('--real', nargs='?', const=str(REALDATA / 'us_workzone_video'),
@@ -340,11 +350,15 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--sheet-n', type=int, default=9, help='render tiles on the sheet')
     args = p.parse_args(argv)
     cv2.setNumThreads(1)
-    det = GeneralSignDetector(GeneralConfig(select_by=args.select_by))
+    det = GeneralSignDetector(GeneralConfig(select_by=args.select_by, verify=args.verify),
+                              classifier=args.model)
     report: dict[str, Any] = {'seeds': args.seeds, 'every': args.every,
                               'visible_rule': f'shorter side >= {args.min_px} px and '
                                               f'visible fraction >= {args.min_visible}',
-                              'select_by': args.select_by}
+                              'select_by': args.select_by, 'verify': args.verify}
+    if args.verify == 'cnn':
+        report['model'] = args.model or 'config/models/sign_classifier_cnn.npz'
+        det.classifier                          # load it before the timed frames
     tiles: Optional[list] = [] if args.sheet else None
     if not args.no_renders:
         report['renders'] = evaluate_renders(make_specs(_seed_list(args.seeds)), det, args,

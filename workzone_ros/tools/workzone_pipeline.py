@@ -144,8 +144,10 @@ class PipelineSource:
         self.timings: dict[str, list[float]] = defaultdict(list)
         self.general = None
         if getattr(opts, 'general_signs', True):
+            from workzone_ros.core.cnn_classifier import CnnSignClassifier
             from workzone_ros.core.general import GeneralSignDetector
-            self.general = GeneralSignDetector()
+            self.general = GeneralSignDetector(classifier=self.model if isinstance(
+                self.model, CnnSignClassifier) else None)
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:

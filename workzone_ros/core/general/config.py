@@ -31,11 +31,15 @@ class GeneralSign:
         box: (x, y, w, h) in image pixels.
         class_key: ``stop``, ``yield``, ``do_not_enter``, ``warning_diamond``,
             ``speed_limit``, ``guide`` or ``mile_marker``.
-        score: 0..1, how sure the recogniser is (the best normalised correlation for red
-            signs, a shape/legend score for the others).
+        score: 0..1, how sure the recogniser is: with ``verify='cnn'`` the CNN's
+            probability of the general classes of the sign's colour; with
+            ``verify='templates'`` the best normalised correlation for red signs, a
+            shape/legend score for the others.
         colour: ``red``, ``yellow``, ``white`` or ``green``.
         shape: ``octagon``, ``triangle``, ``square``, ``diamond`` or ``rectangle``.
-        template: the red template that matched best ('' for other signs).
+        template: the red template that matched best ('' for other signs, and with
+            ``verify='cnn'`` for red signs the CNN was sure of: templates are then only
+            matched where the CNN hesitates).
         template_score: Cahail et al.'s score of that template: the share of positions
             whose normalised correlation is above ``GeneralConfig.corr_threshold``, the
             maximum over scales.
@@ -162,21 +166,73 @@ class GeneralConfig:
     min_digit_px: int = 8
     #: the read is kept only when every digit's confidence reaches this.
     min_mile_confidence: float = 0.8
+    # ---- verification (docs/general_signs.md, "Learned verification")
+    #: 'cnn': generous colour candidates (candidates.py) verified by the CNN sign
+    #: classifier, which decides sign or background; 'templates': the paper's pipeline
+    #: (blob shape tests, red templates), kept as the baseline.
+    verify: str = 'cnn'
+    #: saturation floors of the candidate colour masks (one mask per level and colour).
+    candidate_saturations: tuple[int, ...] = (45, 90, 140)
+    #: a candidate's shorter side, full-image px (a 20 px sign at IoU 0.5 needs >= 14).
+    candidate_min_px: int = 12
+    #: a candidate's longer side at most this share of the working image height.
+    candidate_max_share: float = 0.4
+    #: colours whose masks are also cut along grey-level edges (Canny, ``edge_thresholds``)
+    #: before their blobs are taken: a sign's border separates it from foliage or grass
+    #: of its colour.
+    edge_cut: tuple[str, ...] = ()
+    edge_thresholds: tuple[int, int] = (60, 150)
+    #: red candidates are also proposed grown by this share of their size (DO NOT ENTER's
+    #: disc on its white plate, a STOP with its white rim).
+    candidate_grow: float = 0.3
+    #: candidates overlapping a better one by more than this IoU are dropped.
+    candidate_nms: float = 0.7
+    #: at most this many candidates per frame go to the CNN (one batch), best cheap score.
+    max_candidates: int = 12
+    #: a candidate is a sign when the CNN's probability of the general classes its colour
+    #: can be reaches this (the rest is background or a work-zone sign).
+    cnn_threshold: float = 0.8
+    #: a red candidate below ``cnn_threshold`` is still a sign when the paper's template
+    #: test accepts it (``min_template_score``, ``min_template_ncc``) and the CNN's
+    #: background probability is at most this (the CNN saw few YIELD / DO NOT ENTER).
+    cnn_red_background: float = 0.6
+    #: a red candidate whose CNN probabilities of STOP / YIELD / DO NOT ENTER have no class
+    #: above this share of their sum takes the red template's class instead.
+    cnn_red_margin: float = 0.7
+    #: a candidate whose value channel's standard deviation (working image) is below
+    #: this is not verified (a uniform patch: no legend, no border).
+    min_contrast: float = 10.0
+    #: a red or yellow candidate is not a sign when more than this share of the band
+    #: below it (0.35 of its height) is its colour at 0.7 of its median saturation: a
+    #: face ends at its edge, a drum, a truck or a van's lettering go on.
+    max_colour_below: float = 0.35
+    #: accepted boxes overlapping a better one by more than this IoU are the same sign.
+    detection_nms: float = 0.3
 
     def __post_init__(self) -> None:
+        if self.verify not in ('cnn', 'templates'):
+            raise GeneralSignError(f"GeneralConfig.verify must be 'cnn' or 'templates', got "
+                                   f'{self.verify!r}')
         if self.select_by not in ('ncc', 'score'):
             raise GeneralSignError(f"GeneralConfig.select_by must be 'ncc' or 'score', got "
                                    f'{self.select_by!r}')
         for f in fields(self):
             v = getattr(self, f.name)
-            if f.name == 'select_by':
+            if f.name in ('select_by', 'verify'):
+                continue
+            if f.name == 'edge_cut':
+                if not isinstance(v, tuple) or any(
+                        c not in ('red', 'yellow', 'white', 'green') for c in v):
+                    raise GeneralSignError(f'GeneralConfig.edge_cut must be a tuple of '
+                                           f'colours (red, yellow, white, green), got {v!r}')
                 continue
             if isinstance(v, bool):
                 raise GeneralSignError(f'GeneralConfig.{f.name} must be a number, got {v!r}')
             if isinstance(v, tuple):
-                ok = _pair(v) if f.name != 'scales' else (
+                many = f.name in ('scales', 'candidate_saturations')
+                ok = _pair(v) if not many else (
                     len(v) > 0 and all(isinstance(x, (int, float)) and x > 0 for x in v))
-                if not ok or (f.name != 'scales' and v[0] > v[1]):
+                if not ok or (not many and v[0] > v[1]):
                     raise GeneralSignError(f'GeneralConfig.{f.name} must be a (low, high) pair '
                                            f'of numbers (scales: positive numbers), got {v!r}')
             elif not isinstance(v, (int, float)) or v < 0:
@@ -188,6 +244,7 @@ class GeneralConfig:
             (self.red_hue_lo < self.red_hue_hi <= 180, 'need red_hue_lo < red_hue_hi <= 180'),
             (self.erode_px >= 1 and self.template_px >= 12, 'erode_px >= 1, template_px >= 12'),
             (self.max_aspect >= 1.0, 'max_aspect must be >= 1'),
+            (self.max_candidates >= 1, 'max_candidates must be >= 1'),
             (self.border_sides <= 4, 'border_sides must be 0..4'),
             (self.fill_constant >= 1.0, 'fill_constant must be >= 1'),
             (self.red_median_max < self.yellow_median_min,
@@ -195,7 +252,10 @@ class GeneralConfig:
             (all(0 <= getattr(self, n) <= 1 for n in (
                 'corr_threshold', 'min_template_score', 'min_template_ncc', 'override_area',
                 'max_corner_fill', 'min_diamond_fill', 'white_value', 'panel_fill', 'border_dark',
-                'max_panel_share', 'min_mile_confidence', 'crop_margin')),
+                'max_panel_share', 'min_mile_confidence', 'crop_margin', 'candidate_max_share',
+                'candidate_nms', 'cnn_threshold', 'cnn_red_margin', 'cnn_red_background',
+                'max_colour_below',
+                'detection_nms')),
              'shares, correlations and confidences must be in [0, 1]'),
         ]
         for ok, msg in checks:

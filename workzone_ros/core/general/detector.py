@@ -17,20 +17,46 @@ Pipeline per frame (docs/general_signs.md):
 5. white speed limit panels and green guide signs / mile markers (:mod:`.panels`), the
    mile number read where legible.
 
+That is ``verify='templates'``, the baseline.  With ``verify='cnn'`` (the default) steps 2-5
+only propose boxes, generously (:mod:`.candidates`: several saturation floors, pieces
+joined, red boxes grown, at most ``max_candidates`` per frame), and the CNN sign classifier
+(:mod:`workzone_ros.core.cnn_classifier`, one batch per frame) decides sign or background:
+a candidate is a sign when the probability of the general classes its colour can be
+reaches ``cnn_threshold``; its class is the CNN's, except that a red candidate on which
+the CNN hesitates between STOP, YIELD and DO NOT ENTER takes the red template's class.
+
 No ROS import (DESIGN.md, principle 1).
 """
 from __future__ import annotations
 
-from typing import Optional, Sequence
+import os
+from typing import Any, Optional, Sequence
 
+import cv2
 import numpy as np
 
-from workzone_ros.core.general import colour, panels, templates
-from workzone_ros.core.general.config import GeneralConfig, GeneralSign, GeneralSignError
+from workzone_ros.core.general import candidates, colour, panels, templates
+from workzone_ros.core.general.config import (
+    RED_TEMPLATES,
+    GeneralConfig,
+    GeneralSign,
+    GeneralSignError,
+)
 
-__all__ = ['GeneralSignDetector', 'check_image']
+__all__ = ['GeneralSignDetector', 'check_image', 'DEFAULT_CLASSIFIER', 'COLOUR_CLASSES']
 
 Box = tuple[int, int, int, int]
+#: The CNN model loaded when none is given (relative to ``config/``).
+DEFAULT_CLASSIFIER = 'models/sign_classifier_cnn.npz'
+#: The general classes a candidate of each colour may be (the CNN's other classes --
+#: work-zone signs, background -- count against it).  Fluorescent yellow-green warning
+#: sheeting can come out of the green mask.
+COLOUR_CLASSES = {'red': RED_TEMPLATES, 'yellow': ('warning_diamond',),
+                  'white': ('speed_limit',),
+                  'green': ('guide', 'mile_marker', 'warning_diamond')}
+_SHAPES = {'stop': 'octagon', 'yield': 'triangle', 'do_not_enter': 'square',
+           'warning_diamond': 'diamond', 'speed_limit': 'rectangle', 'guide': 'rectangle',
+           'mile_marker': 'rectangle'}
 
 
 def check_image(bgr) -> np.ndarray:
@@ -65,6 +91,36 @@ def _dedupe(signs: list[GeneralSign]) -> list[GeneralSign]:
     return out
 
 
+def _prefer_whole(signs: list[GeneralSign], within: float = 0.05) -> list[GeneralSign]:
+    """Drop a yellow, white or green sign that lies (80 % of its area) inside a larger one
+    of the same class the CNN is about as sure of (``within``): the larger is the whole face,
+    the smaller a piece of it (half a diamond cut by its arrow).  Red signs are left to the
+    probabilities (a grown red box holds the white rim)."""
+    out = []
+    for a in signs:
+        area = a.box[2] * a.box[3]
+        if a.colour != 'red' and any(
+                b is not a and b.class_key == a.class_key and b.box[2] * b.box[3] > area
+                and _overlap(a.box, b.box) >= 0.8 and b.score >= a.score - within
+                for b in signs):
+            continue
+        out.append(a)
+    return out
+
+
+def _plaque_above(hsv: np.ndarray, box: Box, cfg: GeneralConfig) -> bool:
+    """:func:`panels._plaque_above` on either half of the box's width: a WORK ZONE plaque
+    spans the panel, the edge of an orange-brown wall behind it does not."""
+    x, y, w, h = box
+    half = max(1, w // 2)
+    return all(panels._plaque_above(hsv, (x0, y, half, h), cfg) for x0 in (x, x + w - half))
+
+
+def _colour_of(key: str) -> str:
+    return {'warning_diamond': 'yellow', 'speed_limit': 'white', 'guide': 'green',
+            'mile_marker': 'green'}.get(key, 'red')
+
+
 def _overlap(a: Box, b: Box) -> float:
     """Intersection over the smaller box's area."""
     ix = max(0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
@@ -77,18 +133,54 @@ class GeneralSignDetector:
     markers in BGR frames.
 
     Args:
-        config: thresholds (:class:`GeneralConfig`).
+        config: thresholds (:class:`GeneralConfig`); ``config.verify`` chooses the CNN
+            verification (default) or the paper's template pipeline.
+        classifier: for ``verify='cnn'``: a loaded sign classifier (anything with
+            ``classes`` and ``classify_boxes(frame, boxes)`` returning predictions with
+            ``probabilities``, e.g. the classifier node's model, so it is not loaded
+            twice), or a model path; None loads ``config/models/sign_classifier_cnn.npz``
+            on the first frame.  The model's classes must include the general ones.
 
     Raises:
-        GeneralSignError: ``config`` is not a GeneralConfig.
+        GeneralSignError: ``config`` is not a GeneralConfig, or ``classifier`` lacks
+            ``classify_boxes`` or a general class.
     """
 
-    def __init__(self, config: GeneralConfig = GeneralConfig()) -> None:
+    def __init__(self, config: GeneralConfig = GeneralConfig(), classifier: Any = None
+                 ) -> None:
         if not isinstance(config, GeneralConfig):
             raise GeneralSignError(f'config must be a GeneralConfig, got '
                                    f'{type(config).__name__}')
         self.config = config
         templates.template_bank(config.template_px, tuple(config.scales))   # draw them now
+        self._classifier = None
+        self._classifier_path: Optional[str] = None
+        if isinstance(classifier, (str, os.PathLike)):
+            self._classifier_path = os.fspath(classifier)
+        elif classifier is not None:
+            self._classifier = self._checked(classifier)
+
+    @staticmethod
+    def _checked(model: Any) -> Any:
+        if not callable(getattr(model, 'classify_boxes', None)):
+            raise GeneralSignError(f'classifier must have classify_boxes(frame, boxes), got '
+                                   f'{type(model).__name__}')
+        missing = [k for v in COLOUR_CLASSES.values() for k in v
+                   if k not in tuple(getattr(model, 'classes', ()))]
+        if missing:
+            raise GeneralSignError(f'classifier lacks the general classes {sorted(set(missing))}'
+                                   ' (train it with the general signs: class_set all)')
+        return model
+
+    @property
+    def classifier(self) -> Any:
+        """The CNN (or other) sign classifier of ``verify='cnn'``, loaded on first use."""
+        if self._classifier is None:
+            from workzone_ros.core.classifier import load_model
+            from workzone_ros.resources import config_path
+            path = self._classifier_path or str(config_path(DEFAULT_CLASSIFIER))
+            self._classifier = self._checked(load_model(path))
+        return self._classifier
 
     # ---------------------------------------------------------------- public
     def detect(self, bgr: np.ndarray, rois: Optional[Sequence[Box]] = None
@@ -110,6 +202,8 @@ class GeneralSignDetector:
         roi_list = None if rois is None else _check_rois(rois, img.shape)
         cfg = self.config
         work = colour.working_image(img, cfg)
+        if cfg.verify == 'cnn':
+            return self._detect_cnn(img, work, roi_list)
         s = work.scale
         red = _dedupe([g for b in self._blobs(colour.red_mask, work, roi_list, 'red')
                        if (g := self._red_sign(img, work, b)) is not None])
@@ -127,6 +221,111 @@ class GeneralSignDetector:
                                    'white' if p.class_key == 'speed_limit' else 'green',
                                    'rectangle', mile=mile, mile_confidence=conf))
         return sorted(out, key=lambda g: (g.box[0], g.box[1]))
+
+    # ---------------------------------------------------------------- CNN verification
+    def _detect_cnn(self, img: np.ndarray, work: colour.Working, rois: Optional[list]
+                    ) -> list[GeneralSign]:
+        """Candidates (:mod:`.candidates`), one CNN batch, accepted by the probability of
+        the general classes of their colour (or, red ones, by the paper's template test
+        when the CNN's background probability is low); overlapping acceptances: the
+        likelier; a small red sign on a warning sign is its symbol (the paper's rule)."""
+        cfg = self.config
+        s = work.scale
+        cands = candidates.propose(work, cfg, rois)
+        if not cands:
+            return []
+        boxes = [self._full(c.box, s) for c in cands]
+        preds = self.classifier.classify_boxes(img, boxes)
+        found = []
+        for c, box, p in zip(cands, boxes, preds):
+            if p is None or not self._colour_ok(work, c):
+                continue
+            allowed = COLOUR_CLASSES[c.colour]
+            prob = {k: float(p.probabilities.get(k, 0.0)) for k in allowed}
+            total = sum(prob.values())
+            background = float(p.probabilities.get('background', 0.0))
+            if total < cfg.cnn_threshold and (
+                    c.colour != 'red' or background > cfg.cnn_red_background):
+                continue
+            key = max(allowed, key=prob.__getitem__)
+            tscore = tncc = 0.0
+            tkey = ''
+            if c.colour == 'red' and (total < cfg.cnn_threshold
+                                      or prob[key] < cfg.cnn_red_margin * total):
+                # the CNN is unsure (sign, or which red sign): the paper's templates
+                m = self._red_template(img, work, c.box)
+                tkey, tscore, tncc = m.key, round(m.score, 3), round(m.ncc, 3)
+                template_ok = tncc >= cfg.min_template_ncc and tscore >= cfg.min_template_score
+                if total < cfg.cnn_threshold:
+                    if not template_ok:
+                        continue               # neither the CNN nor the template
+                    key, total = tkey, max(total, 1.0 - background)
+                elif template_ok:
+                    key = tkey                 # the CNN hesitates, the template does not
+            found.append(GeneralSign(box, key, round(min(1.0, total), 3), _colour_of(key),
+                                     _SHAPES[key], tkey, tscore, template_ncc=tncc))
+        found = candidates.nms(_prefer_whole(found), cfg.detection_nms)
+        found = self._override([g for g in found if g.colour == 'red'],
+                               [g for g in found if g.colour != 'red'])
+        out = []
+        for g in found:
+            if g.class_key == 'mile_marker':
+                mile, conf = panels.read_mile(img, g.box, cfg)
+                g = GeneralSign(g.box, g.class_key, g.score, g.colour, g.shape,
+                                mile=mile, mile_confidence=conf)
+            out.append(g)
+        return sorted(out, key=lambda g: (g.box[0], g.box[1]))
+
+    def _colour_ok(self, work: colour.Working, c: candidates.Candidate) -> bool:
+        """The colour checks of the template pipeline, on the candidate's box: red and
+        yellow by the median hue of its saturated pixels (work-zone orange lies between),
+        a white panel without an orange WORK ZONE plaque on top (a work-zone limit); and
+        some contrast in the box (a face has a legend or a border: the CNN standardises
+        every crop, so a uniform reddish asphalt patch's noise can look like a STOP)."""
+        cfg = self.config
+        x, y, w, h = c.box
+        if float(work.hsv[y:y + h, x:x + w, 2].std()) < cfg.min_contrast:
+            return False                       # a uniform patch: no legend, no border
+        if c.colour == 'white':
+            return not _plaque_above(work.hsv, c.box, cfg)
+        if c.colour not in ('red', 'yellow'):
+            return True
+        hsv = work.hsv[y:y + h, x:x + w]
+        make = colour.red_mask if c.colour == 'red' else colour.yellow_mask
+        sel = make(hsv, cfg, cfg.min_saturation) > 0
+        if not sel.any():
+            return False
+        hue = hsv[..., 0][sel].astype(np.int16)
+        med = float(np.median(np.where(hue >= 90, hue - 180, hue)))
+        if c.colour == 'red' and not -cfg.red_median_max - 1.0 <= med <= cfg.red_median_max:
+            return False
+        if c.colour == 'yellow' and med < cfg.yellow_median_min:
+            return False
+        # a face ends at its bottom edge (a post, background below); the same sheeting
+        # going on below is a drum, a truck, lettering on a van
+        band = work.hsv[y + h:y + h + max(2, int(round(0.35 * h))), x:x + w]
+        if band.size:
+            floor = int(max(cfg.min_saturation, 0.7 * float(np.median(hsv[..., 1][sel]))))
+            below = np.count_nonzero(make(band, cfg, floor)) / float(band.shape[0] * band.shape[1])
+            if below > cfg.max_colour_below:
+                return False
+        return True
+
+    def _red_template(self, img: np.ndarray, work: colour.Working, box: Box
+                      ) -> templates.Match:
+        """The red templates matched on a candidate box (working px): its red pixels,
+        outlines filled, are the region kept."""
+        cfg = self.config
+        x, y, w, h = box
+        red = colour.red_mask(work.hsv[y:y + h, x:x + w], cfg, cfg.min_saturation)
+        contours, _ = cv2.findContours(red, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        region = np.zeros((h, w), np.uint8)
+        cv2.drawContours(region, contours, -1, 1, -1)
+        if not region.any():
+            region[:] = 1
+        crop = templates.prepare_crop(img, tuple(v * work.scale for v in box), region,
+                                      work.gains, cfg)
+        return templates.match_templates(crop, cfg)
 
     # ---------------------------------------------------------------- stages
     @staticmethod

@@ -32,3 +32,10 @@ def test_write_contact_sheet(tmp_path):
     assert cv2.imread(str(out)).shape == (40, 60, 3)
     assert not write_contact_sheet([], tmp_path / 'none.png')
     assert not (tmp_path / 'none.png').exists()
+
+
+def test_seed_lists_take_ranges_and_single_seeds():
+    from workzone_ros.tools.outputs import seed_list
+    assert seed_list('300-303') == [300, 301, 302, 303]
+    assert seed_list('1,2,5') == [1, 2, 5]
+    assert seed_list('7,10-11') == [7, 10, 11]

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core import digits
-from workzone_ros.tools.outputs import tile_grid
+from workzone_ros.tools.outputs import seed_list, tile_grid
 
 __all__ = ['main', 'Sample', 'make_specs', 'samples', 'export_samples', 'summarise',
            'contact_sheet', 'BINS']
@@ -72,15 +72,6 @@ class Sample:
         if self.value is None:
             return 'unread'
         return 'correct' if self.value == self.truth else 'wrong'
-
-
-def _seed_list(text: str) -> list[int]:
-    """'1000-1039' or '1,2,5' -> seeds."""
-    out: list[int] = []
-    for part in text.split(','):
-        lo, _, hi = part.partition('-')
-        out += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
-    return out
 
 
 def make_specs(seeds: Sequence[int], scenario: str = 'random') -> list:
@@ -332,7 +323,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument('--sheet', help='contact sheet PNG of the reads')
     args = p.parse_args(argv)
     cv2.setNumThreads(1)
-    specs = make_specs(_seed_list(args.seeds), args.scenario)
+    specs = make_specs(seed_list(args.seeds), args.scenario)
     digits.warm_up()                         # train outside the timing
     if args.export:
         items = list(export_samples(specs, args.export))

@@ -56,6 +56,7 @@ import numpy as np
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.core.general import GENERAL_CLASSES, GeneralConfig, GeneralSignDetector
+from workzone_ros.tools.outputs import seed_list
 
 __all__ = ['main', 'make_specs', 'Table', 'iou', 'REAL_TARGETS']
 
@@ -70,15 +71,6 @@ _PLACED = ('stop', 'yield', 'do_not_enter', 'warning_diamond', 'speed_limit', 'g
            'mile_marker', 'stop', 'warning_diamond', 'speed_limit')
 _COLOURS = {'red': (40, 40, 230), 'yellow': (0, 220, 255), 'white': (255, 255, 255),
             'green': (60, 200, 60)}
-
-
-def _seed_list(text: str) -> list[int]:
-    """'300-319' or '1,2,5' -> seeds."""
-    out: list[int] = []
-    for part in text.split(','):
-        lo, _, hi = part.partition('-')
-        out += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
-    return out
 
 
 def make_specs(seeds: Sequence[int]) -> list:
@@ -361,7 +353,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         det.classifier                          # load it before the timed frames
     tiles: Optional[list] = [] if args.sheet else None
     if not args.no_renders:
-        report['renders'] = evaluate_renders(make_specs(_seed_list(args.seeds)), det, args,
+        report['renders'] = evaluate_renders(make_specs(seed_list(args.seeds)), det, args,
                                              tiles)
     if args.real:
         real_tiles: Optional[list] = [] if args.sheet else None

@@ -1,4 +1,4 @@
-"""Output helpers shared by the evaluation and training tools: JSON and contact sheets."""
+"""Helpers shared by the evaluation and training tools: JSON, contact sheets, seed lists."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,7 +7,7 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
-__all__ = ['json_default', 'tile_grid', 'write_contact_sheet']
+__all__ = ['json_default', 'tile_grid', 'write_contact_sheet', 'seed_list']
 
 
 def json_default(o):
@@ -66,3 +66,12 @@ def write_contact_sheet(tiles: Sequence[np.ndarray], path: str | Path, cols: int
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(path), sheet)
     return True
+
+
+def seed_list(text: str) -> list[int]:
+    """A command line's seeds: ``'300-319'`` or ``'1,2,5'`` (or both, comma-separated)."""
+    out: list[int] = []
+    for part in text.split(','):
+        lo, _, hi = part.partition('-')
+        out += list(range(int(lo), int(hi) + 1)) if hi else [int(lo)]
+    return out

@@ -31,10 +31,7 @@ RANGES = {
     'diamond_box_bias': (-1.0, 2.0, False, False),
     'diamond_square_px': (0.0, None, False, False),
     'diamond_square_max': (0.0, None, False, False),
-    'white_part_level': (0.0, None, False, False),
     'white_own_rel': (0.0, 1.0, False, True),
-    'cut_blend_rows': (0, 3, False, False),
-    'tip_min_cut': (0.0, 1.0, False, True),
     'refined_clamp': (0.0, 2.0, False, False),
     'hold_sat': (0.0, 1.5, False, False),
     'blur_fit_ratio': (0.5, 2.0, False, False),
@@ -42,18 +39,12 @@ RANGES = {
     'blur_fit_bias': (-3.0, 3.0, False, False),
     'rim_chroma': (0.0, 1.0, False, False),
     'search_min_contrast': (0.0, 1.0, True, True),
-    'search_min_px': (0.0, None, False, False),
-    'search_min_share': (0.0, 1.5, False, False),
     'shift_min_px': (0.0, None, False, False),
     'diamond_hold': (0.0, 1.0, True, False),
     'v_hysteresis': (0.0, 1.0, False, False),
     'grow_level': (0.0, 1.0, False, False),
     'grow_reach': (0.0, None, False, False),
     'grow_min_px': (0.0, None, False, False),
-    'peel_max': (0, None, False, False),
-    'peel_gap': (0.0, None, False, False),
-    'peel_clamp': (0.0, None, False, False),
-    'merge_max': (0, None, False, False),
     'thin_min_radius_px': (0.0, None, False, False),
     'ext_band_long': (0.0, None, True, False),
     'clip_grow': (0.0, None, False, False),
@@ -61,10 +52,8 @@ RANGES = {
     'rect_clip_bias': (0.0, None, False, False),
     'ext_overlong': (0.0, None, False, False),
     'ext_ratio_tol': (0.0, None, False, False),
-    'rect_lean_min': (0.0, 0.5, False, False),
-    'rect_lean_agree': (0.0, 0.5, False, False),
 }
-INTEGER = {'diamond_stroke_steps', 'cut_blend_rows'}
+INTEGER = {'diamond_stroke_steps'}
 FIELDS = {f.name: f for f in dataclasses.fields(DetectorConfig)}
 
 
@@ -180,12 +169,10 @@ def test_the_hand_written_checks_remain():
                       ({'diamond_grown_starts': (1.2, 3.5)}, 'diamond_grown_starts'),
                       ({'rect_dim_bias': (0.3, 170.0, 80.0)}, 'rect_dim_bias'),
                       ({'diamond_bright_bias': (2.5, 0.47, 0.95)}, 'diamond_bright_bias'),
-                      ({'peel_levels': (0.8, 1.0)}, 'peel_levels'),
                       ({'rect_inward': (0.0,)}, 'rect_inward')):
         with pytest.raises(ValueError, match=name):
             DetectorConfig(**bad)
-    assert DetectorConfig(rect_inward=(), diamond_grown_starts=(), peel_levels=()).peel_levels \
-        == ()
+    assert DetectorConfig(rect_inward=(), diamond_grown_starts=()).rect_inward == ()
 
 
 @dataclasses.dataclass(frozen=True)

@@ -118,9 +118,6 @@ def test_live_parameter_change_rebuilds_detector(ros, model_path):
     assert node.set_parameters([Parameter('method', value='hsv')])[0].successful
     assert node._detector.config.method == 'hsv'
     assert not node.set_parameters([Parameter('method', value='cnn')])[0].successful
-    assert node._detector.config.diamond_search
-    assert node.set_parameters([Parameter('diamond_search', value=False)])[0].successful
-    assert not node._detector.config.diamond_search
     assert node._detector.config.blur_fit
     assert node.set_parameters([Parameter('blur_fit', value=False)])[0].successful
     assert not node._detector.config.blur_fit

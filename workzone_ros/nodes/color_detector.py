@@ -49,9 +49,8 @@ _CORE = ('method', 'colors', 'threshold', 'scale', 'use_prior', 'open_px', 'clos
          'ext_min_aspect', 'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence',
          'lidar_only', 'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry',
          'roi_relax', 'lidar_only_threshold', 'camera_match', 'foreign_prior',
-         'diamond_refine', 'rect_refine', 'pixel_boxes', 'peel', 'merge_fragments',
-         'diamond_search', 'blur_fit', 'outline_evidence', 'rect_needs_edges', 'v_hysteresis',
-         'grow_level')
+         'diamond_refine', 'rect_refine', 'pixel_boxes', 'blur_fit', 'outline_evidence',
+         'rect_needs_edges', 'v_hysteresis', 'grow_level')
 _CORE_PARAMS = params_from_dataclass(DetectorConfig, only=_CORE)
 
 

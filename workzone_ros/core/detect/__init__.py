@@ -6,9 +6,9 @@
 :mod:`.measure` (the sign measurement), :mod:`.filters` (false-positive filters),
 :mod:`.warning` with :mod:`.diamond`, :mod:`.diamond_search` and :mod:`.edges` (the diamond
 fit), :mod:`.rectangle` (the rectangle fit), :mod:`.plaque` (the two-colour extension),
-:mod:`.recovery` (peel, grow, merge), :mod:`.lidar` (LiDAR fusion) and :mod:`.baselines`
-(RGB-LP with MSER).  The row and band
-profiles the detector shares with the tracker are in :mod:`workzone_ros.core.profiles`.
+:mod:`.recovery` (growth of a blob paler in part), :mod:`.lidar` (LiDAR fusion) and
+:mod:`.baselines` (RGB-LP with MSER).  The row and band profiles the detector shares with
+the tracker are in :mod:`workzone_ros.core.profiles`.
 
 Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A):
 
@@ -67,14 +67,7 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    facing the road: ``diamond_tall_max``, ``diamond_wide_max``), and refined boxes are given
    in whole pixels,
    the pixels the measured outline covers more than half, as box labels are drawn
-   (``pixel_boxes``).  A blob that passes no test is judged again at higher likelihood
-   levels (``peel``): a sign merged with a surface of nearly its colour, an orange dusk
-   sky or a brick wall, is where the likelihood is clearly higher; two blobs that are the
-   pieces of one diamond cut by its symbol are measured as one (``merge_fragments``).  When
-   no start from the mask refines (a sign merged with an orange dusk sky: the mask's diamond
-   is the union's, and an about square union's hull is a rectangle's), the face diamond is
-   searched in the brightness itself (``diamond_search``, :func:`diamond_starts`).  The
-   confidence
+   (``pixel_boxes``).  The confidence
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.

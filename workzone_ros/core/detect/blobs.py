@@ -23,11 +23,8 @@ class BlobMixin:
 
     def _blobs(self, mask: np.ndarray, bgr: np.ndarray, color: str, off: tuple[int, int],
                s: int, thr_base: np.ndarray, lboxes: list,
-               prob: Optional[np.ndarray] = None, peel_t: Optional[float] = None,
                grow: Optional[tuple] = None) -> list[Candidate]:
-        """Candidates from the blobs of a mask-resolution ``mask``.  ``prob``: the raw
-        likelihood behind it (blobs that pass no test are peeled, :meth:`_peel`);
-        ``peel_t``: the blobs are cores peeled at this likelihood level; ``grow``: the
+        """Candidates from the blobs of a mask-resolution ``mask``.  ``grow``: the
         smoothed likelihood, the thresholds and the pass's limit mask (or None) that a blob
         passing no test is grown with (:meth:`_grown`)."""
         cfg = self.config
@@ -45,9 +42,8 @@ class BlobMixin:
                 mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE,
                                         np.ones((cfg.close_px, cfg.close_px), np.uint8))
         n, labels, stats, _ = _components(mask)
-        out, failed = [], []
+        out = []
         min_area_small = cfg.min_area_px / (s * s)
-        parts = {}                   # component -> its candidate (None: it passed no test)
         for i in range(1, n):
             x, y, w, h, area = (int(v) for v in stats[i])
             if area < min_area_small:
@@ -62,50 +58,28 @@ class BlobMixin:
                 continue
             comp = (labels[y:y + h, x:x + w] == i).astype(np.uint8)
             c = self._measure(bgr, comp, (fx, fy, fw, fh), color, s, thr_base, lboxes,
-                              area / float(w * h), peel_t)
+                              area / float(w * h))
             if thin and (c is None or not c.extended):
                 continue            # kept only with its white part below it
             if c is None and grow is not None:
                 c = self._grown(i, labels, mask, grow, stats, bgr, off, s, thr_base, lboxes)
-            parts[i] = c
             if c is not None:
                 out.append(c)
-            elif (prob is not None and color == 'orange' and cfg.peel
-                  and area >= 4 * min_area_small):
-                failed.append((area, i, comp, x, y, w, h))
-        if (color == 'orange' and cfg.merge_fragments and cfg.method == 'learned'
-                and peel_t is None and len(parts) > 1):
-            out, merged = self._merge_fragments(parts, out, labels, stats, bgr, off, s,
-                                                thr_base, lboxes)
-            failed = [f for f in failed if f[1] not in merged]     # no peel of a piece
-        # the largest failed blobs are peeled, at most ``peel_max`` per frame (a scene full
-        # of warm surfaces would otherwise cost a pass per blob)
-        for _, _, comp, x, y, w, h in sorted(failed, key=lambda f: f[:2], reverse=True):
-            if self._peels_left <= 0:
-                break
-            self._peels_left -= 1
-            out += self._peel(comp, prob[y:y + h, x:x + w], (x + off[0], y + off[1]),
-                              bgr, s, thr_base, lboxes)
         return out
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
-                 thr_base: np.ndarray, lboxes: list, blob_fill: float = 1.0,
-                 peel_t: Optional[float] = None, whole: bool = False
+                 thr_base: np.ndarray, lboxes: list, blob_fill: float = 1.0
                  ) -> Optional[Candidate]:
-        """Refine a blob at full resolution, measure its shape, score and filter it.
-        ``whole``: the blob's face is all its pieces (fragments of one sign), not the
-        largest."""
+        """Refine a blob at full resolution, measure its shape, score and filter it."""
         cfg = self.config
         if cfg.method == 'learned' and color == 'orange':
             # judged on colour alone first (LiDAR support never changes a box the colour
             # evidence already makes); only a blob that fails is re-judged with relaxed
             # filters inside its ROI, and must then lie mostly inside that ROI
-            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, peel_t=peel_t,
-                                     whole=whole)
+            c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes)
             roi = self._in_roi(box, s, lboxes) if c is None else None
             if roi is not None:
-                c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True,
-                                         peel_t=peel_t, whole=whole)
+                c = self._measure_orange(bgr, comp, box, s, thr_base, lboxes, relaxed=True)
                 if c is not None and _contained((c.x, c.y, c.w, c.h), roi) < cfg.roi_contain:
                     c = None
             return c

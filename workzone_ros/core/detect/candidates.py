@@ -29,8 +29,6 @@ class Candidate:
     extended: bool = False
     refined: bool = False
     chroma_fit: bool = False
-    white_span: Optional[tuple[float, float]] = None
-    white_level: float = 0.0        # the white part's brightness / the orange's (extended)
     sources: list[str] = field(default_factory=lambda: ['color'])
     roi_id: Optional[int] = None
 

@@ -95,8 +95,6 @@ class DetectorConfig:
                               0.0, 0.3, check=False)
     diamond_trim: float = knob(0.0, "rows beyond a fitted diamond's corners by more than ``0.5 + "
                                'diamond_trim x b`` px are dropped (negative: off)')
-    neck_trim: bool = knob(True, "also drop the rows above a neck between a stand's flags and "
-                           "the diamond's top corner")
     diamond_scale: float = knob(1.07, "a warning box from the mask's diamond: its half-diagonals "
                                 'times this (0: the hull box)')
     diamond_clamp: float = knob(0.12, 'a warning box reaches at most this x the half-diagonal '
@@ -107,16 +105,6 @@ class DetectorConfig:
     cut_min_width: float = knob(0.5, "an occluder's straight cut across the face's lower part: "
                                 "its row at least this share of the diamond's width (0: off)",
                                 0.0, 1.0, note='0: off')
-    tip_check: bool = knob(True, "the box ends at an occluder that reaches past the sign's "
-                           'bottom corner')
-    tip_colour: bool = knob(True, 'an occluder of two tones reaches past the bottom when nothing '
-                            "below it has the sign's colour")
-    tip_min_cut: float = knob(0.1, 'the tip checks (tip_check, tip_colour) need the occluder to '
-                              'hide at least this share of the half-height',
-                              0.0, 1.0, open_hi=True, note='a share of the half-height')
-    cut_blend_rows: int = knob(1, 'the occluder may begin this many rows after the cut (a '
-                               'blended row), 0..3',
-                               0, 3, integer=True, note='rows')
     diamond_square_px: float = knob(2.5, 'a refined outline whose width and height differ by at '
                                     'most this (px) is taken as square',
                                     min=0.0, note='box px')
@@ -126,8 +114,6 @@ class DetectorConfig:
                                      min=0.0, note='box px; 0: off')
     diamond_grown_starts: tuple = knob((1.2, 1.4), "extra refinement starts: the hull's box "
                                        'grown by each of these factors')
-    diamond_ring_test: bool = knob(True, "scale the mask's diamond only when the ring outside it "
-                                   'is darker than the ring inside')
     diamond_refine: bool = knob(True, "warning boxes from the face's edges measured on the "
                                 'brightness at sub-pixel precision (off: from the orange mask)')
     diamond_face_ratio: float = knob(1.1266, "the catalogue's sign / face half-diagonal ratio")
@@ -169,19 +155,11 @@ class DetectorConfig:
     hold_sat: float = knob(0.85, 'orange left outside the outline is a blended background unless '
                            "this share of the face's saturation (0: off)",
                            0.0, 1.5, note='a share of the face saturation; 0: off')
-    diamond_search: bool = knob(True, 'when no start from the mask refines, the face diamond is '
-                                'searched in the brightness (a sign merged with an orange dusk '
-                                'sky)')
     shift_min_px: float = knob(40.0, "refine the mask's starts moved by 2.25 px when nothing "
                                'measures a blob this large (shorter side px; 0: off)',
                                min=0.0, note='px; 0: off')
-    search_min_px: float = knob(12.0, 'smallest blob (shorter side, px) the search looks at',
-                                min=0.0, note='px')
-    search_min_share: float = knob(0.6, "a searched sign is at least this share of the blob's "
-                                   'shorter side',
-                                   0.0, 1.5, note="a share of the blob's shorter side")
-    search_min_contrast: float = knob(0.5, "a searched (or grown-start) face's edges show at "
-                                      'least this contrast, a share of the face',
+    search_min_contrast: float = knob(0.5, "a grown-start face's edges show at least this "
+                                      'contrast, a share of the face',
                                       0.0, 1.0, open_lo=True, open_hi=True, note='a share of the '
                                       'face')
     blur_fit: bool = knob(True, 'when nothing refines (a faded or blurred sign, no border line '
@@ -208,21 +186,11 @@ class DetectorConfig:
                                 'every side')
     rect_max_change: float = knob(0.3, "the measured face's width may differ from the hull's by "
                                   'this share')
-    rect_white_span: bool = knob(True, "fit again on a two-colour sign's white part's columns "
-                                 "when the orange part's fit fails or disagrees")
-    rect_inward: tuple = knob((1.5, 3.0), "when both starts fail, a lost side's stretches are "
+    rect_inward: tuple = knob((1.5, 3.0), "when the fit fails, a lost side's stretches are "
                               'moved in by each of these (px; empty: off)')
     rect_clip_bias: float = knob(0.3, 'sides and top move in by this x the share of clipped '
                                  'pixels, px (0: off)',
                                  min=0.0, note='px; 0: off')
-    rect_lean: bool = knob(True, "widen a two-colour sign's box to its face turned on a leaning "
-                           'post')
-    rect_lean_min: float = knob(0.025, 'smallest mean slope (dx / dy) taken as a lean',
-                                0.0, 0.5, note='a slope, dx / dy')
-    rect_lean_agree: float = knob(0.05, "largest difference of the two sides' slopes",
-                                  0.0, 0.5, note='a slope, dx / dy')
-    white_ends: bool = knob(True, "widen a two-colour sign to its white part's ends beyond the "
-                            'measured sides')
     rect_border_rel: float = knob(0.03, "a rectangle's border line width, a share of its shorter "
                                   'side')
     rect_margin_rel: float = knob(0.015, "a rectangle's outer margin width, a share of its "
@@ -230,21 +198,6 @@ class DetectorConfig:
     pixel_boxes: bool = knob(True, 'refined boxes in whole pixels: the pixels the measured '
                              'outline covers more than half, as box labels are drawn (off: '
                              'sub-pixel)')
-    peel: bool = knob(True, 'a blob that passes no test is judged again at higher likelihood '
-                      'levels (a sign merged with an orange dusk sky or a brick wall)')
-    peel_gap: float = knob(0.08, "peel levels at least this above the blob's median likelihood",
-                           min=0.0, note='likelihood')
-    peel_levels: tuple = knob((0.8, 0.9), "peel likelihood levels after Otsu's")
-    peel_clamp: float = knob(0.3, 'a peeled warning box may reach this x the half-diagonal '
-                             'beyond the core',
-                             min=0.0, note='half-diagonals')
-    peel_max: int = knob(2, 'at most this many blobs peeled per frame',
-                         min=0, note='blobs per frame')
-    merge_fragments: bool = knob(True, 'two blobs that are the pieces of one diamond (a symbol '
-                                 'cuts the face from edge to edge) are measured as one')
-    merge_max: int = knob(6, 'merge_fragments looks at this many largest blobs',
-                          min=0, note='blobs')
-    merge_triples: bool = knob(True, 'merge_fragments also measures three blobs as one')
     ext_ratio_tol: float = knob(0.12, "a two-colour sign's height / width within this share of a "
                                 'catalogue one',
                                 min=0.0, note='0: the first dark row ends the sign')
@@ -255,8 +208,6 @@ class DetectorConfig:
                                       '(ext_overlong) also ends after a dark band at least this '
                                       'share of the width (0: off)',
                                       0.0, 1.0, note='a share of the width; 0: off')
-    ext_rechoose: bool = knob(True, "choose the white part's end again with the measured top and "
-                              'width')
     ext_band_long: float = knob(0.5, 'a dark band this many orange heights long also ends the '
                                 'white part at its first row',
                                 min=0.0, open_lo=True, note='orange heights')
@@ -272,11 +223,6 @@ class DetectorConfig:
                                   '(faded, rain-washed), or an unclear face below the usual '
                                   'mounting (behind a guardrail), is kept when its diamond edges '
                                   'are measured')
-    white_part_evidence: bool = knob(True, 'a plaque without a legend is kept when the extension '
-                                     'finds its white part')
-    white_part_level: float = knob(1.1, 'white_part_evidence needs the white part at least this '
-                                   'x as bright as the orange',
-                                   min=0.0, note='white / orange brightness')
     band_test: bool = knob(True, 'reject blobs that white bands separate from more orange '
                            '(cones, drums; not in LiDAR ROIs)')
     band_min_px: float = knob(6.0, 'smallest blob height for the band test, px')
@@ -317,8 +263,6 @@ class DetectorConfig:
     ext_gap_w: float = knob(0.6, 'black legend rows may interrupt the white part for this share '
                             'of the width')
     ext_gap_s: int = knob(60, 'legend rows: median saturation at most this (0-255)')
-    ext_gap_cols: bool = knob(True, "judge coloured-looking gap rows again on the white part's "
-                              'own columns')
     ext_frame: bool = knob(True, 'end a white part that runs to the reach at its black bottom '
                            'border')
     ext_border_share: float = knob(0.9, 'a border row is dark across at least this share of the '
@@ -371,7 +315,5 @@ class DetectorConfig:
             if len(t) != 3 or not (0.0 <= t[0] <= 2.0 and 0.0 <= t[1] < t[2]):
                 raise ValueError(f'{name} must be (px, x0, x1) with px in [0, 2] and '
                                  f'0 <= x0 < x1 ({unit}), got {t!r}')
-        if not all(0.0 < float(v) < 1.0 for v in self.peel_levels):
-            raise ValueError('peel_levels must be likelihoods in (0, 1)')
         if any(not v > 0 for v in self.rect_inward):
             raise ValueError(f'rect_inward must be px > 0 (empty: off), got {self.rect_inward}')

@@ -2,7 +2,7 @@
 
 :class:`ColorDetector` holds the model, the configuration and the per-frame state (the
 frame's colour-balance gains and saturation table, the mounting-height reference row, the
-peels left, the faces measured on sharp edges) and runs a frame through the stages, one
+faces measured on sharp edges) and runs a frame through the stages, one
 mixin per module, in this order: the colour mask (:class:`~.mask.MaskMixin`), its blobs
 (:class:`~.blobs.BlobMixin`) and their recovery (:class:`~.recovery.RecoveryMixin`), the
 sign measurement (:class:`~.measure.MeasureMixin`) with its filters
@@ -86,7 +86,6 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         self._geometry = ((float(g[0]), float(g[1]), float(g[2] if len(g) >= 3 else g[1]))
                           if g is not None and len(g) >= 2 else None)
         self._ref_row: Optional[float] = None             # this frame's reference row
-        self._peels_left = 0                               # peels this frame may still do
         # half-diagonals (a, b) of this frame's faces measured on sharp edges: their box
         # takes ``diamond_box_bias`` (a face keeps them when moved to its blob's window)
         self._sharp_faces: set[tuple[float, float]] = set()
@@ -182,7 +181,6 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         cfg = self.config
         self.channelizers = set()   # blobs rejected as banded drums / cones this frame
         self._ref_row = None
-        self._peels_left = cfg.peel_max
         self._sharp_faces = set()
         if self._geometry is not None and cfg.use_geometry and own:
             # the training camera's horizon row; on another camera the row is unknown

@@ -25,7 +25,7 @@ from workzone_ros.core.detect.edges import (
 from workzone_ros.core.kernels import NO_PIXEL, diamond_tent, rhombus_fit, tip_pixel
 
 __all__ = [
-    'fit_diamond', 'fit_diamond_2d', 'diamond_rings', 'diamond_pixel_box', 'fit_rhombus',
+    'fit_diamond', 'fit_diamond_2d', 'diamond_pixel_box', 'fit_rhombus',
     'START_SHIFT_PX', 'refine_shifted', 'frame_edges', 'start_shrink', 'refine_diamond',
 ]
 
@@ -80,20 +80,6 @@ def fit_diamond_2d(mask: np.ndarray, min_rows: int = 5, rows: Optional[tuple] = 
     if fr is None or fc is None:
         return None
     return fr[0], fc[0], fr[2], fc[2], min(fr[4], fc[4])
-
-
-def diamond_rings(shape: tuple, fit: tuple, width: float
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Boolean (inner, outer) rings of ``width`` px either side of a fitted diamond's edge.
-
-    The signed normal distance of a pixel centre from the edge of ``fit``'s diamond
-    ``(cx, cy, a, b)`` is ``(|x - cx| / a + |y - cy| / b - 1) a b / sqrt(a^2 + b^2)``.
-    """
-    cx, cy, a, b = (float(v) for v in fit[:4])
-    ys, xs = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
-    n = (np.abs(xs + 0.5 - cx) / a + np.abs(ys + 0.5 - cy) / b - 1.0) * (
-        a * b / math.hypot(a, b))
-    return (n < 0) & (n >= -width), (n >= 0) & (n < width)
 
 
 #: sub-pixel sample offsets for the coverage of a pixel (8 x 8 samples)

@@ -1,128 +1,23 @@
 """A warning sign's diamond where its mask gives no start.
 
-:func:`diamond_starts` searches the brightness for a face with a dark line round it (box sums
-over a copy turned by 45 degrees, where the diamond is a square); :func:`fit_blurred_diamond`
-fits a blurred diamond to the chroma R - B of a faded or blurred sign that shows no line;
-:func:`diamond_holds` checks that a fitted outline holds the blob's orange.
+:func:`fit_blurred_diamond` fits a blurred diamond to the chroma R - B of a faded or blurred
+sign that shows no line; :func:`diamond_holds` checks that a fitted outline holds the blob's
+orange.
 """
 from __future__ import annotations
 
 import math
 from typing import Optional, Sequence
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import ndtr
 
-__all__ = ['diamond_starts', 'diamond_holds', 'fit_blurred_diamond']
+__all__ = ['diamond_holds', 'fit_blurred_diamond']
 
 
-_SQRT_HALF = math.sqrt(0.5)
 #: :func:`fit_blurred_diamond` fits within this many half-diagonals of the start's centre
 FIT_REACH = 3.0
-#: :func:`diamond_starts` tries every centre for small diamonds, and for a half-side of
-#: ``s`` turned pixels every ``s x START_STRIDE``-th (a start only needs to be near: the
-#: refinement moves it; big merged blobs cost seconds otherwise)
-START_STRIDE = 1.0 / 12.0
-
-
-def diamond_starts(value: np.ndarray, box: Sequence[float], min_a: float, max_a: float,
-                   count: int = 3, inner_frac: float = 0.2, line_rel: float = 0.07,
-                   step: float = 1.08, min_contrast: float = 0.05
-                   ) -> list[tuple[float, float, float, float, float]]:
-    """Where in ``value`` a face diamond with a dark line around it could be: a coarse search.
-
-    A start for :func:`refine_diamond` when the mask gives none (a sign merged with a surface
-    of about its colour, an orange dusk sky behind it: the mask's diamond is the union's).
-    In coordinates turned by 45 deg an upright diamond with equal half-diagonals is a square,
-    so box sums over a turned copy of ``value`` (one integral image) score every centre in
-    ``box = (x, y, w, h)`` and every half-diagonal from ``min_a`` to ``max_a`` (steps of
-    ``step``) at once: per side, the face's band ``inner_frac`` of the half-side wide just
-    inside against the line's band (``line_rel`` of the half-diagonal, a pixel at least)
-    just outside, on the middle 70 % of the side; the score is the smallest of the four
-    relative contrasts ``(inside - outside) / inside`` (every edge must show the face-to-line
-    step; a merged surface shows none on its side).  Returns up to ``count`` diamonds
-    ``(cx, cy, a, a, score)`` (continuous coordinates), best first, at least
-    ``min_contrast``, none within about a third of its size of a better one."""
-    img = np.ascontiguousarray(value, dtype=np.float32)
-    H, W = img.shape[:2]
-    c = _SQRT_HALF
-    side = int(math.ceil((W + H) * c)) + 3
-    voff = H * c + 1.0
-    # turned[v, u] = value at x = (u + v - voff) c, y = (u - v + voff) c (pixel centres);
-    # outside the window -1 (counted out of every band)
-    mat = np.array([[c, c, -c * voff], [c, -c, c * voff]], np.float32)
-    turned = cv2.warpAffine(img, mat, (side, side), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)
-    inside = turned >= 0
-    sums = cv2.integral(np.where(inside, turned, 0.0).astype(np.float64))
-    counts = cv2.integral(inside.astype(np.uint8))
-    # candidate centres: corners of the turned grid (a square's sides on pixel boundaries)
-    # whose continuous (x, y) lies in the box
-    x, y, w, h = (float(v) for v in box[:4])
-    corners = np.array([(x, y), (x + w, y), (x, y + h), (x + w, y + h)]) - 0.5
-    us_, vs_ = (corners[:, 0] + corners[:, 1]) * c, (corners[:, 0] - corners[:, 1]) * c + voff
-    uu, vv = np.meshgrid(np.arange(max(0, int(us_.min())), min(side, int(us_.max()) + 2) + 1),
-                         np.arange(max(0, int(vs_.min())), min(side, int(vs_.max()) + 2) + 1))
-    px = (uu + vv - 1.0 - voff) * c + 0.5
-    py = (uu - vv + voff) * c + 0.5
-    sel = (px >= x) & (px <= x + w) & (py >= y) & (py <= y + h)
-    uc, vc = uu[sel], vv[sel]
-    if uc.size == 0:
-        return []
-    u_first, v_first = int(uc.min()), int(vc.min())
-
-    def mean(u0, u1, v0, v1):
-        s_ = sums[v1, u1] - sums[v0, u1] - sums[v1, u0] + sums[v0, u0]
-        n_ = counts[v1, u1] - counts[v0, u1] - counts[v1, u0] + counts[v0, u0]
-        return s_ / np.maximum(n_, 1), n_ > 0
-
-    lo, hi = max(2.0, min_a * c), max_a * c
-    found = []
-    sizes = sorted({int(round(lo * step ** k)) for k in range(
-        int(math.log(max(hi / lo, 1.0)) / math.log(step)) + 1)})
-    for s in sizes:
-        d = max(1, int(round(inner_frac * s)))
-        lw = max(1, int(round(line_rel * s / c)))
-        t = max(1, int(round(0.7 * s)))
-        ok = (uc >= s + lw) & (vc >= s + lw) & (uc + s + lw <= side) & (vc + s + lw <= side)
-        stride = max(1, int(s * START_STRIDE))
-        if stride > 1:
-            ok &= ((uc - u_first) % stride == 0) & ((vc - v_first) % stride == 0)
-        u, v = uc[ok], vc[ok]
-        if u.size == 0:
-            continue
-        score = None
-        # left, right (u = uc -/+ s), top, bottom (v = vc -/+ s): face band, line band
-        for fb, lb in (((u - s, u - s + d, v - t, v + t), (u - s - lw, u - s, v - t, v + t)),
-                       ((u + s - d, u + s, v - t, v + t), (u + s, u + s + lw, v - t, v + t)),
-                       ((u - t, u + t, v - s, v - s + d), (u - t, u + t, v - s - lw, v - s)),
-                       ((u - t, u + t, v + s - d, v + s), (u - t, u + t, v + s, v + s + lw))):
-            mf, nf = mean(*fb)
-            ml, nl = mean(*lb)
-            sc = np.where(nf & nl, (mf - ml) / np.maximum(mf, 1.0), -1.0)
-            score = sc if score is None else np.minimum(score, sc)
-        good = score >= min_contrast
-        if good.any():
-            found.append((score[good], u[good], v[good], np.full(int(good.sum()), s)))
-    if not found:
-        return []
-    score, u, v, s = (np.concatenate(a) for a in zip(*found))
-    picked: list[int] = []
-    for i in np.argsort(-score, kind='stable')[:400]:
-        if any(abs(u[i] - u[j]) + abs(v[i] - v[j]) <= 0.35 * max(s[i], s[j])
-               and abs(s[i] / s[j] - 1.0) < 0.25 for j in picked):
-            continue
-        picked.append(int(i))
-        if len(picked) >= count:
-            break
-    out = []
-    for i in picked:
-        cx = (u[i] + v[i] - 1.0 - voff) * c + 0.5
-        cy = (u[i] - v[i] + voff) * c + 0.5
-        out.append((float(cx), float(cy), s[i] / c, s[i] / c, float(score[i])))
-    return out
 
 
 def diamond_holds(pixels: np.ndarray, face: Sequence[float], ratio: float, share: float,

@@ -19,7 +19,6 @@ from workzone_ros.core.detect.diamond import fit_diamond
 from workzone_ros.core.profiles import (
     banded_rows,
     open_background_rows,
-    row_extents,
     row_taper,
     white_cap,
 )
@@ -33,25 +32,22 @@ class FilterMixin:
     def _sign_checks(self, bgr: np.ndarray, pix: np.ndarray, hull: np.ndarray,
                      like: np.ndarray, vch: np.ndarray, t: float, relaxed: bool,
                      org: tuple[int, int], blob: tuple
-                     ) -> Optional[tuple[bool, bool, Optional[tuple], np.ndarray, float,
+                     ) -> Optional[tuple[bool, Optional[tuple], np.ndarray, float,
                                          np.ndarray]]:
         """:meth:`_measure_orange`'s tests of an orange face (``pix``, its ``hull``, the
         window's likelihood ``like`` and value ``vch`` at ``org``; ``blob``: the hull's
         box in the window): mounting height, surroundings, legend, bands.  None: not a
-        sign; else ``(needs_outline, needs_white, pix_fit, hmask, v_ref, dark)``: kept only
-        with its diamond edges measured, kept only with a white part found, the diamond
-        fit of ``pix`` when the mounting test made it, the hull mask, the face's median
-        value and its dark pixels."""
+        sign; else ``(needs_outline, pix_fit, hmask, v_ref, dark)``: kept only with its
+        diamond edges measured, the diamond fit of ``pix`` when the mounting test made it,
+        the hull mask, the face's median value and its dark pixels."""
         cfg = self.config
         x0, y0 = org
         bx0, by0, bw, bh = blob
-        aspect = bw / bh
         geo = self._geometry
         pix_fit = None              # fit_diamond(pix), when the mounting test needed it
         # no legend seen, or an unclear face below the usual mounting: kept only if its
         # diamond outline is measured in the brightness below (``outline_evidence``)
         needs_outline = False
-        needs_white = False         # no legend seen on a plaque: kept only with a white part
         if geo is not None and self._ref_row is not None and not relaxed:
             # signs are mounted high: their bottom edge is above the prior's reference row
             # (drums, cones and vehicles stand on the road below it); in units of box height.
@@ -89,10 +85,7 @@ class FilterMixin:
             if self.debug is not None:
                 self.debug[-1]['dark'] = dfrac
             if dfrac < cfg.min_dark_inside:
-                if cfg.white_part_evidence and cfg.extension and not needs_outline \
-                        and aspect >= cfg.ext_min_aspect:
-                    needs_white = True      # a plaque: its white part below may tell
-                elif not (cfg.outline_evidence and cfg.diamond_refine):
+                if not (cfg.outline_evidence and cfg.diamond_refine):
                     return None
                 else:
                     needs_outline = True
@@ -103,7 +96,7 @@ class FilterMixin:
                 # a drum or cone (the fusion's channelizer evidence): one per place
                 self.channelizers.add(((x0 + bx0 + bw // 2) // 16, (y0 + by0 + bh // 2) // 16))
                 return None
-        return needs_outline, needs_white, pix_fit, hmask, v_ref, dark
+        return needs_outline, pix_fit, hmask, v_ref, dark
 
     def _surround_like(self, hmask: np.ndarray, like: np.ndarray, size: int, level: float
                        ) -> tuple[float, float]:
@@ -252,44 +245,3 @@ class FilterMixin:
         if np.count_nonzero(out) < 0.5 * np.count_nonzero(pix):
             return None, fd
         return out, fd
-
-    @staticmethod
-    def _neck_trim(pix: np.ndarray) -> Optional[np.ndarray]:
-        """``pix`` without its rows above a neck, or None when it has none.
-
-        A portable stand's orange flags merged with the diamond below them by blur: the
-        rows' extents narrow from the flags' width to the diamond's top corner and widen
-        again.  A neck: a row in the upper half of the blob at most half as wide as the
-        widest row below it, with a row above it at least 1.5 x as wide (the flags) that
-        tapers into it (the widest row at least two rows up, the row just above at most
-        0.8 x as wide: not a diamond's widening upper half over a row that a legend line
-        cut short), and the part from it down about as tall as wide (0.7-1.4) and ending in
-        a corner (its last row at most 0.6 x its widest: a diamond).
-        """
-        rows, left, right = row_extents(pix)
-        n = rows.size
-        if n < 12 or rows[-1] - rows[0] + 1 != n:
-            return None
-        ext = right - left
-        # per candidate row k (2 .. n / 2): the widest row above it (the first such) and
-        # the widest below it, from running maxima (this runs on every blob not wide)
-        idx = np.arange(n)
-        top_max = np.maximum.accumulate(ext)
-        first = np.maximum.accumulate(np.where(ext > np.r_[-np.inf, top_max[:-1]], idx, 0))
-        low_max = np.maximum.accumulate(ext[::-1])[::-1]
-        k = np.arange(2, n // 2 + 1)
-        above, j, width = top_max[k - 1], first[k - 1], low_max[k + 1]
-        ok = (ext[k] <= 0.5 * width) & (above >= 1.5 * ext[k])
-        # the flags taper into the neck; a row cut short by a legend line under a
-        # diamond's widening upper half does not
-        ok &= (k - j >= 2) & (ext[k - 1] <= 0.8 * above)
-        ratio = (n - k) / width
-        ok &= (ratio >= 0.7) & (ratio <= 1.4) & (ext[-1] <= 0.6 * width)
-        if not ok.any():
-            return None
-        cand = k[ok]
-        # the narrowest neck, the lowest of equals
-        best = int(cand[np.flatnonzero(ext[cand] == ext[cand].min())[-1]])
-        out = pix.copy()
-        out[:int(rows[best] - 0.5)] = 0
-        return out

@@ -128,7 +128,6 @@ class MaskMixin:
                     # brightness gate outside the table: too dark for a reliable hue
                     prob = full & cv2.threshold(v, self._vmin[color] - 1, 255,
                                                 cv2.THRESH_BINARY)[1]
-                raw = prob
                 if cfg.smooth_px > 1:
                     # denoise at the mask's resolution before thresholding: isolated
                     # orange-hued pixels (dusk sky, sensor noise) are averaged away
@@ -145,7 +144,7 @@ class MaskMixin:
                 grow = (prob, thr, keep) if color == 'orange' and cfg.grow_level > 0 \
                     else None
                 cands += self._blobs(mask, bgr, color, (cx0, cy0), s, thr_base, lboxes,
-                                     raw, grow=grow)
+                                     grow=grow)
         elif cfg.method == 'hsv':
             for color in self.colors:
                 mask = np.zeros(hsv.shape[:2], np.uint8)

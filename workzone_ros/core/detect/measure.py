@@ -51,9 +51,8 @@ class MeasureMixin:
 
     def _measure_orange(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                         thr_base: np.ndarray, lboxes: list, relaxed: bool = False,
-                        t_override: Optional[float] = None,
-                        peel_t: Optional[float] = None, whole: bool = False,
-                        t_scale: float = 1.0) -> Optional[Candidate]:
+                        t_override: Optional[float] = None, t_scale: float = 1.0
+                        ) -> Optional[Candidate]:
         """The learned orange path: hysteresis region, sign structure, shape-derived box.
 
         1. At full resolution, pixels with likelihood >= tau (the posterior threshold of the
@@ -69,8 +68,7 @@ class MeasureMixin:
         ``t_scale``: tau at this share of the location's (a blob grown to a lower level,
         :meth:`_grown`).
         """
-        face = self._face_region(bgr, comp, box, s, thr_base, relaxed, t_override, peel_t,
-                                 whole, t_scale)
+        face = self._face_region(bgr, comp, box, s, thr_base, relaxed, t_override, t_scale)
         if face is None:
             return None
         cfg = self.config
@@ -91,18 +89,12 @@ class MeasureMixin:
                                     (bx0, by0, bw, bh))
         if checked is None:
             return None
-        needs_outline, needs_white, pix_fit, hmask, v_ref, dark = checked
+        needs_outline, pix_fit, hmask, v_ref, dark = checked
         cut, row_fit = None, None
         if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
             # rows beyond a fitted diamond's corners are not the face (a portable stand's
             # orange flags above the top corner): shape, kind and box go without them
             trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim, pix_fit)
-            if cfg.neck_trim:
-                # flags the fit took for part of the face (a cut face fits badly): the rows
-                # above the neck between them and the diamond's top corner
-                necked = self._neck_trim(pix if trimmed is None else trimmed)
-                if necked is not None:
-                    trimmed = necked
             if trimmed is not None:
                 row_fit = None
                 # the cut-off part must not come back as the border's blur rings
@@ -129,12 +121,11 @@ class MeasureMixin:
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
         outer = sub = None
         refine = cfg.diamond_refine and cfg.border_frac > 0 and cfg.diamond_scale > 0
-        search = refine and cfg.diamond_search and min(bw, bh) >= cfg.search_min_px
         blurred = None
         if kind == 'warning' and cfg.diamond_scale > 0:
             outer, sub, blurred = self._warning_outline(
-                bgr, hsv, pix, face_px, dark, row_fit, (x0, y0, x1, y1), (bx0, by0, bw, bh), t,
-                peel_t, needs_outline, grow, refine, search)
+                bgr, hsv, face_px, row_fit, (x0, y0, x1, y1), (bx0, by0, bw, bh),
+                needs_outline, grow, refine)
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
             cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
@@ -149,7 +140,7 @@ class MeasureMixin:
             cand.x, cand.y = cand.x - gx, cand.y - gy
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
         if needs_outline and not (outer is not None and sub is not None):
-            # no legend and no diamond edges: a patch of a sign-coloured surface (peeled next)
+            # no legend and no diamond edges: a patch of a sign-coloured surface
             return None
         sx, sy = cfg.border_scale
         if sx != 1.0 or sy != 1.0:
@@ -157,32 +148,14 @@ class MeasureMixin:
             cand.y -= 0.5 * (sy - 1.0) * cand.h
             cand.w, cand.h = sx * cand.w, sy * cand.h
         entry = self.debug[-1] if self.debug is not None else None
-        bands = None
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
-            bands = self._extend(bgr, cand, hsv[pix > 0])
-        if needs_white and not (cand.extended and cand.white_level >= cfg.white_part_level):
-            return None
+            self._extend(bgr, cand, hsv[pix > 0])
         rect_failed = False
         if kind == 'regulatory' and cfg.rect_refine and cfg.border_frac > 0:
-            if self._rectangle_box(bgr, raw, pix, v_ref, cand, bands, entry, (x0, y0, x1, y1),
+            if self._rectangle_box(bgr, raw, pix, v_ref, cand, entry, (x0, y0, x1, y1),
                                    (bx0, by0, bw, bh), m):
                 return cand
             rect_failed = True
-        if kind == 'regulatory' and search and not cand.extended:
-            # neither a two-colour sign nor a measured rectangle: a diamond merged with a
-            # surface of about its colour (an orange dusk sky above or beside it) is a
-            # rectangle to the hull
-            value, ox, oy = self._diamond_value(bgr, (x0, y0, x1, y1), bw, bh)
-            sub = self._search_diamond(value, x0 - ox, y0 - oy, (bx0, by0, bw, bh), face_px,
-                                       hsv)
-            box_ = None if sub is None else self._diamond_box(
-                (*sub, cfg.diamond_face_ratio, cfg.diamond_clamp_px), True,
-                (bx0, by0, bw, bh), peel_t, True, bias=self._box_bias(sub))
-            if entry is not None:
-                entry['searched'] = box_ is not None
-            if box_ is not None:
-                cand.x, cand.y, cand.w, cand.h = x0 + box_[0], y0 + box_[1], box_[2], box_[3]
-                cand.kind, cand.refined = 'warning', True
         if cfg.rect_needs_edges and rect_failed and cand.kind == 'regulatory' \
                 and not cand.extended and not relaxed:
             return None
@@ -190,8 +163,7 @@ class MeasureMixin:
 
     def _face_region(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, s: int,
                      thr_base: np.ndarray, relaxed: bool, t_override: Optional[float],
-                     peel_t: Optional[float], whole: bool, t_scale: float
-                     ) -> Optional[_Face]:
+                     t_scale: float) -> Optional[_Face]:
         """:meth:`_measure_orange`'s step 1: the blob's face at full resolution (its
         window, likelihood, threshold, region, orange pixels and hull), or None when no
         pixel passes the threshold or the face is too small."""
@@ -214,8 +186,6 @@ class MeasureMixin:
             t = min(t, cfg.roi_threshold / cfg.roi_prior)
         if t_override is not None:
             t = t_override
-        if peel_t is not None:
-            t = max(t, peel_t)
         region = np.zeros(win.shape[:2], np.uint8)
         up = cv2.resize(comp, (fw, fh), interpolation=cv2.INTER_NEAREST) if s > 1 else comp
         _paste(region, up, fy - y0, fx - x0)
@@ -225,8 +195,6 @@ class MeasureMixin:
         if not strong.any():
             return None
         weak_t, blur_t = min(cfg.weak_threshold, t), cfg.blur_like
-        if peel_t is not None:
-            weak_t = t             # no hysteresis back into the surface the core was peeled from
         weak = (like >= weak_t).astype(np.uint8) | strong
         size = max(fw, fh)
         k = max(3, int(round(cfg.close_frac * size)) | 1)
@@ -240,14 +208,9 @@ class MeasureMixin:
         n, lab, st, _ = _components(face)
         if n <= 1:
             return None
-        if whole:
-            # the pieces of one face (a symbol cuts it from edge to edge)
-            region_j = face > 0
-            bx0, by0, bw, bh = cv2.boundingRect(face)
-        else:
-            j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
-            region_j = lab == j
-            bx0, by0, bw, bh = (int(v) for v in st[j, :4])
+        j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))
+        region_j = lab == j
+        bx0, by0, bw, bh = (int(v) for v in st[j, :4])
         pix = (region_j & (weak > 0)).astype(np.uint8)
         area = float(np.count_nonzero(pix))
         if area < cfg.min_area_px:

@@ -6,8 +6,6 @@ bottom border ends it, the catalogue's height / width chooses among several dark
 """
 from __future__ import annotations
 
-from typing import Optional
-
 import cv2
 import numpy as np
 
@@ -48,31 +46,11 @@ def _bands(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows[np.insert(brk, 0, True)], rows[np.append(brk, True)]
 
 
-def _white_span(rows: np.ndarray, x0: int) -> Optional[tuple[float, float]]:
-    """The columns (image coordinates: ``x0`` is the mask's first column) of a two-colour
-    sign's white part: the longest run of columns white in at least 0.3 of its white rows
-    ``rows`` (a boolean mask: a column through a bold legend's strokes is white above and
-    below them, one beside the sign hardly ever); None without any."""
-    if not len(rows):
-        return None
-    cols = np.flatnonzero(np.diff(np.r_[0, (rows.mean(axis=0) >= 0.3).astype(np.int8), 0]))
-    if not cols.size:
-        return None
-    starts, ends = cols[0::2], cols[1::2]
-    k = int(np.argmax(ends - starts))
-    return float(x0 + starts[k]), float(x0 + ends[k])
-
-
 class PlaqueMixin:
     """The detector's two-colour extension."""
 
-    def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray
-                ) -> Optional[tuple[int, list]]:
-        """Seed 000's regulatory two-colour extension: grow the box over a white bottom.
-        Returns, when the white part's end was looked for among several dark bands and
-        none gave a catalogue shape by the blob's width (:meth:`_bottom_border`), the
-        strip's top row and those bands' rows (after it) for :meth:`_measure_orange` to
-        choose again with the measured width; else None."""
+    def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:
+        """Seed 000's regulatory two-colour extension: grow the box over a white bottom."""
         cfg = self.config
         H = bgr.shape[0]
         x0, x1 = int(cand.x), int(cand.x + cand.w)
@@ -81,10 +59,10 @@ class PlaqueMixin:
         # sign, R2-1 + G20-5aP) up to ``ext_max_wratio`` x the width
         y_max = min(H, int(y_top + max(cfg.ext_max_ratio * cand.h, cfg.ext_max_wratio * cand.w)))
         if y_max - y_top < 2:
-            return None
+            return
         strip = bgr[y_top:y_max, max(0, x0):x1]
         if strip.size == 0:
-            return None
+            return
         raw_s = None
         if self._gains is not None:
             # white is judged both as the camera balanced it and after the grey-world gains:
@@ -100,7 +78,7 @@ class PlaqueMixin:
         frac = white.mean(axis=1)
         k = max(1, int(round(cand.h * 0.25)))
         gap = max(k, int(round(cfg.ext_gap_w * cand.w)))
-        run = self._white_run(white, frac, strip, sat, v_ref, k, gap)
+        run = self._white_run(frac, strip, sat, v_ref, k, gap)
         if cfg.white_own_rel > 0 and y_top + run >= y_max - 1:
             # white to the end of the reach: the sign's own white part (bright sheeting)
             # may be followed by a duller grey background that passed for white by the
@@ -110,16 +88,15 @@ class PlaqueMixin:
             # least) is not white (a background as bright as the sheeting, snow, is left to
             # the bottom border)
             white2, frac2 = self._own_white(white, frac, strip[..., 2], k)
-            run2 = self._white_run(white2, frac2, strip, sat, v_ref, k, gap)
+            run2 = self._white_run(frac2, strip, sat, v_ref, k, gap)
             if run2 >= 0.3 * cand.h and y_max - y_top - run2 >= max(3, 2 * k) \
                     and frac2[run2:].mean() < 0.3:
                 white, frac, run = white2, frac2, run2
-        cuts: list = []
         if cfg.ext_frame and y_top + run >= y_max - 1:
             # white (or what the legend-gap rule bridged) to the end of the reach: snow, a
             # pale sky or wall behind the sign.  The white part ends with its black bottom
             # border
-            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w, cuts)
+            end = self._bottom_border(white[:run], strip[:run, :, 2], cand.h, cand.w)
             if end:
                 run = end
         if cfg.ext_overlong > 0 and y_top + run < y_max - 1 and cand.h + run > max(
@@ -151,31 +128,24 @@ class PlaqueMixin:
             self.debug.append(dict(ext_run=run, ext_rows=y_max - y_top,
                                    ext_frac=np.round(frac, 2).tolist()))
         if run < 0.3 * cand.h or y_top + run >= y_max - 1:
-            return None         # too short, or no bottom edge found (sky, a white wall)
+            return              # too short, or no bottom edge found (sky, a white wall)
         # a sign's white part carries a black legend and border; sky and walls do not
         # (dark relative to the white part itself: under overcast light the legend is grey)
         part = strip[:run]
         v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
         dark = part[..., 2] < cfg.dark_rel * v_white
         if dark.mean() < cfg.ext_min_dark:
-            return None
+            return
         cand.h = float(run + cand.h)
         cand.extended = True
-        cand.white_level = v_white / max(v_ref, 1.0)
-        # (its upper half: an extension that ran on past the sign's bottom took in
-        # background rows there)
-        top_half = slice(0, max(2, (run + 1) // 2))
-        cand.white_span = _white_span(white[top_half][frac[top_half] >= 0.45], max(0, x0))
-        return (y_top, cuts) if cuts else None
 
-    def _white_run(self, white: np.ndarray, frac: np.ndarray, strip: np.ndarray,
-                   sat: np.ndarray, v_ref: float, k: int, gap: int) -> int:
+    def _white_run(self, frac: np.ndarray, strip: np.ndarray, sat: np.ndarray, v_ref: float,
+                   k: int, gap: int) -> int:
         """How many rows of the HSV ``strip`` under the orange part the white part runs
-        (:meth:`_extend`): rows at least 45 % ``white`` (``frac``) on a running window of
+        (:meth:`_extend`): rows at least 45 % white (``frac``) on a running window of
         ``k`` rows, across rows of a black legend up to ``gap`` rows when they are
         achromatic (:meth:`_achromatic_rows`; ``sat``: the saturation as judged for white,
         ``v_ref``: the orange's brightness), less the rows at its end that are not white."""
-        cfg = self.config
         smooth = np.convolve(frac, np.ones(k) / k, mode='full')[:len(frac)]
         # rows of a large black legend (speed-limit numerals) are not white, but they are
         # achromatic like the sheeting around them: such rows may separate white rows by up
@@ -183,34 +153,12 @@ class PlaqueMixin:
         # (judged on the row's bright pixels: a dark legend stroke's saturation is noise, a
         # row of large numerals would otherwise look coloured)
         achrom = self._achromatic_rows(strip, sat, v_ref)
-        run, cols_judged, achrom_cols = 0, False, None
+        run = 0
         for j, f in enumerate(smooth):
             if f >= 0.45 or (j < k and frac[: j + 1].mean() >= 0.45):
                 run = j + 1
             elif j - run > k and (j - run > gap or not achrom[run:j + 1].all()):
-                if j - run > gap or not cfg.ext_gap_cols or run == 0:
-                    break
-                # the blob (and so the strip) may be wider than the sign (a dusk
-                # background of its colour beside it): judge the gap's rows again on the
-                # white part's own columns
-                if not cols_judged:
-                    # (judged once, on the white rows before the first such gap)
-                    cols_judged = True
-                    rows = white[:run][frac[:run] >= 0.45]
-                    cols = rows.mean(axis=0) >= 0.5 if len(rows) else None
-                    if cols is not None and cols.sum() >= 3:
-                        # bright: against the white sheeting's own level (at dusk it is
-                        # far brighter than the orange; noise makes dim pixels coloured)
-                        v_w = float(_median(strip[:run, cols, 2][white[:run, cols]]))
-                        achrom_cols = self._achromatic_rows(strip[:, cols], sat[:, cols],
-                                                            v_ref, max(v_ref, v_w))
-                    else:
-                        achrom_cols = None
-                if achrom_cols is None or not achrom_cols[run:j + 1].all():
-                    break
-                if frac[j] >= 0.45:
-                    run = j + 1     # white again after the numerals (too short a strip for
-                    #                 the running window)
+                break
         # trim rows at the bottom that are not white themselves
         while run > 0 and frac[run - 1] < 0.3:
             run -= 1
@@ -235,8 +183,8 @@ class PlaqueMixin:
         white = white & (value >= self.config.white_own_rel * level)
         return white, white.mean(axis=1)
 
-    def _achromatic_rows(self, strip: np.ndarray, sat: np.ndarray, v_ref: float,
-                         v_bright: Optional[float] = None) -> np.ndarray:
+    def _achromatic_rows(self, strip: np.ndarray, sat: np.ndarray, v_ref: float
+                         ) -> np.ndarray:
         """Per row of an HSV ``strip`` (``sat``: its saturation as judged for white): an
         achromatic row, like a large black legend's inside the white part; background rows
         (foliage, sky) are coloured.  Judged on the row's bright pixels (a dark legend
@@ -245,7 +193,7 @@ class PlaqueMixin:
         small sign ("BEGINS"), ink nearly across: too few bright pixels to judge by, but
         black (below ``dark_rel`` of the face's brightness ``v_ref``)."""
         cfg = self.config
-        bright = strip[..., 2] >= 0.5 * (v_ref if v_bright is None else v_bright)
+        bright = strip[..., 2] >= 0.5 * v_ref
         n = np.count_nonzero(bright, axis=1)
         # the median of each row's bright pixels' saturation (numpy's nanmedian, sorted)
         srt = np.sort(np.where(bright, sat.astype(np.int32), 256), axis=1)
@@ -254,29 +202,8 @@ class PlaqueMixin:
         return ((n >= 3) & (med_b <= cfg.ext_gap_s)) | ((n < 3) & (
             _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref))
 
-    def _rechoose_bottom(self, bands: tuple[int, list], cand: Candidate, bottom: float,
-                         entry: Optional[dict]) -> float:
-        """The white part's end chosen again among :meth:`_extend`'s dark bands with the
-        sign's measured top and width (``cand``): the orange blob of a dim sign is narrower
-        than the sign, and with its width a bold legend row ("BEGINS") could pass for the
-        bottom border.  ``bottom``: the measured bottom, kept when it gives a catalogue
-        shape (within ``ext_ratio_tol``), when no band does, or when the band nearest one
-        is the chosen one."""
-        tol = self.config.ext_ratio_tol
-        if _ratio_error(np.array([bottom - cand.y]), cand.w)[0] <= tol:
-            return bottom                   # a catalogue shape as measured
-        y_top, cuts = bands
-        rows = y_top + np.array(cuts, float)
-        err = _ratio_error(rows - cand.y, cand.w)
-        k = int(np.argmin(err))
-        if entry is not None:
-            entry['rechosen'] = (round(bottom, 2), float(rows[k]), round(float(err[k]), 3))
-        if err[k] > tol or abs(rows[k] - bottom) <= 1.5:
-            return bottom
-        return float(rows[k])
-
     def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float,
-                       width: float = 0.0, cuts: Optional[list] = None) -> int:
+                       width: float = 0.0) -> int:
         """The row just after the white part's black bottom border (0: none seen).
 
         ``white``, ``value``: the white mask and brightness of the strip below the orange
@@ -289,9 +216,7 @@ class PlaqueMixin:
         two-colour sign's in the catalogue (within ``ext_ratio_tol``) ends the white part,
         else the first.  The candidates: each dark band's last row and, for a band at least
         ``ext_band_long`` orange heights (and 3 rows) long, its first (the border line
-        merged with a darker background below the sign).  ``cuts``, when given, receives
-        those candidates (rows after the strip's top) when there are several and none
-        gives a catalogue shape (the first row was taken).
+        merged with a darker background below the sign).
         """
         cfg = self.config
         w = white.shape[1]
@@ -314,6 +239,4 @@ class PlaqueMixin:
             err = _ratio_error(orange_h + cut, width)
             if err.min() <= cfg.ext_ratio_tol:
                 return int(cut[int(np.argmin(err))])
-            if cuts is not None and cut.size > 1:
-                cuts.extend(int(c) for c in cut)
         return int(rows[0] + 1)

@@ -1,9 +1,8 @@
 """Rectangle fit of a regulatory sign's orange part and white part.
 
 :func:`refine_rectangle` measures the left, right and top edges (and the white part's bottom)
-on the brightness (:mod:`.edges`); :func:`rectangle_lean` measures how far the sign leans;
-:func:`white_part_ends` and :func:`white_beyond` look at where a two-colour sign's white part
-ends beside it.  :class:`RectangleMixin` applies the last two to a measured candidate.
+on the brightness (:mod:`.edges`); :func:`white_beyond` looks at where a two-colour sign's
+white part ends beside it.  :class:`RectangleMixin` boxes a measured candidate with them.
 """
 from __future__ import annotations
 
@@ -14,7 +13,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core.detect.candidates import Candidate
-from workzone_ros.core.detect.common import _median, pixel_box
+from workzone_ros.core.detect.common import pixel_box
 from workzone_ros.core.detect.edges import (
     _PROFILE_SIG,
     _PROFILE_U0,
@@ -25,8 +24,8 @@ from workzone_ros.core.detect.edges import (
 from workzone_ros.core.detect.plaque import _ratio_error
 
 __all__ = [
-    'RECT_TOP_STRETCHES', 'LEAN_STRETCHES', 'rectangle_lean', 'refine_rectangle', 'white_beyond',
-    'white_part_ends', 'RectangleMixin',
+    'RECT_TOP_STRETCHES', 'refine_rectangle', 'white_beyond',
+    'RectangleMixin',
 ]
 
 
@@ -75,45 +74,6 @@ def _side_stretches(x: float, w: float, y: float, h: float,
     segs = np.array([((xe, y + f0 * h), (xe, y + f1 * h))
                      for f0, f1 in at for xe in (x, x + w)], float)
     return segs, np.array([(1.0, 0.0), (-1.0, 0.0)] * 2)
-
-
-#: rectangle_lean's side stretches (fractions of the face's height): its upper and lower
-#: ends, a quarter of the height each
-LEAN_STRETCHES = ((0.08, 0.33), (0.67, 0.92))
-
-
-def rectangle_lean(value: np.ndarray, face: Sequence[float], size: float,
-                   border_rel: float = 0.03, margin_rel: float = 0.015,
-                   min_contrast: float = 0.25) -> Optional[tuple[float, float]]:
-    """How far a rectangular sign leans: the slopes (dx / dy) of its left and right edges.
-
-    ``face = (left, top, right, bottom)``: its face's edges (the border line's inner edge,
-    continuous coordinates in ``value``), e.g. from :func:`refine_rectangle` and the white
-    part's bottom; ``size``: its shorter side (px), for the border line and margin as
-    there.  Each side is measured on the brightness (:func:`_edge_offsets`) on two
-    stretches, over the upper and lower quarters of the face (:data:`LEAN_STRETCHES`:
-    for a two-colour sign one on each part); the slope is the measured edge's shift
-    between them over their distance.  A sign turned about the axis towards the camera
-    (a post leaning 1-3 degrees) has both sides lean alike, and its box, the bounding
-    box of the turned face, is wider and taller than the face measured in the middle.
-    Returns ``(left slope, right slope)`` or None when the face is too small (under 12
-    px high) or a stretch leaves ``value`` or shows no face-to-border step.
-    """
-    left, top, right, bottom = (float(v) for v in face)
-    h, w = bottom - top, right - left
-    if h < 12 or w < 6:
-        return None
-    border, margin = border_rel * size, margin_rel * size
-    prof = _edge_profile(min(0.5 * w, h), border, margin)
-    inset = 0.5 * (border + margin)            # as refine_rectangle: the edge mid-search
-    x0, x1 = left - inset, right + inset
-    segs, nvecs = _side_stretches(x0, x1 - x0, top, h, LEAN_STRETCHES)
-    off = _edge_offsets(np.ascontiguousarray(value, dtype=np.float32), segs, nvecs, prof,
-                        min_contrast)
-    if off is None:
-        return None
-    dy = h * (np.mean(LEAN_STRETCHES[1]) - np.mean(LEAN_STRETCHES[0]))
-    return float(off[2] - off[0]) / dy, float(off[1] - off[3]) / dy
 
 
 def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
@@ -265,62 +225,12 @@ def white_beyond(bgr: np.ndarray, face: Sequence[float], rows: Sequence[float],
     return bool(white[:g].all() or white[-g:].all())
 
 
-def white_part_ends(bgr: np.ndarray, face: Sequence[float], rows: Sequence[float],
-                    max_out: float, min_gap: float = 2.0
-                    ) -> tuple[Optional[float], Optional[float]]:
-    """Where a two-colour sign's white part ends left and right, when it runs on past the
-    face's sides as measured on its orange part.
-
-    A small plaque in dim (winter) light is cut by its legend into pieces, and the sign was
-    boxed to the piece that became a blob.  ``face = (left, right)``: the face's edges
-    (continuous image coordinates); ``rows = (top, bottom)``: the white part's rows.  Per
-    column, the share of the white part's middle rows (10-90 %) that are white (brightness
-    at least 0.85 x the white part's own, its 75th percentile between the sides;
-    saturation at most 90 of 255); from a pixel inside each side outwards the part runs on
-    from the first column where that share is at least a half (the side may lie on a
-    legend stroke) and ends at the first column where it is not (the border line, the
-    background).  Returns the face's new left and right edges (the end columns' inner
-    boundaries) where the part runs on at least ``min_gap`` px past the side and ends
-    within ``max_out`` px of it; else None for that side (also at the image's edge)."""
-    left, right = float(face[0]), float(face[1])
-    h, w = bgr.shape[:2]
-    top, bottom = float(rows[0]), float(rows[1])
-    r0, r1 = int(math.ceil(top + 0.1 * (bottom - top))), int(bottom - 0.1 * (bottom - top))
-    c0, c1 = int(math.floor(left - max_out)), int(math.ceil(right + max_out))
-    if r1 - r0 < 3 or right - left < 4 or c0 < 0 or c1 >= w or r0 < 0 or r1 > h:
-        return None, None
-    share = _white_columns(bgr, left, right, r0, r1, c0, c1)
-    if share is None:
-        return None, None
-
-    def end(start: int, step: int) -> Optional[int]:
-        c, seen = start, False
-        while 0 <= c - c0 < share.size:
-            white = share[c - c0] >= 0.5
-            if seen and not white:
-                return c
-            # (the side may lie on a legend stroke: the run starts at its first white column)
-            seen = seen or white
-            c += step
-        return None
-
-    out: list = [None, None]
-    stop = end(int(math.ceil(left)), -1)              # the first column left of the run
-    if stop is not None and left - (stop + 1) >= min_gap:
-        out[0] = float(stop + 1)
-    stop = end(int(right) - 1, 1)
-    if stop is not None and stop - right >= min_gap:
-        out[1] = float(stop)
-    return out[0], out[1]
-
-
 class RectangleMixin:
-    """The detector's rectangle steps: a two-colour sign's box widened
-    to its white part's ends, or to its face turned on a leaning post."""
+    """The detector's rectangle steps: a regulatory sign's box from its measured edges."""
 
     def _rectangle_box(self, bgr: np.ndarray, raw: np.ndarray, pix: np.ndarray, v_ref: float,
-                       cand: Candidate, bands: Optional[tuple], entry: Optional[dict],
-                       window: tuple, blob: tuple, m: int) -> bool:
+                       cand: Candidate, entry: Optional[dict], window: tuple, blob: tuple,
+                       m: int) -> bool:
         """:meth:`_measure_orange`'s regulatory box: ``cand``'s box from its orange part's
         edges (and its white part's) measured on the brightness; False (``cand``
         unchanged) when no fit measures them.  ``window``: the blob's window ``(x0, y0, x1,
@@ -352,18 +262,17 @@ class RectangleMixin:
             entry['rect_refined'] = sub is not None
         if sub is None:
             return False
-        self._rect_apply(bgr, raw, pix, v_ref, cand, bands, entry, value, (ox, oy), sub,
+        self._rect_apply(bgr, raw, pix, v_ref, cand, (ox, oy), sub,
                          (hx, hw, size), window, blob)
         return True
 
     def _rect_refit(self, bgr: np.ndarray, value: np.ndarray, org: tuple, cand: Candidate,
                     entry: Optional[dict], sub: Optional[tuple], start: tuple,
                     low: Optional[float], window: tuple, blob: tuple) -> tuple:
-        """The rectangle fit made again from the white part's columns (``rect_white_span``)
-        and with a lost side moved in (``rect_inward``) when the orange part's own fit
-        ``sub`` (from ``start = (hx, hw, size)``, in the brightness window ``value`` at
-        ``org``) fails or disagrees.  Returns ``(sub, hx, hw, size)``: the fit kept and
-        its start."""
+        """The rectangle fit made again with a lost side moved in (``rect_inward``) when the
+        orange part's own fit ``sub`` (from ``start = (hx, hw, size)``, in the brightness
+        window ``value`` at ``org``) fails.  Returns ``(sub, hx, hw, size)``: the fit kept
+        and its start."""
         cfg = self.config
         ox, oy = org
         hx, hw, size = start
@@ -371,71 +280,36 @@ class RectangleMixin:
         bx0, by0, bw, bh = blob
         dy = y0 - oy
         face_frac = 1.0 - 2.0 * (cfg.rect_border_rel + cfg.rect_margin_rel)
-        span = cand.white_span
-        sw = span[1] - span[0] if span is not None else 0.0
-        tol_w = max(2.0, 0.1 * sw)
-        face_w = sub[1] - sub[0] if sub is not None and sub[0] is not None \
-            and sub[1] is not None else None
-        wide = face_w is not None and face_w > sw + tol_w
-        # one side far inside the white part's and the other not (the face is inside
-        # the white columns by its line and margin on both sides alike)
-        narrow = face_w is not None and face_w < sw and abs(
-            (sub[0] - (span[0] - ox)) - ((span[1] - ox) - sub[1])) > max(3.0, 0.2 * sw)
-        if cfg.rect_white_span and span is not None and sw >= max(6.0, 0.6 * bw) and (
-                (sub is None or wide) and sw <= bw - max(2.0, 0.1 * bw) or narrow):
-            # the orange blob took in a surface of its colour beside the sign (a dusk
-            # sky): its edges lie past the search, or were measured on the blob's; or
-            # the plaque's fit took a legend stroke for a side: the white part below
-            # shows the sign's columns
-            sub2 = refine_rectangle(value, (span[0] - ox, by0 + dy, sw, bh),
-                                    sw / face_frac, cfg.rect_border_rel,
-                                    cfg.rect_margin_rel, cfg.rect_max_change, bottom=low,
-                                    free_top=True)
-            if entry is not None:
-                entry['white_span'] = (span, wide, narrow, sub2 is not None)
-            if sub2 is not None and (not narrow or (
-                    sub2[0] is not None and sub2[1] is not None
-                    and sub2[1] - sub2[0] <= sw + tol_w
-                    and abs(sub2[1] - sub2[0] - sw) < abs(face_w - sw))):
-                sub, hx, hw = sub2, span[0] - ox, sw
-                size = hw / face_frac
         if sub is None and cfg.rect_inward and cand.extended:
             # no side on either start's search: a pale wall right beside the sign took
             # the hull (and the white part) past the side, whose edge then lies inside
             # the search: the lost side's stretches moved in.  Kept when the sign has a
             # catalogue shape and its white part does not run on past a side
-            starts3 = [(hx, hw, size)]
-            if cfg.rect_white_span and span is not None and sw >= max(6.0, 0.6 * bw):
-                starts3.append((span[0] - ox, sw, sw / face_frac))
-            for sx3, sw3, size3 in starts3:
-                sub3 = refine_rectangle(value, (sx3, by0 + dy, sw3, bh), size3,
-                                        cfg.rect_border_rel, cfg.rect_margin_rel,
-                                        cfg.rect_max_change, bottom=low, free_top=True,
-                                        inward=cfg.rect_inward)
-                if sub3 is None or sub3[0] is None or sub3[1] is None or sub3[3] is None:
-                    continue
-                top3 = sub3[2] if sub3[2] is not None else by0 + dy
-                r_out = (sub3[3] - top3) / max(sub3[1] - sub3[0], 1.0) * face_frac \
-                    + 1.0 - face_frac
-                fl, fr = ox + sub3[0], ox + sub3[1]
-                ok = _ratio_error(np.array([r_out]), 1.0)[0] <= cfg.ext_ratio_tol \
-                    and not white_beyond(bgr, (fl, fr), (y0 + by0 + bh, oy + sub3[3]),
-                                         max(2.0, 0.1 * (fr - fl)))
-                if entry is not None:
-                    entry.setdefault('inward', []).append((round(r_out, 3), ok))
-                if ok:
-                    sub, hx, hw, size = sub3, sx3, sw3, size3
-                    break
+            sub3 = refine_rectangle(value, (hx, by0 + dy, hw, bh), size,
+                                    cfg.rect_border_rel, cfg.rect_margin_rel,
+                                    cfg.rect_max_change, bottom=low, free_top=True,
+                                    inward=cfg.rect_inward)
+            if sub3 is None or sub3[0] is None or sub3[1] is None or sub3[3] is None:
+                return sub, hx, hw, size
+            top3 = sub3[2] if sub3[2] is not None else by0 + dy
+            r_out = (sub3[3] - top3) / max(sub3[1] - sub3[0], 1.0) * face_frac \
+                + 1.0 - face_frac
+            fl, fr = ox + sub3[0], ox + sub3[1]
+            ok = _ratio_error(np.array([r_out]), 1.0)[0] <= cfg.ext_ratio_tol \
+                and not white_beyond(bgr, (fl, fr), (y0 + by0 + bh, oy + sub3[3]),
+                                     max(2.0, 0.1 * (fr - fl)))
+            if entry is not None:
+                entry.setdefault('inward', []).append((round(r_out, 3), ok))
+            if ok:
+                sub = sub3
         return sub, hx, hw, size
 
     def _rect_apply(self, bgr: np.ndarray, raw: np.ndarray, pix: np.ndarray, v_ref: float,
-                    cand: Candidate, bands: Optional[tuple], entry: Optional[dict],
-                    value: np.ndarray, org: tuple, sub: tuple, start: tuple, window: tuple,
+                    cand: Candidate, org: tuple, sub: tuple, start: tuple, window: tuple,
                     blob: tuple) -> None:
-        """``cand``'s box from the measured face ``sub`` (the brightness window ``value`` at
+        """``cand``'s box from the measured face ``sub`` (in the brightness window at
         ``org``; ``start = (hx, hw, size)``: the fit's start): the edges' biases, the
-        border line and margin outside them, the white part's end chosen again, its ends,
-        the lean, clipped to the frame, in whole pixels."""
+        border line and margin outside them, clipped to the frame, in whole pixels."""
         cfg = self.config
         H, W = bgr.shape[:2]
         ox, oy = org
@@ -474,14 +348,7 @@ class RectangleMixin:
             # the orange part's top as its hull's, moved out like the sides (not a
             # diamond fit's box: the part may have been taken for one)
             cand.y = y0 + by0 - out
-        if cfg.ext_rechoose and bands is not None:
-            bottom = self._rechoose_bottom(bands, cand, bottom, entry)
         cand.h = bottom - cand.y
-        if cfg.white_ends and cand.extended and low is not None:
-            self._white_ends(bgr, cand, out, y0 + by0 + bh, entry)
-        if cfg.rect_lean and cand.extended and top is not None and low is not None \
-                and sub[0] is not None and sub[1] is not None:
-            self._lean(value, cand, (ox, oy), out, by0 + dy + 0.5 * bh, size, entry)
         # no further than the image (labels are the visible part's box)
         x_a, y_a = max(cand.x, 0.0), max(cand.y, 0.0)
         cand.w = min(cand.x + cand.w, float(W)) - x_a
@@ -489,67 +356,3 @@ class RectangleMixin:
         cand.x, cand.y = x_a, y_a
         if cfg.pixel_boxes:
             cand.x, cand.y, cand.w, cand.h = pixel_box(cand.x, cand.y, cand.w, cand.h)
-
-
-    def _white_ends(self, bgr: np.ndarray, cand: Candidate, out: float, white_top: float,
-                    entry: Optional[dict]) -> None:
-        """Widen a measured two-colour sign's box ``cand`` to its white part's ends where
-        the part runs on past the sides (:func:`white_part_ends`; the orange part was cut
-        into pieces), within half the box's width beyond each side and to a width no more
-        than the box's height (two-colour signs are taller than wide).  ``out``: the border
-        line and margin outside the face (px); ``white_top``: the white part's first
-        row."""
-        face = (cand.x + out, cand.x + cand.w - out)
-        ends = white_part_ends(bgr, face, (white_top, cand.y + cand.h - out),
-                               0.5 * (face[1] - face[0]), max(2.0, 0.1 * (face[1] - face[0])))
-        if entry is not None:
-            entry['white_ends'] = ends
-        new_l = face[0] if ends[0] is None else ends[0]
-        new_r = face[1] if ends[1] is None else ends[1]
-        if (new_l, new_r) == face or new_r - new_l + 2 * out > cand.h:
-            return
-        # the orange part runs on over the white part's new columns too (its other piece),
-        # else the white beside the sign is the background's
-        r0, r1 = int(math.ceil(cand.y + out)), int(white_top)
-        if r1 - r0 < 2:
-            return
-        hsv = cv2.cvtColor(bgr[r0:r1, int(new_l):int(math.ceil(new_r))], cv2.COLOR_BGR2HSV)
-        cols = np.arange(int(new_l), int(math.ceil(new_r))) + 0.5
-        old = (cols > face[0]) & (cols < face[1])
-        if not old.any() or old.all():
-            return
-        h_old, s_old = _median(hsv[:, old, 0]), float(_median(hsv[:, old, 1]))
-        for side in (cols < face[0], cols > face[1]):
-            if side.any() and not (abs(float(_median(hsv[:, side, 0])) - float(h_old)) <= 12
-                                   and float(_median(hsv[:, side, 1])) >= 0.5 * s_old):
-                return
-        cand.x, cand.w = new_l - out, new_r - new_l + 2 * out
-
-    def _lean(self, value: np.ndarray, cand: Candidate, org: tuple[float, float], out: float,
-              y_sides: float, size: float, entry: Optional[dict]) -> None:
-        """Widen a measured two-colour sign's box ``cand`` to its face turned in the image
-        plane (a leaning post): the bounding box of the face whose sides lean as measured
-        by :func:`rectangle_lean` (both alike, by at least ``rect_lean_min``).  ``value``:
-        the brightness window at ``org`` (x, y); ``out``: the border line and margin
-        outside the face (px); ``y_sides``: the row (in the window) at which the box's
-        sides were measured."""
-        cfg = self.config
-        ox, oy = org
-        face = (cand.x - ox + out, cand.y - oy + out, cand.x + cand.w - ox - out,
-                cand.y + cand.h - oy - out)
-        slopes = rectangle_lean(value, face, size, cfg.rect_border_rel, cfg.rect_margin_rel)
-        if entry is not None:
-            entry['lean'] = slopes
-        if slopes is None:
-            return
-        sl, sr = slopes
-        s = 0.5 * (sl + sr)
-        if sl * sr <= 0 or abs(sl - sr) > cfg.rect_lean_agree or abs(s) < cfg.rect_lean_min:
-            return
-        # the sides (measured at y_sides) at the box's top and bottom rows; the top and
-        # bottom (measured about the middle) at its corners
-        ends = (s * (cand.y - oy - y_sides), s * (cand.y + cand.h - oy - y_sides))
-        dl, dr = min(0.0, *ends), max(0.0, *ends)
-        dv = 0.5 * abs(s) * (face[2] - face[0])
-        cand.x, cand.w = cand.x + dl, cand.w - dl + dr
-        cand.y, cand.h = cand.y - dv, cand.h + 2 * dv

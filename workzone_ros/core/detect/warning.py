@@ -2,32 +2,28 @@
 
 Starts from the mask's diamond are refined on the brightness (:func:`.diamond.refine_diamond`);
 the outline must hold the blob's orange; an occluder across the lower part is found and the
-box ends at it; when no start refines, the brightness is searched and the blurred chroma
-fitted (:mod:`.diamond_search`); the result is clamped and boxed in whole pixels.
+face measured above it; when no start refines, the blurred chroma is fitted
+(:mod:`.diamond_search`); the result is clamped and boxed in whole pixels.
 """
 from __future__ import annotations
 
 import math
 from typing import Optional, Sequence
 
-import cv2
 import numpy as np
 
-from workzone_ros.core.color_model import _quantile, apply_gains
+from workzone_ros.core.color_model import _quantile
 from workzone_ros.core.detect.common import _median, _padded
 from workzone_ros.core.detect.diamond import (
     diamond_pixel_box,
-    diamond_rings,
     fit_diamond,
     fit_diamond_2d,
     frame_edges,
     refine_diamond,
     refine_shifted,
-    start_shrink,
 )
 from workzone_ros.core.detect.diamond_search import (
     diamond_holds,
-    diamond_starts,
     fit_blurred_diamond,
 )
 from workzone_ros.core.detect.edges import EDGE_MIN_CONTRAST
@@ -39,16 +35,15 @@ __all__ = ['WarningMixin']
 class WarningMixin:
     """The detector's warning-diamond steps."""
 
-    def _warning_outline(self, bgr: np.ndarray, hsv: np.ndarray, pix: np.ndarray,
-                         face_px: np.ndarray, dark: np.ndarray, row_fit: Optional[tuple],
-                         window: tuple, blob: tuple, t: float, peel_t: Optional[float],
-                         needs_outline: bool, grow: float, refine: bool, search: bool
+    def _warning_outline(self, bgr: np.ndarray, hsv: np.ndarray, face_px: np.ndarray,
+                         row_fit: Optional[tuple], window: tuple, blob: tuple,
+                         needs_outline: bool, grow: float, refine: bool
                          ) -> tuple[Optional[tuple], Optional[tuple], Optional[tuple]]:
         """:meth:`_measure_orange`'s warning box: ``(outer, sub, blurred)``, the sign's box
         in the frame (None: none measured), the face refined on the brightness and the
         chroma fit's diamond (each None when not found).  ``window``: the blob's window
         ``(x0, y0, x1, y1)``; ``blob``: its hull box there ``(bx0, by0, bw, bh)``;
-        ``face_px``: its face pixels, ``pix`` its orange and ``dark`` its dark ones."""
+        ``face_px``: its face pixels."""
         cfg = self.config
         x0, y0, x1, y1 = window
         bx0, by0, bw, bh = blob
@@ -63,11 +58,10 @@ class WarningMixin:
         # an occluder across the face's lower part (a guardrail in front of a sign on
         # a stand): its edges are measured above it, from the rows' own diamond
         cut_row = self._cut_row(face_px, row_fit)
-        sub, blurred, larger, searched, cut_row = self._face_fit(
-            bgr, hsv, face_px, fd, row_fit, cut_row, window, blob, peel_t, needs_outline,
-            refine, search)
+        sub, blurred, larger, cut_row = self._face_fit(
+            bgr, hsv, face_px, fd, row_fit, cut_row, window, blob, needs_outline, refine)
         if self.debug is not None:
-            self.debug[-1].update(refined=sub is not None, searched=searched,
+            self.debug[-1].update(refined=sub is not None,
                                   blur_fit=blurred is not None,
                                   cut=None if cut_row is None else y0 + cut_row)
         diamond = None
@@ -82,52 +76,31 @@ class WarningMixin:
             k_ = cfg.diamond_scale
             if cfg.border_frac <= 0:
                 k_ = 1.0                    # configured: no border outside the face
-            elif cfg.diamond_ring_test:
-                # the black border lies outside the fitted face when the ring just
-                # outside the diamond is darker than the ring just inside it
-                ri, ro = diamond_rings(pix.shape, fd,
-                                       max(1.0, cfg.border_frac * 2 * fd[2]))
-                if np.count_nonzero(dark & ro) / max(np.count_nonzero(ro), 1) <= \
-                        np.count_nonzero(dark & ri) / max(np.count_nonzero(ri), 1):
-                    k_ = 1.0
             elif grow <= 0:
                 k_ = 1.0
             diamond = (*fd[:4], k_, 0.0)
         if diamond is not None:
             cut = cut_row is not None and sub is not None
-            # (the frame below the blob's window: the occluder reaches past it)
-            hidden_at = self._tip_hidden(
-                bgr[y0:, x0:x1], (diamond[0], diamond[1], diamond[4] * diamond[2],
-                                  diamond[4] * diamond[3]), cut_row, t) \
-                if cut and cfg.tip_check else None
-            if self.debug is not None and cut:
-                self.debug[-1]['hidden'] = None if hidden_at is None else y0 + hidden_at
             box_ = self._diamond_box(diamond, sub is not None or blurred is not None,
-                                     (bx0, by0, bw, bh), peel_t, searched or larger,
-                                     cut and hidden_at is None,
+                                     (bx0, by0, bw, bh), larger, cut,
                                      self._box_bias(sub))
-            if box_ is not None and hidden_at is not None and \
-                    box_[1] + box_[3] > hidden_at:
-                # the occluder hides the tip: the sign's visible part ends at it
-                box_ = (box_[0], box_[1], box_[2], hidden_at - box_[1])
             if box_ is not None:
                 outer = (x0 + box_[0], y0 + box_[1], box_[2], box_[3])
         return outer, sub, blurred
 
     def _face_fit(self, bgr: np.ndarray, hsv: np.ndarray, face_px: np.ndarray,
                   fd: Optional[tuple], row_fit: Optional[tuple], cut_row: Optional[int],
-                  window: tuple, blob: tuple, peel_t: Optional[float], needs_outline: bool,
-                  refine: bool, search: bool) -> tuple:
+                  window: tuple, blob: tuple, needs_outline: bool, refine: bool,
+                  ) -> tuple:
         """The warning face measured: from the mask's starts refined on the brightness,
-        else searched, else the chroma fit, else the starts moved.  Returns ``(sub,
-        blurred, larger, searched, cut_row)``: the refined face (None: none), the chroma
-        fit's diamond (None: none), whether the blob is larger than the sign, whether the
-        face was searched, and the occluder's cut row the face was measured above (None:
-        none)."""
+        else the chroma fit, else the starts moved.  Returns ``(sub, blurred, larger,
+        cut_row)``: the refined face (None: none), the chroma fit's diamond (None: none),
+        whether the blob is larger than the sign, and the occluder's cut row the face was
+        measured above (None: none)."""
         cfg = self.config
         x0, y0, x1, y1 = window
         bx0, by0, bw, bh = blob
-        searched = larger = False
+        larger = False
         sub = None
         if refine:
             # the brightness a few pixels beyond the blob's window (a mask fit that is
@@ -142,8 +115,8 @@ class WarningMixin:
             starts.append((bx0 + 0.5 * bw, by0 + 0.5 * bh, 0.5 * bw, 0.5 * bh))
             if row_fit is not None and row_fit[4] >= 0.5:
                 starts.append(row_fit[:4])
-            # else from the hull's box grown (a faded or rain-washed face whose mask,
-            # or a peeled core, covers less than the face); such a fit on a whole blob
+            # else from the hull's box grown (a faded or rain-washed face whose mask
+            # covers less than the face); such a fit on a whole blob
             # needs a clear line (``search_min_contrast``: the sign's outer edge
             # against a dark background is no face's edge against its line)
             n_mask = len(starts)
@@ -158,8 +131,7 @@ class WarningMixin:
                     (i_, st) for i_, st in enumerate(starts) if i_ != n_mask - 1]))
             for hidden, order in passes:
                 for i_, st in order:
-                    mc_ = EDGE_MIN_CONTRAST if i_ < n_mask or peel_t is not None \
-                        else cfg.search_min_contrast
+                    mc_ = EDGE_MIN_CONTRAST if i_ < n_mask else cfg.search_min_contrast
                     sub = self._refine(value, (st[0] + dx, st[1] + dy, st[2], st[3]),
                                        mc_, hidden)
                     if sub is not None:
@@ -171,12 +143,6 @@ class WarningMixin:
                 if sub is not None:
                     break
                 cut_row = None
-            if sub is None and search:
-                # no start from the mask works: look for the face's outline in the
-                # brightness itself
-                sub = self._search_diamond(value, dx, dy, (bx0, by0, bw, bh), face_px,
-                                          hsv)
-                searched = sub is not None
         blurred = None
         if sub is None and refine and cfg.blur_fit and not needs_outline:
             # no line to measure: the sign's blurred colour
@@ -193,7 +159,7 @@ class WarningMixin:
                 lambda f: self._held_reaching(f, held_args, (x0 + bx0, y0 + by0)))
             if got is not None:
                 sub, larger = got[0], got[1] == 'blended'
-        return sub, blurred, larger, searched, cut_row
+        return sub, blurred, larger, cut_row
 
     def _diamond_value(self, bgr: np.ndarray, window: tuple, bw: int, bh: int
                        ) -> tuple[np.ndarray, int, int]:
@@ -202,16 +168,15 @@ class WarningMixin:
         fit that is too large puts an edge's outer samples outside the window)."""
         return self._value(bgr, *_padded(window, bw, bh), self.config.diamond_luma)
 
-    def _diamond_box(self, diamond: tuple, refined: bool, blob: tuple,
-                     peel_t: Optional[float], larger: bool, cut: bool = False,
-                     bias: float = 0.0) -> Optional[tuple]:
+    def _diamond_box(self, diamond: tuple, refined: bool, blob: tuple, larger: bool,
+                     cut: bool = False, bias: float = 0.0) -> Optional[tuple]:
         """The sign's box ``(x, y, w, h)`` in the blob's window from ``diamond = (cx, cy, a,
         b, scale, pad)`` (the face and the sign / face ratio): no side further out than the
-        clamp (``diamond_clamp``, ``peel_clamp`` for a peeled core, ``refined_clamp`` for a
-        refined face, x the half-diagonal, + ``pad``) beyond the blob's box ``blob``; a
+        clamp (``diamond_clamp``, ``refined_clamp`` for a refined face, x the
+        half-diagonal, + ``pad``) beyond the blob's box ``blob``; a
         refined outline in whole pixels (``pixel_boxes``).  None when far from the blob's
         own box (it may be ``larger`` than the sign when it took in a surface or a blended
-        rim beyond it: a searched face, or one :meth:`_holds` calls blended).  ``cut``: the
+        rim beyond it: a face :meth:`_holds` calls blended).  ``cut``: the
         outline was measured above an occluder across the face's lower part; its bottom
         is not clamped (a guardrail in front of a sign on a stand hides a band of the face,
         and the labels, which are the visible pixels' box, take in the tip below it).
@@ -226,9 +191,7 @@ class WarningMixin:
                 (a_ + b_) * k_ < cfg.diamond_square_max:
             # a far sign seen about face on: its width and height are one measurement
             a_ = b_ = 0.5 * (a_ + b_)
-        # a peeled core lost the face's parts nearest the surface's colour: its own box
-        # bounds the sign more loosely
-        cl_ = cfg.diamond_clamp if peel_t is None else max(cfg.diamond_clamp, cfg.peel_clamp)
+        cl_ = cfg.diamond_clamp
         if refined:
             # a refined outline is the sign's from its own edges: a hidden tip (a guardrail
             # across the lower corner) is extrapolated further
@@ -295,8 +258,8 @@ class WarningMixin:
             held = None
         return (sub, held) if held else (None, None)
 
-    def _holds(self, hsv: np.ndarray, face_px: np.ndarray, sub: Sequence[float],
-               searched: bool = False) -> Optional[str]:
+    def _holds(self, hsv: np.ndarray, face_px: np.ndarray, sub: Sequence[float]
+               ) -> Optional[str]:
         """Whether the refined face ``sub`` (the blob's window) is the sign's.
 
         Yes when the catalogue's outline holds the blob's orange (:func:`diamond_holds`).
@@ -306,13 +269,11 @@ class WarningMixin:
         the blob's pixels beyond the outline, and fewer than half of the ring half a pixel
         to a pixel and a half beyond it on each of the four sides, are as saturated as
         ``hold_sat`` x the face's median and not dark.  A fit on a line further in than the
-        catalogue's (a wider margin, a symbol's edge) leaves the face's orange out.  A
-        ``searched`` face (:func:`diamond_starts`) is always judged so: the search also
-        finds diamonds inside a larger face.  Returns ``'holds'``, ``'blended'`` (the blob
-        is larger than the sign) or None."""
+        catalogue's (a wider margin, a symbol's edge) leaves the face's orange out.  Returns
+        ``'holds'``, ``'blended'`` (the blob is larger than the sign) or None."""
         cfg = self.config
         k = cfg.diamond_face_ratio
-        if not searched and diamond_holds(face_px, sub, k, cfg.diamond_hold):
+        if diamond_holds(face_px, sub, k, cfg.diamond_hold):
             return 'holds'
         if cfg.hold_sat <= 0:
             return None
@@ -342,74 +303,6 @@ class WarningMixin:
                     return None
         return 'blended'
 
-    def _tip_hidden(self, win: np.ndarray, sign: tuple, cut: int, level: float
-                    ) -> Optional[int]:
-        """The row where an occluder across a warning sign's lower part (see
-        :meth:`_cut_row`) begins when it hides the sign's tip, else None: it lies across
-        the face and reaches past the sign's bottom.
-
-        ``sign = (cx, cy, a, b)``: the sign's whole outline in the window ``win`` (reaching
-        down past the sign); ``cut``: the first row hidden.  Across: on the two rows below
-        the cut the pixels inside the outline differ from those 1-3 px beside it by less
-        than 0.3 x the face's own difference just above the cut (the largest channel
-        difference of the means).  Reaching past the bottom: every row from the cut to a
-        row below the sign's bottom corner, over the sign's width, differs from those first
-        two rows by less than that too (a vehicle's side, not a guardrail with the tip
-        showing below it), or (``tip_colour``; an occluder of two tones, a vehicle's pale
-        side over its dark sill) no pixel inside the outline below those two rows has the
-        sign's colour (orange likelihood >= ``level``, the blob's threshold: a tip
-        showing below a rail is the face's colour).  The occluder begins at ``cut`` or,
-        when that row is a blend of the face and the occluder (blur, the camera's chroma;
-        ``cut_blend_rows``), at the first of the rows after it that are across: the
-        labels end where the face covers less than half of a row's pixels."""
-        cx, cy, a, b = sign
-        h, w = win.shape[:2]
-        end = int(math.ceil(cy + b)) + 1
-        if cy + b - cut < self.config.tip_min_cut * b or end >= h or cut < 3:
-            return None
-        img = win[:end + 1].astype(np.float32)          # (the rows looked at)
-        xs = np.abs(np.arange(w) + 0.5 - cx)
-
-        def split(r: int) -> tuple:
-            hw = a * (1.0 - abs(r + 0.5 - cy) / b)
-            ins = xs <= max(hw, 0.5)
-            fl = (xs >= hw + 1.0) & (xs <= hw + 3.0)
-            if not ins.any() or np.count_nonzero(fl) < 2:
-                return None, None
-            return img[r, ins].mean(axis=0), img[r, fl].mean(axis=0)
-
-        faces = [split(r) for r in range(cut - 3, cut)]
-        face = [float(np.abs(i - f).max()) for i, f in faces if i is not None]
-        if not face or not np.median(face) > 0:
-            return None
-        tol = 0.3 * float(np.median(face))
-
-        rows_seen: dict = {}
-
-        def across(r: int) -> bool:
-            if r not in rows_seen:
-                rows_seen[r] = split(r)
-            i, f = rows_seen[r]
-            return i is not None and float(np.abs(i - f).max()) < tol
-
-        start = next((r for r in range(cut, cut + 1 + self.config.cut_blend_rows)
-                      if r + 1 <= end and across(r) and across(r + 1)), None)
-        if start is None:
-            return None
-        occ = np.mean([0.5 * (i + f) for i, f in (rows_seen[start], rows_seen[start + 1])],
-                      axis=0)
-        span = img[start:end + 1, np.abs(np.arange(w) + 0.5 - cx) <= a].mean(axis=1)
-        if (np.abs(span - occ).max(axis=1) < tol).all():
-            return start
-        if not self.config.tip_colour or end < start + 2:
-            return None
-        rows = win[start + 2:end + 1]
-        like = self._orange_like(cv2.cvtColor(
-            rows if self._gains is None else apply_gains(rows, self._gains), cv2.COLOR_BGR2HSV))
-        ry = np.arange(start + 2, end + 1)[:, None] + 0.5
-        outline = xs[None, :] <= a * (1.0 - np.abs(ry - cy) / b)
-        return None if (outline & (like >= level)).any() else start
-
     def _cut_row(self, face: np.ndarray, row_fit: Optional[tuple]) -> Optional[int]:
         """The row where an occluder across a warning face's lower part begins, or None.
 
@@ -433,22 +326,20 @@ class WarningMixin:
         return None
 
     def _refine(self, value: np.ndarray, start: Sequence[float],
-                min_contrast: float = EDGE_MIN_CONTRAST, hidden: Optional[float] = None,
-                strokes: bool = True) -> Optional[tuple[float, float, float, float]]:
+                min_contrast: float = EDGE_MIN_CONTRAST, hidden: Optional[float] = None
+                ) -> Optional[tuple[float, float, float, float]]:
         """:func:`refine_diamond` with this detector's settings; the face's half-diagonals
         less ``diamond_edge_bias`` (a blurred border line puts the measured edge that far
         out, whatever the sign's size), or less ``diamond_blur_bias`` when the edges' fitted
         blur is ``diamond_blur_sigma`` px or more; the height at most ``diamond_tall_max`` x
-        the width and the width at most ``diamond_wide_max`` x the height.  ``strokes``:
-        leave out the edge stretches a stroke runs into (``diamond_stroke_steps``); not for
-        the search's starts, which are guesses: with fewer stretches a small diamond inside a
-        symbol's strokes can pass."""
+        the width and the width at most ``diamond_wide_max`` x the height; the edge stretches a
+        stroke runs into are left out (``diamond_stroke_steps``)."""
         cfg = self.config
         info: dict = {}
         sub = refine_diamond(value, start, cfg.diamond_border_rel, cfg.diamond_margin_rel,
                              cfg.diamond_max_change, min_contrast, info=info,
                              hidden_below=hidden,
-                             stroke_steps=cfg.diamond_stroke_steps if strokes else 0,
+                             stroke_steps=cfg.diamond_stroke_steps,
                              bright_bias=cfg.diamond_bright_bias)
         if sub is None:
             return None
@@ -535,39 +426,3 @@ class WarningMixin:
                 and 2 * k * a >= bw - 2 and 2 * k * b >= bh - 2):
             return None
         return (cx, cy, *self._plausible(a, b))      # the shape limits of a refined face
-
-    def _search_diamond(self, value: np.ndarray, dx: int, dy: int, box: tuple,
-                        face_px: np.ndarray, hsv: np.ndarray
-                        ) -> Optional[tuple[float, float, float, float]]:
-        """The face diamond refined from :func:`diamond_starts` in the blob's box (``box`` and
-        ``face_px`` in the blob's window, ``value`` offset from it by ``(dx, dy)``), or None.
-
-        Kept only when :meth:`_refine` converges from a start with a clear line
-        (``search_min_contrast``), the face lies inside the blob's box (a pixel for the
-        blend, ``diamond_clamp_px`` for a small blurred face's mask), the sign is at least
-        ``search_min_share`` of the blob's shorter side, and the orange the outline leaves
-        out is not the face's own (:meth:`_holds`)."""
-        cfg = self.config
-        bx, by, bw, bh = box
-        shrink = start_shrink(cfg.diamond_border_rel, cfg.diamond_margin_rel)
-        for cx, cy, a, _, _ in diamond_starts(value, (bx + dx, by + dy, bw, bh),
-                                              0.3 * min(bw, bh), 0.6 * max(bw, bh)):
-            # refine_diamond shrinks its start from an outline to the face: undo that; a
-            # clear line: the sign's outer edge against dark asphalt is no face's edge
-            sub = self._refine(value, (cx, cy, a / shrink, a / shrink), cfg.search_min_contrast,
-                               strokes=False)
-            if sub is None:
-                continue
-            sub = (sub[0] - dx, sub[1] - dy, sub[2], sub[3])
-            k, (scx, scy, sa, sb) = cfg.diamond_face_ratio, sub
-            # the face (orange) within the blob's box, a pixel for the blend and the pixel
-            # blur eats of a small face's mask (``diamond_clamp_px``): a face larger than its
-            # blob is a fragment's (merge_fragments measures those) or the sign's outer edge
-            # against a dark background taken for the face's
-            e_ = 1.0 + cfg.diamond_clamp_px
-            if (scx - sa >= bx - e_ and scx + sa <= bx + bw + e_
-                    and scy - sb >= by - e_ and scy + sb <= by + bh + e_
-                    and 2 * k * min(sa, sb) >= cfg.search_min_share * min(bw, bh)
-                    and self._holds(hsv, face_px, sub, searched=True)):
-                return sub
-        return None

@@ -111,3 +111,38 @@ def test_a_missing_model_is_a_one_line_configuration_error(ros, tmp_path):
         ClassifierNode(context=ros.context, parameter_overrides=[
             Parameter('model_path', value=str(tmp_path / 'missing.npz'))])
     assert 'missing.npz' in str(err.value) and '\n' not in str(err.value)
+
+
+@pytest.mark.parametrize('general', [True, False])
+def test_a_stop_sign_on_the_frame_is_published_as_a_general_sign(ros, model_path, general):
+    """General signs come from the whole frame (no track needed) with category ``general``;
+    ``general_signs: false`` publishes none and never loads the recogniser."""
+    node = ros.add(ClassifierNode(context=ros.context, parameter_overrides=[
+        Parameter('model_path', value=str(model_path)), Parameter('general_signs', value=general),
+        Parameter('general_every', value=1)]))
+    assert (node._general is None) == (not general)
+    peer = ros.add(rclpy.create_node('classifier_general_peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, '/camera/image_raw',
+                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    trk_pub = peer.create_publisher(String, '/workzone/tracks', 10)
+    got: list[Signs] = []
+    peer.create_subscription(String, '/workzone/signs',
+                             lambda m: got.append(decode(m.data, Signs)), 10)
+    assert ros.spin_until(lambda: img_pub.get_subscription_count() > 0
+                          and trk_pub.get_subscription_count() > 0
+                          and node.count_subscribers('/workzone/signs') > 0)
+    rng = np.random.default_rng(6)
+    img = np.clip(rng.normal(0, 6, (240, 320, 3)) + (70, 120, 80), 0, 255).astype(np.float32)
+    img[70:120, 220:270] = over(sign_face('stop', 50), img[70:120, 220:270])
+    t = Time(sec=60)
+    img_pub.publish(numpy_to_image(np.clip(img, 0, 255).astype(np.uint8), 'bgr8',
+                                   stamp=time_to_stamp(t), frame_id='camera'))
+    trk_pub.publish(String(data=encode(Tracks(header=Header(stamp=t, frame_id='camera'),
+                                              tracks=[]))))
+    assert ros.spin_until(lambda: got), 'no Signs'
+    general_found = [s for s in got[0].signs if s.category == 'general']
+    if general:
+        assert [s.class_key for s in general_found] == ['stop'], got[0].signs
+        assert general_found[0].box.iou(Box(x=220, y=70, w=50, h=50)) > 0.5
+    else:
+        assert general_found == []

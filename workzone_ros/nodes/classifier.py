@@ -14,11 +14,11 @@ to classify, or mostly outside the image, is published as ``unknown`` with the r
 as a guess.  ``/workzone/debug_image`` (sensor QoS) shows the frame with the signs and a
 banner with the phase of ``/workzone/state``; ``debug_image: false`` turns it off.
 
-With ``general_signs: true`` (the default) every frame that gets a ``Signs`` payload is also
-searched for general US signs (:mod:`workzone_ros.core.general`: stop, yield, do-not-enter,
-warning, speed limit, guide signs, mile markers); they are published with category
-``general`` and never change the work-zone state.  ``false`` costs nothing: the recogniser
-is not even loaded.
+With ``general_signs: true`` (the default) every ``general_every``-th frame (3) that gets a
+``Signs`` payload is also searched for general US signs (:mod:`workzone_ros.core.general`:
+stop, yield, do-not-enter, warning, speed limit, guide signs, mile markers); they are
+published with category ``general`` and never change the work-zone state.  ``false`` costs
+nothing: the recogniser is not even loaded.
 """
 from __future__ import annotations
 
@@ -71,6 +71,8 @@ class ClassifierNode(WorkzoneNode):
         Param('read_speed', True, 'read the value of work-zone speed limit signs'),
         Param('general_signs', True, 'also recognise general signs (stop, yield, '
               'do-not-enter, warning, speed limit, guide, mile markers) on the whole frame'),
+        Param('general_every', 3, 'search every n-th frame for general signs (they never '
+              'change the work-zone state; 1: every frame)', min=1, max=100),
         Param('assumed_hfov_deg', 60.0, 'horizontal field of view used for distances until a '
               'CameraInfo arrives', min=1.0, max=179.0),
         Param('image_buffer', 10, 'images kept while waiting for their boxes', min=1,
@@ -86,6 +88,7 @@ class ClassifierNode(WorkzoneNode):
         self._model = self._load_model(p.model_path)
         self._recognizer = SignRecognizer(self._model, self._recognition_config())
         self._general = self._general_detector() if p.general_signs else None
+        self._frames = 0
         if p.read_speed:
             from workzone_ros.core.digits import warm_up
             warm_up()       # the digit classifier and templates, before the first frame
@@ -218,7 +221,8 @@ class ClassifierNode(WorkzoneNode):
         """Signs of one frame, and the boxes rejected as background."""
         focal = self._focal_px(frame.shape[1])
         signs, rejected = self._recognizer.recognize(frame, items, focal, rois)
-        if self._general is not None:
+        self._frames += 1
+        if self._general is not None and self._frames % self.params.general_every == 0:
             extra = general_signs(self._general.detect(frame), focal, rois, signs)
             self.counts['general'] += len(extra)
             signs = signs + extra

@@ -567,7 +567,7 @@ def test_sign_in_front_of_a_brick_wall_is_separated():
 
 @pytest.mark.parametrize('r', [60])
 def test_diamond_paler_at_its_tips_is_grown_whole(r):
-    """Real frames (#5, stop 24): on another camera the posterior threshold is the
+    """Real frames: on another camera the posterior threshold is the
     sheeting's own likelihood (0.94 here), and part of a real diamond's face lies lower (paler
     under the sky: 0.85-0.95).  Above the threshold is a band across its middle, a blob no
     test takes; grown into its neighbours above ``grow_level`` x the threshold and measured

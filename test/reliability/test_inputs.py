@@ -109,3 +109,46 @@ def test_pickled_model_files_are_refused_without_unpickling(tmp_path):
     with pytest.raises(color_model.ModelError) as err:
         color_model.load_model(path)
     assert '\n' not in str(err.value)
+
+
+def _calls(tree):
+    import ast
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            f = node.func
+            name = (f.id if isinstance(f, ast.Name) else
+                    f'{getattr(f.value, "id", "?")}.{f.attr}' if isinstance(f, ast.Attribute)
+                    else '?')
+            yield name, node
+
+
+def test_no_input_can_make_a_node_execute_code_or_write_files():
+    """Nothing a node reads (messages, model and parameter files) is executed: no pickle,
+    marshal, eval / exec or unsafe YAML anywhere a node runs, every np.load without pickles;
+    the only file any node writes is the fusion's phase checkpoint (in its run folder)."""
+    import ast
+    from pathlib import Path
+
+    import workzone_ros
+    root = Path(workzone_ros.__file__).parent
+    unsafe = {'pickle.load', 'pickle.loads', 'marshal.loads', 'eval', 'exec', 'yaml.load',
+              'joblib.load', 'torch.load'}
+    writers = []
+    for path in sorted((root / 'nodes').glob('*.py')) + sorted((root / 'core').rglob('*.py')):
+        tree = ast.parse(path.read_text())
+        for name, call in _calls(tree):
+            assert name not in unsafe, f'{path.name}: {name}'
+            if name.endswith('.load') and name != 'json.load':
+                kw = {k.arg: k.value for k in call.keywords}
+                if name == 'np.load':
+                    assert isinstance(kw.get('allow_pickle'), ast.Constant) \
+                        and kw['allow_pickle'].value is False, f'{path.name}: np.load'
+            if name.endswith(('.write_text', '.write_bytes', '.savez_compressed', '.imwrite')) \
+                    or (name == 'open' and len(call.args) > 1):
+                writers.append((path.relative_to(root).as_posix(), name))
+    # nodes write nothing but the fusion checkpoint; core writes only through the trainers'
+    # save functions (model files a user asks for)
+    assert [w for w in writers if w[0].startswith('nodes/')] == [
+        ('nodes/fusion.py', 'tmp.write_text')]
+    assert {w[0] for w in writers if w[0].startswith('core/')} <= {
+        'core/model_files.py', 'core/color_model.py'}

@@ -126,12 +126,8 @@ class ClassifierNode(WorkzoneNode):
             self._general = self._general_detector()
 
     def _general_detector(self):
-        from workzone_ros.core.cnn_classifier import CnnSignClassifier
         from workzone_ros.core.general import GeneralSignDetector
-        # the general signs are verified by the CNN: the node's own model when it is the
-        # CNN (loaded once), else the default CNN file
-        model = self._model if isinstance(self._model, CnnSignClassifier) else None
-        return GeneralSignDetector(classifier=model)
+        return GeneralSignDetector.sharing(self._model)     # the CNN is loaded once
 
     def _load_model(self, path: str):
         from workzone_ros.core import classifier as core

@@ -144,10 +144,8 @@ class PipelineSource:
         self.timings: dict[str, list[float]] = defaultdict(list)
         self.general = None
         if getattr(opts, 'general_signs', True):
-            from workzone_ros.core.cnn_classifier import CnnSignClassifier
             from workzone_ros.core.general import GeneralSignDetector
-            self.general = GeneralSignDetector(classifier=self.model if isinstance(
-                self.model, CnnSignClassifier) else None)
+            self.general = GeneralSignDetector.sharing(self.model)
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:

@@ -160,6 +160,14 @@ class GeneralSignDetector:
         elif classifier is not None:
             self._classifier = self._checked(classifier)
 
+    @classmethod
+    def sharing(cls, model: Any, config: GeneralConfig = GeneralConfig()
+                ) -> 'GeneralSignDetector':
+        """A detector that verifies with ``model`` when it is the CNN (its thresholds were
+        set for the CNN), else with the default CNN file, loaded at the first frame."""
+        from workzone_ros.core.cnn_classifier import CnnSignClassifier
+        return cls(config, classifier=model if isinstance(model, CnnSignClassifier) else None)
+
     @staticmethod
     def _checked(model: Any) -> Any:
         if not callable(getattr(model, 'classify_boxes', None)):

@@ -130,15 +130,11 @@ def median_inplace(v: np.ndarray, n: int) -> float:
 
 
 @njit(cache=True)
-def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: float,
-                 s_hi: float) -> np.ndarray:
-    """:func:`workzone_ros.core.detect.diamond.fit_diamond` on a C-contiguous uint8 mask (non-zero:
-    the blob) with the tent slopes ``slopes`` (``s_lo``, ``s_hi``: their range): ``(cx, cy,
-    a, b, inliers)``, all NaN for no fit.  The steps and their arithmetic are fit_diamond's
-    (see there)."""
+def _row_spans(mask: np.ndarray):
+    """Every non-empty row of ``mask``, in order: ``(yc, half, mid, n)``, its centre height
+    (row + 0.5), half width and middle column (from its first pixel to one past its last);
+    only the first ``n`` entries are filled."""
     H, W = mask.shape
-    out = np.full(5, np.nan)
-    # every non-empty row: its centre, first pixel and one past its last
     yc = np.empty(H)
     half = np.empty(H)
     mid = np.empty(H)
@@ -159,9 +155,15 @@ def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: floa
         half[n] = 0.5 * (float(right) - float(left))
         mid[n] = 0.5 * (float(right) + float(left))
         n += 1
-    if n < min_rows:
-        return out
-    # consensus: the median peak of every (apex row, slope) over a subsample of the rows
+    return yc, half, mid, n
+
+
+@njit(cache=True)
+def _tent_consensus(yc: np.ndarray, half: np.ndarray, n: int, slopes: np.ndarray):
+    """The tent's consensus: the median peak of every (apex row, slope) over a subsample of
+    the ``n`` rows, scored by the rows within max(1, 10 %) of it.  Returns ``(cys, step, ic,
+    js, a0)``: the apex rows tried, their spacing, the best's apex row and slope indices and
+    its peak half width (the first of the best, as np.argmax)."""
     stride = max(1, n // 24)
     nsub = (n + stride - 1) // stride
     step = max(0.5, (yc[n - 1] - yc[0]) / 20.0)
@@ -194,28 +196,43 @@ def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: floa
             score = count - 1e-3 * pairwise_sum(low)
             if score > best:                # the first of the best, as np.argmax
                 best, ic, js, a0 = score, i, j, a
-    s0 = slopes[js]
+    return cys, step, ic, js, a0
+
+
+@njit(cache=True)
+def _tent_rows(yc: np.ndarray, half: np.ndarray, mid: np.ndarray, n: int, cy0: float,
+               s0: float, a0: float):
+    """The rows that agree with the consensus tent (apex row ``cy0``, slope ``s0``, peak
+    ``a0``) to ``max(1, a0 / 10)``: ``(hk, yk, mk, n_keep)``, their half widths, centre
+    heights and middle columns (the first ``n_keep`` entries)."""
     lim = max(1.0, 0.1 * a0)
     hk = np.empty(n)
     yk = np.empty(n)
     mk = np.empty(n)
     n_keep = 0
     for q in range(n):
-        if abs(half[q] + s0 * abs(yc[q] - cys[ic]) - a0) <= lim:
+        if abs(half[q] + s0 * abs(yc[q] - cy0) - a0) <= lim:
             hk[n_keep], yk[n_keep], mk[n_keep] = half[q], yc[q], mid[q]
             n_keep += 1
-    if n_keep < min_rows:
-        return out
-    hk, yk = hk[:n_keep], yk[:n_keep]
-    # least squares on the consensus rows, the apex row on a quarter-pixel grid
-    cyr = float_range(cys[ic] - step - 0.25, cys[ic] + step + 0.26, 0.25)
+    return hk, yk, mk, n_keep
+
+
+@njit(cache=True)
+def _tent_least_squares(hk: np.ndarray, yk: np.ndarray, cy0: float, step: float, a0: float,
+                        s0: float, s_lo: float, s_hi: float):
+    """Least squares of the half widths ``hk`` over the heights ``yk`` (the consensus rows)
+    as a tent, its apex row on a quarter-pixel grid around the consensus apex ``cy0``: the
+    apex row, peak and slope of least squared error among those with a slope in ``[0.8
+    s_lo, 1.25 s_hi]`` (the consensus ``cy0``, ``a0``, ``s0`` when none)."""
+    n_keep = hk.size
+    cyr = float_range(cy0 - step - 0.25, cy0 + step + 0.26, 0.25)
     hm = pairwise_sum(hk) / n_keep
     dd = np.empty(n_keep)
     d2 = np.empty(n_keep)
     dh = np.empty(n_keep)
     e2 = np.empty(n_keep)
     found = False
-    best_sse, cy, aa, slope = 0.0, cys[ic], a0, s0
+    best_sse, cy, aa, slope = 0.0, cy0, a0, s0
     for i in range(cyr.size):
         for q in range(n_keep):
             dd[q] = abs(yk[q] - cyr[i])
@@ -234,6 +251,29 @@ def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: floa
                 not found or sse < best_sse):
             found = True
             best_sse, cy, aa, slope = sse, cyr[i], a_r, slope_r
+    return cy, aa, slope
+
+
+@njit(cache=True)
+def diamond_tent(mask: np.ndarray, min_rows: int, slopes: np.ndarray, s_lo: float,
+                 s_hi: float) -> np.ndarray:
+    """:func:`workzone_ros.core.detect.diamond.fit_diamond` on a C-contiguous uint8 mask (non-zero:
+    the blob) with the tent slopes ``slopes`` (``s_lo``, ``s_hi``: their range): ``(cx, cy,
+    a, b, inliers)``, all NaN for no fit.  The steps and their arithmetic are fit_diamond's
+    (see there): the rows' spans (:func:`_row_spans`), the consensus tent
+    (:func:`_tent_consensus`), the rows agreeing with it (:func:`_tent_rows`) and the least
+    squares on them (:func:`_tent_least_squares`)."""
+    out = np.full(5, np.nan)
+    yc, half, mid, n = _row_spans(mask)
+    if n < min_rows:
+        return out
+    cys, step, ic, js, a0 = _tent_consensus(yc, half, n, slopes)
+    s0 = slopes[js]
+    hk, yk, mk, n_keep = _tent_rows(yc, half, mid, n, cys[ic], s0, a0)
+    if n_keep < min_rows:
+        return out
+    cy, aa, slope = _tent_least_squares(hk[:n_keep], yk[:n_keep], cys[ic], step, a0, s0,
+                                        s_lo, s_hi)
     if aa <= 0:
         return out
     out[0] = median_inplace(mk, n_keep)
@@ -298,14 +338,10 @@ def _inverse4(m: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
-                max_drop: int) -> np.ndarray:
-    """:func:`workzone_ros.core.detect.diamond.fit_rhombus`: ``(cx, cy, a, b)``, all NaN for no
-    fit.  The same least squares and leave-one-out outlier test (see there); the 4 x 4
-    normal equations are summed and inverted here (to rounding, not bit for bit, numpy's
-    matrix product and LAPACK's inverse)."""
+def _rhombus_rows(points: np.ndarray, signs: np.ndarray):
+    """The least squares' rows ``(sx x, sy y, -sx, -sy)`` of the edge points and each
+    point's edge (0-3, by its signs)."""
     n = points.shape[0]
-    out = np.full(4, np.nan)
     rows = np.empty((n, 4))
     edge = np.empty(n, np.int64)
     for i in range(n):
@@ -315,53 +351,93 @@ def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
         rows[i, 2] = -sx
         rows[i, 3] = -sy
         edge[i] = (1 if sx > 0 else 0) + (2 if sy > 0 else 0)
+    return rows, edge
+
+
+@njit(cache=True)
+def _every_edge(keep: np.ndarray, edge: np.ndarray) -> bool:
+    """Each of the four edges keeps a point."""
+    has = np.zeros(4, np.bool_)
+    for i in range(keep.size):
+        if keep[i]:
+            has[edge[i]] = True
+    return has[0] and has[1] and has[2] and has[3]
+
+
+@njit(cache=True)
+def _rhombus_solve(rows: np.ndarray, keep: np.ndarray):
+    """The kept rows' normal equations, summed and solved: ``(inverse, solution)``, the
+    inverse empty when they are singular."""
+    mtm = np.zeros((4, 4))
+    rhs = np.zeros(4)
+    for i in range(rows.shape[0]):
+        if keep[i]:
+            for j in range(4):
+                rhs[j] += rows[i, j]
+                for k in range(4):
+                    mtm[j, k] += rows[i, j] * rows[i, k]
+    inv = _inverse4(mtm)
+    sol = np.zeros(4)
+    if inv.size == 0:
+        return inv, sol
+    for j in range(4):
+        for k in range(4):
+            sol[j] += inv[j, k] * rhs[k]
+    return inv, sol
+
+
+@njit(cache=True)
+def _worst_point(points: np.ndarray, signs: np.ndarray, rows: np.ndarray, keep: np.ndarray,
+                 inv: np.ndarray, cx: float, cy: float, a: float, b: float):
+    """The leave-one-out outlier test: ``(wi, worst, nan_seen)``, the kept point farthest
+    from the rhombus ``(cx, cy, a, b)`` by its distance over one minus its leverage, that
+    distance, and whether a distance was NaN (then ``wi`` is the first such point, as
+    np.argmax)."""
+    scale = a * b / math.hypot(a, b)
+    worst, wi, nan_seen = -1.0, -1, False
+    for i in range(points.shape[0]):
+        if not keep[i]:
+            continue
+        lev = 0.0
+        for j in range(4):
+            t = 0.0
+            for k in range(4):
+                t += inv[j, k] * rows[i, k]
+            lev += rows[i, j] * t
+        lev = min(lev, 0.95)
+        d = abs(signs[i, 0] * (points[i, 0] - cx) / a
+                + signs[i, 1] * (points[i, 1] - cy) / b - 1.0) * scale / (1.0 - lev)
+        if math.isnan(d):
+            if not nan_seen:        # np.argmax: the first NaN is the worst
+                wi, nan_seen = i, True
+        elif not nan_seen and d > worst:
+            worst, wi = d, i
+    return wi, worst, nan_seen
+
+
+@njit(cache=True)
+def rhombus_fit(points: np.ndarray, signs: np.ndarray, outlier_px: float,
+                max_drop: int) -> np.ndarray:
+    """:func:`workzone_ros.core.detect.diamond.fit_rhombus`: ``(cx, cy, a, b)``, all NaN for no
+    fit.  The same least squares and leave-one-out outlier test (see there); the 4 x 4
+    normal equations are summed and inverted here (to rounding, not bit for bit, numpy's
+    matrix product and LAPACK's inverse)."""
+    n = points.shape[0]
+    out = np.full(4, np.nan)
+    rows, edge = _rhombus_rows(points, signs)
     keep = np.ones(n, np.bool_)
     for _ in range(max_drop + 1):
-        has = np.zeros(4, np.bool_)
-        for i in range(n):
-            if keep[i]:
-                has[edge[i]] = True
-        if not (has[0] and has[1] and has[2] and has[3]):
+        if not _every_edge(keep, edge):
             return out                  # an edge without a point
-        mtm = np.zeros((4, 4))
-        rhs = np.zeros(4)
-        for i in range(n):
-            if keep[i]:
-                for j in range(4):
-                    rhs[j] += rows[i, j]
-                    for k in range(4):
-                        mtm[j, k] += rows[i, j] * rows[i, k]
-        inv = _inverse4(mtm)
+        inv, sol = _rhombus_solve(rows, keep)
         if inv.size == 0:
             return out
-        sol = np.zeros(4)
-        for j in range(4):
-            for k in range(4):
-                sol[j] += inv[j, k] * rhs[k]
         u, v = sol[0], sol[1]
         if u <= 1e-6 or v <= 1e-6:
             return out
         a, b = 1.0 / u, 1.0 / v
         cx, cy = sol[2] * a, sol[3] * b
-        scale = a * b / math.hypot(a, b)
-        worst, wi, nan_seen = -1.0, -1, False
-        for i in range(n):
-            if not keep[i]:
-                continue
-            lev = 0.0
-            for j in range(4):
-                t = 0.0
-                for k in range(4):
-                    t += inv[j, k] * rows[i, k]
-                lev += rows[i, j] * t
-            lev = min(lev, 0.95)
-            d = abs(signs[i, 0] * (points[i, 0] - cx) / a
-                    + signs[i, 1] * (points[i, 1] - cy) / b - 1.0) * scale / (1.0 - lev)
-            if math.isnan(d):
-                if not nan_seen:        # np.argmax: the first NaN is the worst
-                    wi, nan_seen = i, True
-            elif not nan_seen and d > worst:
-                worst, wi = d, i
+        wi, worst, nan_seen = _worst_point(points, signs, rows, keep, inv, cx, cy, a, b)
         if not nan_seen and worst <= max(outlier_px, 0.07 * min(a, b)):
             out[0], out[1], out[2], out[3] = cx, cy, a, b
             return out

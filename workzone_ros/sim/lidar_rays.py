@@ -3,7 +3,6 @@ column azimuths, cached), the batched sensor rotations, and the ray-primitive in
 (sign faces, cylinders, cones, boxes with plates and tail reflectors, quads).
 """
 # Ray origins / directions as O, D (the usual ray-casting names).
-# ruff: noqa: E741
 from __future__ import annotations
 
 import functools

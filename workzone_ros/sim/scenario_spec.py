@@ -295,38 +295,17 @@ def _mounts(d: Any, where: str) -> tuple[tuple[str, str], ...]:
     return tuple(sorted(out))
 
 
-def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> ScenarioSpec:
-    """Validate a scenario mapping (as loaded from YAML).
-
-    Args:
-        data: the mapping.
-        name: name used when the mapping has no ``name``.
-        source: where it came from (for messages).
-
-    Returns:
-        The validated spec.
-
-    Raises:
-        ScenarioError: unknown keys, unknown sign classes, bad values (one line).
-    """
-    top = _check_keys(data, ('name', 'description', 'duration', 'frames', 'weather',
-                             'ground_cover', 'road', 'ego', 'workzone', 'signs', 'distractors',
-                             'lidar'),
-                      f'scenario {name}')
-    name = str(top.get('name', name))
-    w = f'scenario {name}'
+def _duration(top: dict, w: str) -> float:
+    """The scenario's length in seconds: ``duration``, or ``frames`` at :data:`FPS`."""
     if 'duration' in top and 'frames' in top:
         raise _err(w, 'give duration or frames, not both')
     if 'frames' in top:
-        duration = _num(top, 'frames', w, None, lo=1, hi=10 ** 6, integer=True) / FPS
-    else:
-        duration = _num(top, 'duration', w, 40.0, lo=0.1, hi=3600.0)
-    weather = _choice(top, 'weather', w, 'spring_sunny', WEATHERS)
-    cover = _choice(top, 'ground_cover', w, 'snow' if weather.startswith('winter') else 'grass',
-                    ('grass', 'dry_grass', 'snow'))
+        return _num(top, 'frames', w, None, lo=1, hi=10 ** 6, integer=True) / FPS
+    return _num(top, 'duration', w, 40.0, lo=0.1, hi=3600.0)
 
-    rd = _check_keys(top.get('road'), ('curves', 'guardrails', 'tree_line', 'overpasses',
-                                       'buildings'), f'{w}: road')
+
+def _curves(rd: dict, w: str) -> list[tuple[float, float]]:
+    """``road.curves``: ``[length_m, curvature]`` segments."""
     curves = []
     for i, seg in enumerate(rd.get('curves') or []):
         if (not isinstance(seg, (list, tuple)) or len(seg) != 2
@@ -337,16 +316,27 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
             raise _err(f'{w}: road.curves[{i}]', 'length must be in (0, 20000] m and '
                        f'|curvature| <= 0.005 1/m, got {seg!r}')
         curves.append((float(seg[0]), float(seg[1])))
+    return curves
+
+
+def _road(top: dict, w: str) -> RoadSpec:
+    """The ``road`` section."""
+    rd = _check_keys(top.get('road'), ('curves', 'guardrails', 'tree_line', 'overpasses',
+                                       'buildings'), f'{w}: road')
+    curves = _curves(rd, w)
     overpasses = rd.get('overpasses') or []
     if not isinstance(overpasses, list) or not all(
             isinstance(x, (int, float)) and not isinstance(x, bool) and x >= 0
             for x in overpasses):
         raise _err(f'{w}: road', f'overpasses must be a list of arc lengths, got {overpasses!r}')
-    road = RoadSpec(tuple(curves), _bool(rd, 'guardrails', f'{w}: road', True),
+    return RoadSpec(tuple(curves), _bool(rd, 'guardrails', f'{w}: road', True),
                     _bool(rd, 'tree_line', f'{w}: road', True),
                     tuple(float(x) for x in overpasses),
                     _num(rd, 'buildings', f'{w}: road', 0.0, lo=0.0, hi=1.0))
 
+
+def _ego(top: dict, w: str) -> EgoSpec:
+    """The ``ego`` section (its stop-and-go episode after the start)."""
     ew = f'{w}: ego'
     eg = _check_keys(top.get('ego'), ('speed', 'lane', 'start_s', 'jitter', 'speed_profile',
                                       'decel', 'accel', 'stop_and_go'), ew)
@@ -366,57 +356,69 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
                   _num(eg, 'accel', ew, DEFAULT_ACCEL, lo=0.3, hi=5.0), stop)
     if stop is not None and stop.at <= ego.start_s:
         raise _err(f'{ew}.stop_and_go', f'at {stop.at} must lie after start_s {ego.start_s}')
+    return ego
 
-    wz = None
-    if top.get('workzone') is not None:
-        ww = f'{w}: workzone'
-        z = _check_keys(top['workzone'], ('taper_s', 'length', 'advance', 'speed_limit',
-                                          'lane_closed', 'taper_length', 'drum_spacing',
-                                          'lane_shifts', 'other_signs', 'work_vehicles',
-                                          'mounts', 'stand_probability'), ww)
-        if 'taper_s' not in z:
-            raise _err(ww, 'taper_s (arc length of the taper start) is required')
-        shifts = []
-        raw_shifts = z.get('lane_shifts') or []
-        if not isinstance(raw_shifts, list):
-            raise _err(ww, f'lane_shifts must be a list, got {raw_shifts!r}')
-        for i, sh in enumerate(raw_shifts):
-            sw = f'{ww}.lane_shifts[{i}]'
-            sh = _check_keys(sh, ('at', 'direction', 'offset', 'move'), sw)
-            if 'at' not in sh:
-                raise _err(sw, 'at (metres after the taper start) is required')
-            shifts.append(LaneShift(_num(sh, 'at', sw, None, lo=-300.0, hi=1e4),
-                                    _choice(sh, 'direction', sw, 'unknown', SHIFT_DIRECTIONS),
-                                    _num(sh, 'offset', sw, LANE_WIDTH / 2, lo=0.3, hi=4.0),
-                                    _choice(sh, 'move', sw, None, ('left', 'right'),
-                                            allow_none=True)))
-        speed_limit = z.get('speed_limit')
-        if speed_limit is not None:
-            speed_limit = _num(z, 'speed_limit', ww, None, lo=5, hi=85, integer=True)
-            if speed_limit % 5:
-                raise _err(ww, f'speed_limit must be a multiple of 5 mph, got {speed_limit}')
-        wz = WorkzoneSpec(
-            taper_s=_num(z, 'taper_s', ww, None, lo=0.0, hi=1e5),
-            length=_num(z, 'length', ww, 500.0, lo=50.0, hi=2e4),
-            advance=_num(z, 'advance', ww, ADVANCE_DEFAULT, lo=100.0, hi=2000.0),
-            speed_limit=speed_limit,
-            lane_closed=_choice(z, 'lane_closed', ww, None, ('left', 'right'), allow_none=True),
-            taper_length=_num(z, 'taper_length', ww, 150.0, lo=20.0, hi=400.0),
-            drum_spacing=_num(z, 'drum_spacing', ww, 15.0, lo=12.0, hi=20.0),
-            lane_shifts=tuple(sorted(shifts, key=lambda x: x.at)),
-            other_signs=_num(z, 'other_signs', ww, 0, lo=0, hi=20, integer=True),
-            work_vehicles=_num(z, 'work_vehicles', ww, 1, lo=0, hi=10, integer=True),
-            mounts=_mounts(z.get('mounts'), ww),
-            stand_probability=_num(z, 'stand_probability', ww, 0.0, lo=0.0, hi=1.0))
-        if wz.taper_length > wz.length:
-            raise _err(ww, f'taper_length {wz.taper_length} exceeds length {wz.length}')
-        for sh in wz.lane_shifts:
-            if sh.at + SHIFT_LENGTH > wz.length:
-                raise _err(ww, f'lane shift at {sh.at} m ends after the activity area '
-                           f'({wz.length} m)')
-    if ego.speed_profile == 'posted' and (wz is None or wz.speed_limit is None):
-        raise _err(ew, 'speed_profile: posted needs workzone.speed_limit (the limit to slow to)')
 
+def _lane_shifts(z: dict, ww: str) -> list[LaneShift]:
+    """``workzone.lane_shifts``, in the order given."""
+    shifts = []
+    raw_shifts = z.get('lane_shifts') or []
+    if not isinstance(raw_shifts, list):
+        raise _err(ww, f'lane_shifts must be a list, got {raw_shifts!r}')
+    for i, sh in enumerate(raw_shifts):
+        sw = f'{ww}.lane_shifts[{i}]'
+        sh = _check_keys(sh, ('at', 'direction', 'offset', 'move'), sw)
+        if 'at' not in sh:
+            raise _err(sw, 'at (metres after the taper start) is required')
+        shifts.append(LaneShift(_num(sh, 'at', sw, None, lo=-300.0, hi=1e4),
+                                _choice(sh, 'direction', sw, 'unknown', SHIFT_DIRECTIONS),
+                                _num(sh, 'offset', sw, LANE_WIDTH / 2, lo=0.3, hi=4.0),
+                                _choice(sh, 'move', sw, None, ('left', 'right'),
+                                        allow_none=True)))
+    return shifts
+
+
+def _workzone(top: dict, w: str) -> Optional[WorkzoneSpec]:
+    """The ``workzone`` section (None without one)."""
+    if top.get('workzone') is None:
+        return None
+    ww = f'{w}: workzone'
+    z = _check_keys(top['workzone'], ('taper_s', 'length', 'advance', 'speed_limit',
+                                      'lane_closed', 'taper_length', 'drum_spacing',
+                                      'lane_shifts', 'other_signs', 'work_vehicles',
+                                      'mounts', 'stand_probability'), ww)
+    if 'taper_s' not in z:
+        raise _err(ww, 'taper_s (arc length of the taper start) is required')
+    shifts = _lane_shifts(z, ww)
+    speed_limit = z.get('speed_limit')
+    if speed_limit is not None:
+        speed_limit = _num(z, 'speed_limit', ww, None, lo=5, hi=85, integer=True)
+        if speed_limit % 5:
+            raise _err(ww, f'speed_limit must be a multiple of 5 mph, got {speed_limit}')
+    wz = WorkzoneSpec(
+        taper_s=_num(z, 'taper_s', ww, None, lo=0.0, hi=1e5),
+        length=_num(z, 'length', ww, 500.0, lo=50.0, hi=2e4),
+        advance=_num(z, 'advance', ww, ADVANCE_DEFAULT, lo=100.0, hi=2000.0),
+        speed_limit=speed_limit,
+        lane_closed=_choice(z, 'lane_closed', ww, None, ('left', 'right'), allow_none=True),
+        taper_length=_num(z, 'taper_length', ww, 150.0, lo=20.0, hi=400.0),
+        drum_spacing=_num(z, 'drum_spacing', ww, 15.0, lo=12.0, hi=20.0),
+        lane_shifts=tuple(sorted(shifts, key=lambda x: x.at)),
+        other_signs=_num(z, 'other_signs', ww, 0, lo=0, hi=20, integer=True),
+        work_vehicles=_num(z, 'work_vehicles', ww, 1, lo=0, hi=10, integer=True),
+        mounts=_mounts(z.get('mounts'), ww),
+        stand_probability=_num(z, 'stand_probability', ww, 0.0, lo=0.0, hi=1.0))
+    if wz.taper_length > wz.length:
+        raise _err(ww, f'taper_length {wz.taper_length} exceeds length {wz.length}')
+    for sh in wz.lane_shifts:
+        if sh.at + SHIFT_LENGTH > wz.length:
+            raise _err(ww, f'lane shift at {sh.at} m ends after the activity area '
+                       f'({wz.length} m)')
+    return wz
+
+
+def _signs(top: dict, w: str) -> tuple[SignSpec, ...]:
+    """The ``signs`` list (signs placed by hand)."""
     raw_signs = top.get('signs') or []
     if not isinstance(raw_signs, list):
         raise _err(w, f'signs must be a list, got {raw_signs!r}')
@@ -438,16 +440,24 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
             _num(sg, 'speed_value', sw, None, lo=5, hi=85, integer=True),
             _num(sg, 'fade', sw, None, lo=0.0, hi=1.0),
             _num(sg, 'tilt_deg', sw, None, lo=-15.0, hi=15.0), mount, bottom))
+    return tuple(sign_specs)
 
+
+def _distractors(top: dict, w: str) -> DistractorSpec:
+    """The ``distractors`` section (counts)."""
     ds = _check_keys(top.get('distractors'), ('vehicles', 'orange_vehicles', 'yellow_vehicles',
                                              'cones', 'drums', 'general_signs',
                                              'mile_markers'), f'{w}: distractors')
     dw = f'{w}: distractors'
-    distractors = DistractorSpec(
+    return DistractorSpec(
         *(_num(ds, k, dw, getattr(DistractorSpec, k), lo=0, hi=200, integer=True)
           for k in ('vehicles', 'orange_vehicles', 'yellow_vehicles', 'cones', 'drums',
                     'general_signs')),
         _bool(ds, 'mile_markers', dw, True))
+
+
+def _lidar(top: dict, w: str) -> LidarSpec:
+    """The ``lidar`` section, checked by building its sensor."""
     lw = f'{w}: lidar'
     ld = _check_keys(top.get('lidar'), ('model', 'max_range'), lw)
     lidar = LidarSpec(_choice(ld, 'model', lw, DEFAULT_PRESET, tuple(LIDAR_PRESETS)),
@@ -456,11 +466,47 @@ def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> Scena
         lidar.sensor()
     except LidarError as exc:
         raise _err(lw, str(exc)) from None
+    return lidar
+
+
+def parse_scenario(data: Any, name: str = 'scenario', source: str = '') -> ScenarioSpec:
+    """Validate a scenario mapping (as loaded from YAML).
+
+    Args:
+        data: the mapping.
+        name: name used when the mapping has no ``name``.
+        source: where it came from (for messages).
+
+    Returns:
+        The validated spec.
+
+    Raises:
+        ScenarioError: unknown keys, unknown sign classes, bad values (one line).
+    """
+    top = _check_keys(data, ('name', 'description', 'duration', 'frames', 'weather',
+                             'ground_cover', 'road', 'ego', 'workzone', 'signs', 'distractors',
+                             'lidar'),
+                      f'scenario {name}')
+    name = str(top.get('name', name))
+    w = f'scenario {name}'
+    duration = _duration(top, w)
+    weather = _choice(top, 'weather', w, 'spring_sunny', WEATHERS)
+    cover = _choice(top, 'ground_cover', w, 'snow' if weather.startswith('winter') else 'grass',
+                    ('grass', 'dry_grass', 'snow'))
+    road = _road(top, w)
+    ego = _ego(top, w)
+    wz = _workzone(top, w)
+    if ego.speed_profile == 'posted' and (wz is None or wz.speed_limit is None):
+        raise _err(f'{w}: ego',
+                   'speed_profile: posted needs workzone.speed_limit (the limit to slow to)')
+    sign_specs = _signs(top, w)
+    distractors = _distractors(top, w)
+    lidar = _lidar(top, w)
     desc = top.get('description', '')
     if not isinstance(desc, str):
         raise _err(w, f'description must be a string, got {desc!r}')
     return ScenarioSpec(name, ' '.join(desc.split()), float(duration), weather, cover, road,
-                        ego, wz, tuple(sign_specs), distractors, source, lidar)
+                        ego, wz, sign_specs, distractors, source, lidar)
 
 
 def scenario_dir() -> Path:

@@ -238,6 +238,150 @@ class _CachedDetector:
 DRUM_KINDS = ('drum', 'cone')
 
 
+class _FrameTruth:
+    """One frame's ground truth as :func:`evaluate_bag` scores it: the work-zone sign boxes,
+    the evaluable signs and the drum and cone boxes."""
+
+    def __init__(self, gt, min_size: float) -> None:
+        wz = [s for s in gt.signs if s.category == 'workzone']
+        self.wz_boxes = [_xywh(s.box) for s in wz]
+        self.evaluable = [s for s in wz if min(s.box.w, s.box.h) >= min_size
+                          and s.visible_fraction >= 0.5]
+        self.drums = [_xywh(d.box) for d in gt.distractors if d.kind in DRUM_KINDS]
+
+    def false_kind(self, b) -> Optional[str]:
+        """None for a box on a work-zone sign, else ``drums`` or ``other``."""
+        if any(_iou(b, g) >= 0.3 for g in self.wz_boxes):
+            return None
+        if any(_iou(b, d) >= 0.3 or _ioa(d, b) >= 0.5 for d in self.drums):
+            return 'drums'
+        return 'other'
+
+
+class _BagTally:
+    """The counts of :func:`evaluate_bag` over one bag, per configuration."""
+
+    def __init__(self, cfgs: dict) -> None:
+        self.started: set[int] = set()              # sign ids the detector has found once
+        self.acc = {k: defaultdict(float) for k in cfgs}
+        self.ids = {k: defaultdict(set) for k in cfgs}
+        self.missed_ids: set[int] = set()
+        self.times: dict[str, list] = {k: [] for k in cfgs}
+        self.reg = {k: defaultdict(float) for k in cfgs}
+        self.det_false: defaultdict = defaultdict(int)
+
+    def detections(self, det_boxes: list, truth: _FrameTruth) -> dict[int, bool]:
+        """Count the detector's false alarms and start the signs it found; returns whether
+        a detection matched each evaluable sign (by sign id)."""
+        for b in det_boxes:
+            fk = truth.false_kind(b)
+            if fk:
+                self.det_false[fk] += 1
+        det_hit = {}
+        for s in truth.evaluable:
+            g = _xywh(s.box)
+            det_hit[s.sign_id] = any(_iou(b, g) >= TAU for b in det_boxes)
+            if det_hit[s.sign_id]:
+                self.started.add(s.sign_id)
+        return det_hit
+
+    def outputs(self, name: str, out: list, truth: _FrameTruth, det_hit: dict[int, bool],
+                det_boxes: list, trace: Optional[list], n_frame: int) -> None:
+        """Count configuration ``name``'s outputs ``out`` of one frame."""
+        boxes = [(_xywh(t.box), t.source, t.track_id) for t in out]
+        for s in truth.evaluable:
+            if s.sign_id not in self.started:
+                continue
+            best = self._sign(name, s, boxes, det_hit[s.sign_id])
+            if trace is not None:
+                g = _xywh(s.box)
+                dbest = max((_iou(b, g) for b in det_boxes), default=0.0)
+                trace.append((n_frame, name, s.sign_id, s.class_key, dbest, best,
+                              min(s.box.w, s.box.h)))
+        self._false(name, boxes, truth)
+
+    def _sign(self, name: str, s, boxes: list, det_hit: bool) -> float:
+        """Count one run sign-frame; returns the best output IoU with the sign."""
+        a, reg, ids = self.acc[name], self.reg[name], self.ids[name]
+        g = _xywh(s.box)
+        best, bo = 0.0, None
+        for b, src, _ in boxes:
+            v = _iou(b, g)
+            if v > best:
+                best, bo = v, b
+        a['tracked_frames'] += 1
+        two = s.class_key in ('work_zone_begin', 'work_zone_speed_limit')
+        if two:
+            reg['frames'] += 1
+        if best >= TAU:
+            p, r = area_pr(bo, g)
+            a['matched'] += 1
+            a['precision_sum'] += p
+            a['recall_sum'] += r
+            if two:
+                reg['matched'] += 1
+                reg['precision_sum'] += p
+                reg['recall_sum'] += r
+        if not det_hit:
+            a['missed_by_detector'] += 1
+            self.missed_ids.add(s.sign_id)
+            ids['missed'].add(s.sign_id)
+            if best >= TAU:
+                a['covered'] += 1
+                ids['covered'].add(s.sign_id)
+        return best
+
+    def _false(self, name: str, boxes: list, truth: _FrameTruth) -> None:
+        """Count the outputs on no work-zone sign (all, and tracking-only)."""
+        a, ids = self.acc[name], self.ids[name]
+        for b, src, tid in boxes:
+            if src == 'tracking':
+                a['tracking_outputs'] += 1
+            fk = truth.false_kind(b)
+            if fk is None:
+                continue
+            a[f'false_{fk}'] += 1
+            ids[f'false_{fk}'].add(tid)
+            if src == 'tracking':
+                a[f'false_tracking_{fk}'] += 1
+                ids[f'false_tracking_{fk}'].add(tid)
+
+    def figures(self, name: str) -> dict:
+        """Configuration ``name``'s figures over the bag."""
+        a = self.acc[name]
+        m = max(a['matched'], 1)
+        t = np.array(self.times[name]) * 1e3
+        r = self.reg[name]
+        i = self.ids[name]
+        out = {
+            'tracked_frames': int(a['tracked_frames']),
+            'match_rate': _r(a['matched'] / max(a['tracked_frames'], 1)),
+            'precision': _r(a['precision_sum'] / m),
+            'recall': _r(a['recall_sum'] / m),
+            'missed_by_detector': int(a['missed_by_detector']),
+            'covered': int(a['covered']),
+            'covered_fraction': _r(a['covered'] / max(a['missed_by_detector'], 1)),
+            'covered_signs': len(i['covered']),
+            'missed_signs': len(i['missed']),
+            'tracking_outputs': int(a['tracking_outputs']),
+            'false_on_drums': int(a['false_drums']),
+            'false_on_other': int(a['false_other']),
+            'false_tracking_on_drums': int(a['false_tracking_drums']),
+            'false_tracking_on_other': int(a['false_tracking_other']),
+            'false_tracks_on_drums': len(i['false_tracking_drums'] - {0}),
+            'false_tracks_on_other': len(i['false_tracking_other'] - {0}),
+            'two_colour_frames': int(r['frames']),
+            'two_colour_match_rate': _r(r['matched'] / max(r['frames'], 1)),
+            'two_colour_precision': _r(r['precision_sum'] / max(r['matched'], 1)),
+            'two_colour_recall': _r(r['recall_sum'] / max(r['matched'], 1)),
+        }
+        if t.size:
+            out['ms_per_track_frame_p50'] = _r(float(np.percentile(t, 50)))
+            out['ms_per_track_frame_p99'] = _r(float(np.percentile(t, 99)))
+            out['track_frames_timed'] = int(t.size)
+        return out
+
+
 def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
                  overlay: Optional[list] = None, configs: Optional[dict] = None,
                  trace: Optional[list] = None) -> dict:
@@ -261,94 +405,22 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
     from workzone_ros.core.track import MultiTracker
     cfgs = configs or _configs()
     trackers = {k: MultiTracker(c) for k, c in cfgs.items()}
-    started: set[int] = set()              # sign ids the detector has found once
-    acc = {k: defaultdict(float) for k in cfgs}
-    ids = {k: defaultdict(set) for k in cfgs}
-    missed_ids: set[int] = set()
-    times = {k: [] for k in cfgs}
-    reg = {k: defaultdict(float) for k in cfgs}
+    tally = _BagTally(cfgs)
     n_frames = 0
-    det_false = defaultdict(int)
     weather = ''
     for ns, frame, gt in _frames(bag):
         n_frames += 1
         weather = gt.weather
         dets = detector(frame, gt)
         det_boxes = [_xywh(d.box) for d in dets]
-        wz = [s for s in gt.signs if s.category == 'workzone']
-        wz_boxes = [_xywh(s.box) for s in wz]
-        evaluable = [s for s in wz if min(s.box.w, s.box.h) >= min_size
-                     and s.visible_fraction >= 0.5]
-        drums = [_xywh(d.box) for d in gt.distractors if d.kind in DRUM_KINDS]
-
-        def false_kind(b):
-            if any(_iou(b, g) >= 0.3 for g in wz_boxes):
-                return None
-            if any(_iou(b, d) >= 0.3 or _ioa(d, b) >= 0.5 for d in drums):
-                return 'drums'
-            return 'other'
-
-        for b in det_boxes:
-            fk = false_kind(b)
-            if fk:
-                det_false[fk] += 1
-        det_hit = {}
-        for s in evaluable:
-            g = _xywh(s.box)
-            det_hit[s.sign_id] = any(_iou(b, g) >= TAU for b in det_boxes)
-            if det_hit[s.sign_id]:
-                started.add(s.sign_id)
+        truth = _FrameTruth(gt, min_size)
+        det_hit = tally.detections(det_boxes, truth)
         frame_out = {}
         for name, tracker in trackers.items():
             out = tracker.step(frame, dets, stamp=ns * 1e-9)
             frame_out[name] = out
-            times[name] += tracker.last_localise_s
-            a = acc[name]
-            boxes = [(_xywh(t.box), t.source, t.track_id) for t in out]
-            for s in evaluable:
-                if s.sign_id not in started:
-                    continue
-                g = _xywh(s.box)
-                best, bo = 0.0, None
-                for b, src, _ in boxes:
-                    v = _iou(b, g)
-                    if v > best:
-                        best, bo = v, b
-                a['tracked_frames'] += 1
-                two = s.class_key in ('work_zone_begin', 'work_zone_speed_limit')
-                if two:
-                    reg[name]['frames'] += 1
-                if best >= TAU:
-                    p, r = area_pr(bo, g)
-                    a['matched'] += 1
-                    a['precision_sum'] += p
-                    a['recall_sum'] += r
-                    if two:
-                        reg[name]['matched'] += 1
-                        reg[name]['precision_sum'] += p
-                        reg[name]['recall_sum'] += r
-                if not det_hit[s.sign_id]:
-                    a['missed_by_detector'] += 1
-                    missed_ids.add(s.sign_id)
-                    ids[name]['missed'].add(s.sign_id)
-                    if best >= TAU:
-                        a['covered'] += 1
-                        ids[name]['covered'].add(s.sign_id)
-                if trace is not None:
-                    dbest = max((_iou(b, g) for b in det_boxes), default=0.0)
-                    trace.append((n_frames, name, s.sign_id, s.class_key, dbest, best,
-                                  min(s.box.w, s.box.h)))
-            for b, src, tid in boxes:
-                if src == 'tracking':
-                    a['tracking_outputs'] += 1
-                fk = false_kind(b)
-                if fk is None:
-                    continue
-                a[f'false_{fk}'] += 1
-                ids[name][f'false_{fk}'].add(tid)
-                if src == 'tracking':
-                    a[f'false_tracking_{fk}'] += 1
-                    ids[name][f'false_tracking_{fk}'].add(tid)
+            tally.times[name] += tracker.last_localise_s
+            tally.outputs(name, out, truth, det_hit, det_boxes, trace, n_frames)
         if overlay is not None:
             overlay.append((ns, frame, gt, dets, frame_out.get('meanshift', [])))
         if max_frames and n_frames >= max_frames:
@@ -356,41 +428,11 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
     if hasattr(detector, 'flush'):
         detector.flush()
     res: dict[str, Any] = {'bag': bag, 'frames': n_frames, 'weather': weather,
-                           'detector_false_on_drums': det_false['drums'],
-                           'detector_false_on_other': det_false['other'],
-                           'signs_missed_by_detector': len(missed_ids)}
+                           'detector_false_on_drums': tally.det_false['drums'],
+                           'detector_false_on_other': tally.det_false['other'],
+                           'signs_missed_by_detector': len(tally.missed_ids)}
     for name in cfgs:
-        a = acc[name]
-        m = max(a['matched'], 1)
-        t = np.array(times[name]) * 1e3
-        r = reg[name]
-        i = ids[name]
-        res[name] = {
-            'tracked_frames': int(a['tracked_frames']),
-            'match_rate': _r(a['matched'] / max(a['tracked_frames'], 1)),
-            'precision': _r(a['precision_sum'] / m),
-            'recall': _r(a['recall_sum'] / m),
-            'missed_by_detector': int(a['missed_by_detector']),
-            'covered': int(a['covered']),
-            'covered_fraction': _r(a['covered'] / max(a['missed_by_detector'], 1)),
-            'covered_signs': len(i['covered']),
-            'missed_signs': len(i['missed']),
-            'tracking_outputs': int(a['tracking_outputs']),
-            'false_on_drums': int(a['false_drums']),
-            'false_on_other': int(a['false_other']),
-            'false_tracking_on_drums': int(a['false_tracking_drums']),
-            'false_tracking_on_other': int(a['false_tracking_other']),
-            'false_tracks_on_drums': len(i['false_tracking_drums'] - {0}),
-            'false_tracks_on_other': len(i['false_tracking_other'] - {0}),
-            'two_colour_frames': int(r['frames']),
-            'two_colour_match_rate': _r(r['matched'] / max(r['frames'], 1)),
-            'two_colour_precision': _r(r['precision_sum'] / max(r['matched'], 1)),
-            'two_colour_recall': _r(r['recall_sum'] / max(r['matched'], 1)),
-        }
-        if t.size:
-            res[name]['ms_per_track_frame_p50'] = _r(float(np.percentile(t, 50)))
-            res[name]['ms_per_track_frame_p99'] = _r(float(np.percentile(t, 99)))
-            res[name]['track_frames_timed'] = int(t.size)
+        res[name] = tally.figures(name)
     return res
 
 

@@ -74,6 +74,15 @@ def _blend(a: Sequence[float], b: Sequence[float], wb: float) -> tuple[float, fl
     return (x0, y0, x1 - x0, y1 - y0)
 
 
+def _check_frame(frame) -> None:
+    """Raise :class:`TrackingError` unless ``frame`` is an (H, W, 3) uint8 image."""
+    if not isinstance(frame, np.ndarray) or frame.ndim != 3 or frame.shape[2] != 3 \
+            or frame.dtype != np.uint8:
+        raise TrackingError('frame must be an (H, W, 3) uint8 BGR image, got '
+                            f'{getattr(frame, "shape", None)} '
+                            f'{getattr(frame, "dtype", type(frame).__name__)}')
+
+
 @dataclass
 class _Track:
     track_id: int
@@ -245,25 +254,42 @@ class MultiTracker:
         Raises:
             TrackingError: ``frame`` is not an (H, W, 3) uint8 image.
         """
-        if not isinstance(frame, np.ndarray) or frame.ndim != 3 or frame.shape[2] != 3 \
-                or frame.dtype != np.uint8:
-            raise TrackingError('frame must be an (H, W, 3) uint8 BGR image, got '
-                                f'{getattr(frame, "shape", None)} '
-                                f'{getattr(frame, "dtype", type(frame).__name__)}')
-        cfg = self.config
+        _check_frame(frame)
         self.frames += 1
         self._frame = frame
         if stamp is not None:
-            self._stamps.append(float(stamp))
-            del self._stamps[:-31]
-            gaps = np.diff(self._stamps)
-            gaps = gaps[gaps > 0]
-            self._fps = float(1.0 / np.median(gaps)) if gaps.size else None
+            self._note_stamp(stamp)
         H, W = frame.shape[:2]
-        tracking = cfg.mode == 'detection_and_tracking'
+        tracking = self.config.mode == 'detection_and_tracking'
         self.last_localise_s = []
-
         # 1. Localise every live track in this frame.
+        self._localise_all(frame, tracking)
+        # 2. Detection models.
+        dets = self._detection_models(frame, detections)
+        # 3. Associate: IoU first, then histogram similarity (greedy on the combined score).
+        t_match, d_used = self._associate(dets, tracking)
+        # Matched tracks take their detection; the others run on their own or end.
+        survivors, out_det, out_trk = self._update_tracks(frame, dets, t_match, tracking, W, H)
+        # 4. Unmatched detections start tracks.
+        self._start_tracks(frame, dets, d_used, tracking, survivors, out_det)
+        # 5. Duplicates: two tracks on one sign -> the one with fewer hits ends.
+        kept = self._drop_duplicates(survivors, tracking)
+        kept_ids = {t.track_id for t in kept}
+        self._tracks = sorted(kept, key=lambda t: t.track_id)
+        out_det.sort(key=lambda p: p[0])
+        return [t for _, t in out_det] + [t for t in out_trk if t.track_id in kept_ids]
+
+    def _note_stamp(self, stamp: float) -> None:
+        """Remember a frame's stamp; the frame rate is the median gap of the last 31."""
+        self._stamps.append(float(stamp))
+        del self._stamps[:-31]
+        gaps = np.diff(self._stamps)
+        gaps = gaps[gaps > 0]
+        self._fps = float(1.0 / np.median(gaps)) if gaps.size else None
+
+    def _localise_all(self, frame: np.ndarray, tracking: bool) -> None:
+        """Step 1: localise every live track in ``frame`` (timing each in
+        ``last_localise_s``); without tracking the prediction is the last box."""
         if tracking:
             for tr in self._tracks:
                 t0 = _clock()
@@ -273,7 +299,10 @@ class MultiTracker:
             for tr in self._tracks:
                 tr.pred_anchor, tr.pred_box, tr.pred_rho = tr.anchor, tr.box, 0.0
 
-        # 2. Detection models.
+    def _detection_models(self, frame: np.ndarray,
+                          detections: Sequence[Detection]) -> list[_DetModel]:
+        """Step 2: the target model of every detection at least ``min_box_px`` on a side."""
+        cfg = self.config
         dets: list[_DetModel] = []
         for d in detections:
             b = d.box
@@ -281,8 +310,15 @@ class MultiTracker:
                 continue
             box = (float(b.x), float(b.y), float(b.w), float(b.h))
             dets.append(_DetModel(d, box, build_target(frame, box, cfg, self._luts)))
+        return dets
 
-        # 3. Associate: IoU first, then histogram similarity (greedy on the combined score).
+    def _associate(self, dets: list[_DetModel], tracking: bool
+                   ) -> tuple[dict[int, tuple[int, float]], set[int]]:
+        """Step 3: pair tracks and detections, IoU first, then histogram similarity (greedy
+        on the combined score).  Returns ``(t_match, d_used)``: track index -> (detection
+        index, similarity), and the detections taken (including those a confident track
+        disagrees with: they belong to it, but the tracker keeps its own box)."""
+        cfg = self.config
         pairs = []
         for ti, tr in enumerate(self._tracks):
             ref = tr.pred_box if tr.pred_box is not None else tr.box
@@ -309,7 +345,15 @@ class MultiTracker:
                     and tr.pred_box is not None:
                 continue          # belongs to the track but disagrees: the tracker keeps it
             t_match[ti] = (di, sim)
+        return t_match, d_used
 
+    def _update_tracks(self, frame: np.ndarray, dets: list[_DetModel],
+                       t_match: dict[int, tuple[int, float]], tracking: bool, W: int, H: int
+                       ) -> tuple[list[_Track], list[tuple[int, Track]], list[Track]]:
+        """Every live track one frame on: a matched one takes its detection, the others run
+        on their own or end.  Returns ``(survivors, out_det, out_trk)``: the tracks that
+        live on, the detection-led outputs (keyed by detection index) and the tracks
+        published while running on their own."""
         out_det: list[tuple[int, Track]] = []
         out_trk: list[Track] = []
         survivors: list[_Track] = []
@@ -318,63 +362,80 @@ class MultiTracker:
             tr.since_ref += 1
             if ti in t_match:
                 di, sim = t_match[ti]
-                dm = dets[di]
-                if tracking and cfg.association == 'fuse' and dm.target is not None \
-                        and self._confident(tr) \
-                        and min(tr.pred_box[2], tr.pred_box[3]) >= cfg.fuse_min_px:
-                    t0 = _clock()
-                    self._fuse(frame, tr, dm, sim)
-                    self.last_localise_s[ti] += _clock() - t0
-                else:
-                    self._correct(tr, dm, sim)
+                self._take_detection(frame, ti, tr, dets[di], sim, tracking)
                 survivors.append(tr)
                 out_det.append((di, self._payload(tr, 'detection')))
                 continue
-            if not tracking:
-                tr.lost += 1
-                if tr.lost <= cfg.max_lost_frames:
-                    survivors.append(tr)
-                continue
-            # The detector missed: the track runs on its own.
-            tr.coast += 1
-            if tr.coast > cfg.max_coast_frames:
-                continue
-            if tr.pred_rho < cfg.min_similarity:
-                # Lost (occluded?): not published; the box coasts on the velocity and the
-                # next frame searches there again, until max_lost_frames.
-                tr.lost += 1
-                tr.was_lost = True
-                if tr.lost <= cfg.max_lost_frames:
-                    vx, vy = tr.velocity
-                    a, b = tr.anchor, tr.box
-                    tr.anchor = (a[0] + vx, a[1] + vy, a[2], a[3])
-                    tr.box = (b[0] + vx, b[1] + vy, b[2], b[3])
-                    survivors.append(tr)
-                continue
-            if tr.pred_ring > cfg.max_ring_similarity and (
-                    cfg.ring_margin < 0 or tr.hits < cfg.ring_margin_min_hits
-                    or tr.pred_ring > tr.ref_ring + cfg.ring_margin):
-                # Drift guard: the target's colour continues all around the box (the box sits
-                # in a much larger region of sign colour, e.g. an orange vehicle): not a sign
-                # anymore; coast blind like an occlusion and end unless a detection returns.
-                tr.lost += 1
-                if tr.lost <= cfg.max_lost_frames:
-                    survivors.append(tr)
-                continue
-            pb = tr.pred_box
-            if not self._inside(pb, W, H) or pb[2] > cfg.max_box_fraction * W \
-                    or pb[3] > cfg.max_box_fraction * H or self._overgrown(tr):
-                continue
-            self._advance(tr, tr.pred_anchor, pb)
-            tr.similarity = tr.pred_rho
-            tr.lost = 0
-            survivors.append(tr)
-            if tr.hits >= cfg.min_hits_to_coast and self._may_coast(tr.target) \
-                    and (not tr.was_lost or tr.hits >= cfg.min_hits_after_loss) \
-                    and self._approaching(tr, W, H):
+            lives, published = self._unmatched(tr, tracking, W, H)
+            if lives:
+                survivors.append(tr)
+            if published:
                 out_trk.append(self._payload(tr, 'tracking'))
+        return survivors, out_det, out_trk
 
-        # 4. Unmatched detections start tracks.
+    def _take_detection(self, frame: np.ndarray, ti: int, tr: _Track, dm: _DetModel,
+                        sim: float, tracking: bool) -> None:
+        """A matched track: fused with its detection when it is confident enough to outvote
+        it (``association='fuse'``), else corrected to it."""
+        cfg = self.config
+        if tracking and cfg.association == 'fuse' and dm.target is not None \
+                and self._confident(tr) \
+                and min(tr.pred_box[2], tr.pred_box[3]) >= cfg.fuse_min_px:
+            t0 = _clock()
+            self._fuse(frame, tr, dm, sim)
+            self.last_localise_s[ti] += _clock() - t0
+        else:
+            self._correct(tr, dm, sim)
+
+    def _unmatched(self, tr: _Track, tracking: bool, W: int, H: int) -> tuple[bool, bool]:
+        """A track no detection matched this frame: ``(lives, published)``, whether it lives
+        on and whether it is published as running on its own."""
+        cfg = self.config
+        if not tracking:
+            tr.lost += 1
+            return tr.lost <= cfg.max_lost_frames, False
+        # The detector missed: the track runs on its own.
+        tr.coast += 1
+        if tr.coast > cfg.max_coast_frames:
+            return False, False
+        if tr.pred_rho < cfg.min_similarity:
+            # Lost (occluded?): not published; the box coasts on the velocity and the
+            # next frame searches there again, until max_lost_frames.
+            tr.lost += 1
+            tr.was_lost = True
+            if tr.lost <= cfg.max_lost_frames:
+                vx, vy = tr.velocity
+                a, b = tr.anchor, tr.box
+                tr.anchor = (a[0] + vx, a[1] + vy, a[2], a[3])
+                tr.box = (b[0] + vx, b[1] + vy, b[2], b[3])
+                return True, False
+            return False, False
+        if tr.pred_ring > cfg.max_ring_similarity and (
+                cfg.ring_margin < 0 or tr.hits < cfg.ring_margin_min_hits
+                or tr.pred_ring > tr.ref_ring + cfg.ring_margin):
+            # Drift guard: the target's colour continues all around the box (the box sits
+            # in a much larger region of sign colour, e.g. an orange vehicle): not a sign
+            # anymore; coast blind like an occlusion and end unless a detection returns.
+            tr.lost += 1
+            return tr.lost <= cfg.max_lost_frames, False
+        pb = tr.pred_box
+        if not self._inside(pb, W, H) or pb[2] > cfg.max_box_fraction * W \
+                or pb[3] > cfg.max_box_fraction * H or self._overgrown(tr):
+            return False, False
+        self._advance(tr, tr.pred_anchor, pb)
+        tr.similarity = tr.pred_rho
+        tr.lost = 0
+        published = tr.hits >= cfg.min_hits_to_coast and self._may_coast(tr.target) \
+            and (not tr.was_lost or tr.hits >= cfg.min_hits_after_loss) \
+            and self._approaching(tr, W, H)
+        return True, published
+
+    def _start_tracks(self, frame: np.ndarray, dets: list[_DetModel], d_used: set[int],
+                      tracking: bool, survivors: list[_Track],
+                      out_det: list[tuple[int, Track]]) -> None:
+        """Step 4: every detection no track took starts a track (one without a target model
+        is published as is); adds them to ``survivors`` and ``out_det``."""
+        cfg = self.config
         for di, dm in enumerate(dets):
             if di in d_used or dm.target is None:
                 if di not in d_used:
@@ -391,21 +452,20 @@ class MultiTracker:
             survivors.append(tr)
             out_det.append((di, self._payload(tr, 'detection')))
 
-        # 5. Duplicates: two tracks on one sign -> the one with fewer hits ends.  Besides
-        # overlapping boxes (IoU), a track whose coloured anchor lies inside another's box
-        # (the orange top of a two-colour sign next to the whole sign) is a duplicate
-        # (``duplicate_containment``, not in the seed).
-        contain = tracking and cfg.duplicate_containment < 1.0
+    def _drop_duplicates(self, survivors: list[_Track], tracking: bool) -> list[_Track]:
+        """Step 5: two tracks on one sign -> the one with fewer hits ends.  Besides
+        overlapping boxes (IoU), a track whose coloured anchor lies inside another's box
+        (the orange top of a two-colour sign next to the whole sign) is a duplicate
+        (``duplicate_containment``, not in the seed).  Sorts ``survivors`` (most hits
+        first); returns the tracks kept in that order."""
+        contain = tracking and self.config.duplicate_containment < 1.0
         survivors.sort(key=lambda t: (-t.hits, t.track_id))
         kept: list[_Track] = []
         for tr in survivors:
             if any(self._duplicate(tr, k, contain) for k in kept):
                 continue
             kept.append(tr)
-        kept_ids = {t.track_id for t in kept}
-        self._tracks = sorted(kept, key=lambda t: t.track_id)
-        out_det.sort(key=lambda p: p[0])
-        return [t for _, t in out_det] + [t for t in out_trk if t.track_id in kept_ids]
+        return kept
 
 
     def _duplicate(self, a: _Track, b: _Track, contain: bool) -> bool:

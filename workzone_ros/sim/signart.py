@@ -14,6 +14,7 @@ gets its own orange drawn from (sign id, salt), with the legend, border and layo
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import cv2
@@ -262,135 +263,232 @@ def _sym_flagger(img, S: float, color) -> None:
 
 
 # ------------------------------------------------------------------ faces
+@dataclass(frozen=True)
+class _Face:
+    """One face being drawn: the class, its supersampled canvas (W x H, one pixel more each
+    way, see :func:`_draw`), outline polygon and drawing parameters."""
+    key: str
+    W: int
+    H: int
+    speed: int
+    variant: str
+    orange: tuple[int, int, int]
+    img: np.ndarray
+    poly: np.ndarray
+
+    @property
+    def S(self) -> float:
+        """The smaller side: the unit of the symbols."""
+        return float(min(self.W, self.H))
+
+    @property
+    def cx(self) -> float:
+        """The horizontal centre."""
+        return self.W / 2
+
+
+# --- diamonds (orange work-zone warnings, the yellow general warning)
+def _paint_diamond(f: _Face) -> None:
+    """Diamond sheeting, its black border line, then the class's legend or symbol."""
+    bg = YELLOW if f.key == 'warning_diamond' else f.orange
+    _poly(f.img, f.poly, bg)
+    # the border line (its middle at 0.035 of the side in from the outline, 0.03 of the
+    # side wide) as the face's margin and face filled over black: exact to the
+    # catalogue (a thick anti-aliased polyline, its width a whole number of pixels,
+    # came out 9-25 % wider and its face that much smaller)
+    half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
+    _poly(f.img, _inset(f.poly, _BORDER_INSET - half, f.W, f.H), BLACK)
+    _poly(f.img, _inset(f.poly, _BORDER_INSET + half, f.W, f.H), bg)
+    legend = _DIAMOND_LEGENDS.get(f.key)
+    if legend is not None:
+        legend(f)
+
+
+def _legend_road_work_ahead(f: _Face) -> None:
+    """W20-1 ROAD WORK AHEAD."""
+    W, H = f.W, f.H
+    _lines(f.img, ['ROAD', 'WORK', 'AHEAD'], f.cx, 0.28 * H, 0.72 * H,
+           [0.40 * W, 0.54 * W, 0.42 * W], BLACK, 0.2, _FONT_BOLD)
+
+
+def _legend_lane_closed_ahead(f: _Face) -> None:
+    """W20-5L/R LEFT / RIGHT LANE CLOSED AHEAD (the side word largest)."""
+    W, H = f.W, f.H
+    first = 'LEFT' if f.key.startswith('left') else 'RIGHT'
+    _lines(f.img, [first, 'LANE', 'CLOSED', 'AHEAD'], f.cx, 0.20 * H, 0.78 * H,
+           [0.40 * W, 0.50 * W, 0.56 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD,
+           heights=[1.9, 1.0, 1.0, 0.9])
+
+
+def _legend_other_workzone(f: _Face) -> None:
+    """``other_workzone`` in its variant: ONE LANE ROAD AHEAD, SHOULDER WORK or flagger."""
+    W, H = f.W, f.H
+    if f.variant == 'one_lane':
+        _lines(f.img, ['ONE', 'LANE', 'ROAD', 'AHEAD'], f.cx, 0.22 * H, 0.78 * H,
+               [0.30 * W, 0.46 * W, 0.46 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD)
+    elif f.variant == 'shoulder_work':
+        _lines(f.img, ['SHOULDER', 'WORK'], f.cx, 0.36 * H, 0.64 * H,
+               [0.66 * W, 0.46 * W], BLACK, 0.2, _FONT_BOLD)
+    else:
+        _sym_flagger(f.img, f.S, BLACK)
+
+
+#: Legend or symbol of each diamond class, drawn over the sheeting and border.
+_DIAMOND_LEGENDS = {
+    'road_work_ahead': _legend_road_work_ahead,
+    'left_lane_closed_ahead': _legend_lane_closed_ahead,
+    'right_lane_closed_ahead': _legend_lane_closed_ahead,
+    'lane_shift_left': lambda f: _sym_reverse_curve(f.img, f.S, -1, BLACK),
+    'lane_shift_right': lambda f: _sym_reverse_curve(f.img, f.S, +1, BLACK),
+    'lane_shift': lambda f: _sym_double_reverse(f.img, f.S, BLACK),
+    'left_lane_ends': lambda f: _sym_lane_ends(f.img, f.S, -1, BLACK),
+    'right_lane_ends': lambda f: _sym_lane_ends(f.img, f.S, +1, BLACK),
+    'warning_diamond': lambda f: _sym_curve(f.img, f.S, BLACK),
+    'other_workzone': _legend_other_workzone,
+}
+
+
+# --- red regulatory faces
+def _paint_stop(f: _Face) -> None:
+    """R1-1 octagon: white rim, red face, STOP."""
+    W, H = f.W, f.H
+    _poly(f.img, f.poly, WHITE)
+    _poly(f.img, _inset(f.poly, 0.045, W, H), RED)
+    _text(f.img, 'STOP', (f.cx, H / 2), (0.80 * W, 0.36 * H), WHITE, 0.2, _FONT_BOLD)
+
+
+def _paint_yield(f: _Face) -> None:
+    """R1-2 inverted triangle: red rim, white centre, YIELD."""
+    W, H = f.W, f.H
+    _poly(f.img, f.poly, RED)
+    inner = np.array([[0.25 * W, 0.13 * H], [0.75 * W, 0.13 * H], [0.5 * W, 0.70 * H]])
+    _poly(f.img, inner, WHITE)
+    _text(f.img, 'YIELD', (f.cx, 0.29 * H), (0.34 * W, 0.13 * H), RED, 0.2, _FONT_BOLD)
+
+
+def _paint_do_not_enter(f: _Face) -> None:
+    """R5-1 square: red disc with a white bar, DO NOT / ENTER."""
+    img, H, S, cx = f.img, f.H, f.S, f.cx
+    _poly(img, f.poly, WHITE)
+    r = 0.44 * S
+    cv2.circle(img, (int(cx * 16), int(H / 2 * 16)), int(r * 16), RED, -1, cv2.LINE_AA,
+               shift=4)
+    cv2.rectangle(img, (int(cx - 0.34 * S), int(H / 2 - 0.075 * S)),
+                  (int(cx + 0.34 * S), int(H / 2 + 0.075 * S)), WHITE, -1, cv2.LINE_AA)
+    _text(img, 'DO NOT', (cx, H / 2 - 0.22 * S), (0.44 * S, 0.11 * S), WHITE, 0.2)
+    _text(img, 'ENTER', (cx, H / 2 + 0.22 * S), (0.40 * S, 0.11 * S), WHITE, 0.2)
+
+
+# --- rectangular work-zone and speed faces
+def _paint_work_zone_begin(f: _Face) -> None:
+    """WORK ZONE on an orange top third, BEGINS on white below."""
+    img, W, H, S, cx = f.img, f.W, f.H, f.S, f.cx
+    _poly(img, f.poly, WHITE)
+    cv2.rectangle(img, (0, 0), (W, int(H / 3)), f.orange, -1)
+    b = max(2, int(0.03 * S))
+    cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
+    cv2.line(img, (0, int(H / 3)), (W, int(H / 3)), BLACK, b)
+    _lines(img, ['WORK', 'ZONE'], cx, 0.05 * H, 0.29 * H, [0.6 * W, 0.6 * W], BLACK,
+           0.2, _FONT_BOLD)
+    _text(img, 'BEGINS', (cx, 0.66 * H), (0.84 * W, 0.26 * H), BLACK, 0.2, _FONT_BOLD)
+
+
+def _paint_work_zone_speed_limit(f: _Face) -> None:
+    """WORK ZONE on an orange top quarter over a SPEED LIMIT face with the speed."""
+    img, W, H, S, cx = f.img, f.W, f.H, f.S, f.cx
+    _poly(img, f.poly, WHITE)
+    top = int(0.25 * H)
+    cv2.rectangle(img, (0, 0), (W, top), f.orange, -1)
+    b = max(2, int(0.03 * S))
+    cv2.rectangle(img, (b, b), (W - b, top - b), BLACK, b, cv2.LINE_AA)
+    cv2.rectangle(img, (b, top + b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
+    _lines(img, ['WORK', 'ZONE'], cx, 0.035 * H, 0.215 * H, [0.6 * W, 0.6 * W], BLACK,
+           0.2, _FONT_BOLD)
+    _lines(img, ['SPEED', 'LIMIT'], cx, 0.31 * H, 0.53 * H, [0.74 * W, 0.66 * W], BLACK,
+           0.18)
+    _text(img, str(f.speed), (cx, 0.75 * H), (0.80 * W, 0.30 * H), BLACK, 0.17, _FONT)
+
+
+def _paint_end_road_work(f: _Face) -> None:
+    """G20-2 END ROAD WORK: black legend and border on orange."""
+    img, W, H, S = f.img, f.W, f.H, f.S
+    _poly(img, f.poly, f.orange)
+    b = max(2, int(0.035 * S))
+    cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
+    _lines(img, ['END', 'ROAD WORK'], f.cx, 0.17 * H, 0.83 * H, [0.36 * W, 0.84 * W],
+           BLACK, 0.2, _FONT_BOLD)
+
+
+def _paint_speed_limit(f: _Face) -> None:
+    """R2-1 SPEED LIMIT and the speed, black on white."""
+    img, W, H, S, cx = f.img, f.W, f.H, f.S, f.cx
+    _poly(img, f.poly, WHITE)
+    b = max(2, int(0.03 * S))
+    cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), BLACK, b,
+                  cv2.LINE_AA)
+    _lines(img, ['SPEED', 'LIMIT'], cx, 0.12 * H, 0.42 * H, [0.76 * W, 0.70 * W], BLACK,
+           0.18)
+    _text(img, str(f.speed), (cx, 0.68 * H), (0.76 * W, 0.36 * H), BLACK, 0.17, _FONT)
+
+
+# --- green guide faces
+def _paint_guide(f: _Face) -> None:
+    """Green guide sign: EXIT 12 / HARRISBURG over an up arrow, white on green."""
+    img, W, H, S = f.img, f.W, f.H, f.S
+    _poly(img, f.poly, GREEN)
+    b = max(2, int(0.035 * S))
+    cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), WHITE, b,
+                  cv2.LINE_AA)
+    _lines(img, ['EXIT 12', 'HARRISBURG'], f.cx, 0.2 * H, 0.62 * H, [0.40 * W, 0.84 * W],
+           WHITE, 0.18)
+    _arrow_path(img, np.array([[0.5 * W, 0.92 * H], [0.5 * W, 0.70 * H]]), WHITE,
+                0.07 * H, 0.12 * H)
+
+
+def _paint_mile_marker(f: _Face) -> None:
+    """D10-1 mile marker: MILE over the mile's digits stacked vertically, white on green."""
+    img, W, H, cx = f.img, f.W, f.H, f.cx
+    _poly(img, f.poly, GREEN)
+    b = max(2, int(0.05 * W))
+    cv2.rectangle(img, (b, b), (W - b, H - b), WHITE, b, cv2.LINE_AA)
+    _text(img, 'MILE', (cx, 0.17 * H), (0.76 * W, 0.12 * H), WHITE, 0.22)
+    digits = str(f.speed)
+    n = len(digits)
+    top, bottom = 0.30 * H, 0.92 * H
+    step = (bottom - top) / n
+    for i, ch in enumerate(digits):
+        _text(img, ch, (cx, top + step * (i + 0.5)), (0.62 * W, 0.78 * step), WHITE, 0.2)
+
+
+#: Painter of each face, by catalogue shape (tried first) or by class.
+_SHAPE_PAINTERS = {'diamond': _paint_diamond, 'octagon': _paint_stop, 'triangle': _paint_yield}
+_CLASS_PAINTERS = {
+    'do_not_enter': _paint_do_not_enter,
+    'work_zone_begin': _paint_work_zone_begin,
+    'work_zone_speed_limit': _paint_work_zone_speed_limit,
+    'end_road_work': _paint_end_road_work,
+    'speed_limit': _paint_speed_limit,
+    'guide': _paint_guide,
+    'mile_marker': _paint_mile_marker,
+}
+
+
 def _draw(key: str, W: int, H: int, speed: int, variant: str,
           orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
-    ORANGE = orange  # noqa: N806 - the sheeting colour of this face
+    """Supersampled BGRA art of class ``key`` in a ``W`` x ``H`` rectangle (``orange`` its
+    sheeting colour), alpha 0 outside the shape."""
     # one pixel more than the face: OpenCV puts a pixel's centre at its integer coordinate,
     # so the face's rectangle [0, W] x [0, H] reaches half a pixel into the last row and
     # column (:func:`_downsample` takes half of them)
     img = np.zeros((H + 1, W + 1, 3), np.uint8)
     mask = np.zeros((H + 1, W + 1), np.uint8)
-    c = signs.get(key)
-    shape = c.shape
+    shape = signs.get(key).shape
     poly = outline(shape, W, H)
     _poly(mask, poly, 255)
-    S = float(min(W, H))
-    cx = W / 2
-
-    if shape == 'diamond':
-        bg = YELLOW if key == 'warning_diamond' else ORANGE
-        _poly(img, poly, bg)
-        # the border line (its middle at 0.035 of the side in from the outline, 0.03 of the
-        # side wide) as the face's margin and face filled over black: exact to the
-        # catalogue (a thick anti-aliased polyline, its width a whole number of pixels,
-        # came out 9-25 % wider and its face that much smaller)
-        half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
-        _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
-        _poly(img, _inset(poly, _BORDER_INSET + half, W, H), bg)
-        if key == 'road_work_ahead':
-            _lines(img, ['ROAD', 'WORK', 'AHEAD'], cx, 0.28 * H, 0.72 * H,
-                   [0.40 * W, 0.54 * W, 0.42 * W], BLACK, 0.2, _FONT_BOLD)
-        elif key in ('left_lane_closed_ahead', 'right_lane_closed_ahead'):
-            first = 'LEFT' if key.startswith('left') else 'RIGHT'
-            _lines(img, [first, 'LANE', 'CLOSED', 'AHEAD'], cx, 0.20 * H, 0.78 * H,
-                   [0.40 * W, 0.50 * W, 0.56 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD,
-                   heights=[1.9, 1.0, 1.0, 0.9])
-        elif key == 'lane_shift_left':
-            _sym_reverse_curve(img, S, -1, BLACK)
-        elif key == 'lane_shift_right':
-            _sym_reverse_curve(img, S, +1, BLACK)
-        elif key == 'lane_shift':
-            _sym_double_reverse(img, S, BLACK)
-        elif key == 'left_lane_ends':
-            _sym_lane_ends(img, S, -1, BLACK)
-        elif key == 'right_lane_ends':
-            _sym_lane_ends(img, S, +1, BLACK)
-        elif key == 'warning_diamond':
-            _sym_curve(img, S, BLACK)
-        elif key == 'other_workzone':
-            if variant == 'one_lane':
-                _lines(img, ['ONE', 'LANE', 'ROAD', 'AHEAD'], cx, 0.22 * H, 0.78 * H,
-                       [0.30 * W, 0.46 * W, 0.46 * W, 0.34 * W], BLACK, 0.2, _FONT_BOLD)
-            elif variant == 'shoulder_work':
-                _lines(img, ['SHOULDER', 'WORK'], cx, 0.36 * H, 0.64 * H,
-                       [0.66 * W, 0.46 * W], BLACK, 0.2, _FONT_BOLD)
-            else:
-                _sym_flagger(img, S, BLACK)
-    elif shape == 'octagon':      # stop
-        _poly(img, poly, WHITE)
-        _poly(img, _inset(poly, 0.045, W, H), RED)
-        _text(img, 'STOP', (cx, H / 2), (0.80 * W, 0.36 * H), WHITE, 0.2, _FONT_BOLD)
-    elif shape == 'triangle':     # yield
-        _poly(img, poly, RED)
-        inner = np.array([[0.25 * W, 0.13 * H], [0.75 * W, 0.13 * H], [0.5 * W, 0.70 * H]])
-        _poly(img, inner, WHITE)
-        _text(img, 'YIELD', (cx, 0.29 * H), (0.34 * W, 0.13 * H), RED, 0.2, _FONT_BOLD)
-    elif key == 'do_not_enter':
-        _poly(img, poly, WHITE)
-        r = 0.44 * S
-        cv2.circle(img, (int(cx * 16), int(H / 2 * 16)), int(r * 16), RED, -1, cv2.LINE_AA,
-                   shift=4)
-        cv2.rectangle(img, (int(cx - 0.34 * S), int(H / 2 - 0.075 * S)),
-                      (int(cx + 0.34 * S), int(H / 2 + 0.075 * S)), WHITE, -1, cv2.LINE_AA)
-        _text(img, 'DO NOT', (cx, H / 2 - 0.22 * S), (0.44 * S, 0.11 * S), WHITE, 0.2)
-        _text(img, 'ENTER', (cx, H / 2 + 0.22 * S), (0.40 * S, 0.11 * S), WHITE, 0.2)
-    elif key == 'work_zone_begin':
-        _poly(img, poly, WHITE)
-        cv2.rectangle(img, (0, 0), (W, int(H / 3)), ORANGE, -1)
-        b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
-        cv2.line(img, (0, int(H / 3)), (W, int(H / 3)), BLACK, b)
-        _lines(img, ['WORK', 'ZONE'], cx, 0.05 * H, 0.29 * H, [0.6 * W, 0.6 * W], BLACK,
-               0.2, _FONT_BOLD)
-        _text(img, 'BEGINS', (cx, 0.66 * H), (0.84 * W, 0.26 * H), BLACK, 0.2, _FONT_BOLD)
-    elif key == 'work_zone_speed_limit':
-        _poly(img, poly, WHITE)
-        top = int(0.25 * H)
-        cv2.rectangle(img, (0, 0), (W, top), ORANGE, -1)
-        b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (b, b), (W - b, top - b), BLACK, b, cv2.LINE_AA)
-        cv2.rectangle(img, (b, top + b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
-        _lines(img, ['WORK', 'ZONE'], cx, 0.035 * H, 0.215 * H, [0.6 * W, 0.6 * W], BLACK,
-               0.2, _FONT_BOLD)
-        _lines(img, ['SPEED', 'LIMIT'], cx, 0.31 * H, 0.53 * H, [0.74 * W, 0.66 * W], BLACK,
-               0.18)
-        _text(img, str(speed), (cx, 0.75 * H), (0.80 * W, 0.30 * H), BLACK, 0.17, _FONT)
-    elif key == 'end_road_work':
-        _poly(img, poly, ORANGE)
-        b = max(2, int(0.035 * S))
-        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
-        _lines(img, ['END', 'ROAD WORK'], cx, 0.17 * H, 0.83 * H, [0.36 * W, 0.84 * W],
-               BLACK, 0.2, _FONT_BOLD)
-    elif key == 'speed_limit':
-        _poly(img, poly, WHITE)
-        b = max(2, int(0.03 * S))
-        cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), BLACK, b,
-                      cv2.LINE_AA)
-        _lines(img, ['SPEED', 'LIMIT'], cx, 0.12 * H, 0.42 * H, [0.76 * W, 0.70 * W], BLACK,
-               0.18)
-        _text(img, str(speed), (cx, 0.68 * H), (0.76 * W, 0.36 * H), BLACK, 0.17, _FONT)
-    elif key == 'guide':
-        _poly(img, poly, GREEN)
-        b = max(2, int(0.035 * S))
-        cv2.rectangle(img, (2 * b, 2 * b), (W - 2 * b, H - 2 * b), WHITE, b,
-                      cv2.LINE_AA)
-        _lines(img, ['EXIT 12', 'HARRISBURG'], cx, 0.2 * H, 0.62 * H, [0.40 * W, 0.84 * W],
-               WHITE, 0.18)
-        _arrow_path(img, np.array([[0.5 * W, 0.92 * H], [0.5 * W, 0.70 * H]]), WHITE,
-                    0.07 * H, 0.12 * H)
-    elif key == 'mile_marker':
-        _poly(img, poly, GREEN)
-        b = max(2, int(0.05 * W))
-        cv2.rectangle(img, (b, b), (W - b, H - b), WHITE, b, cv2.LINE_AA)
-        _text(img, 'MILE', (cx, 0.17 * H), (0.76 * W, 0.12 * H), WHITE, 0.22)
-        digits = str(speed)
-        n = len(digits)
-        top, bottom = 0.30 * H, 0.92 * H
-        step = (bottom - top) / n
-        for i, ch in enumerate(digits):
-            _text(img, ch, (cx, top + step * (i + 0.5)), (0.62 * W, 0.78 * step), WHITE, 0.2)
-    else:
+    paint = _SHAPE_PAINTERS.get(shape) or _CLASS_PAINTERS.get(key)
+    if paint is None:
         raise signs.UnknownSignError(f'no art for sign class {key!r}')
+    paint(_Face(key, W, H, speed, variant, orange, img, poly))
     img[mask == 0] = 0
     return np.dstack([img, mask])
 
@@ -475,6 +573,80 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
         orange = ORANGE
     return _cached(class_key, int(max(8, size_px)), int(speed_value), variant,
                    tuple(int(c) for c in orange))
+
+
+#: Orange MUTCD text signs that have no class of their own (``other_workzone``): name ->
+#: (shape, width / height, legend lines).  Training art only (``train cnn`` pastes them on
+#: real backgrounds); the simulator's scenes draw :data:`OTHER_VARIANTS`.  The legends of
+#: the signs in the shared real clips (UTILITY WORK AHEAD, LEFT TURN LANE CLOSED AHEAD,
+#: DETOUR) are left out on purpose, so that those clips measure legends never drawn.
+LEGEND_SIGNS = {
+    'road_machinery_ahead': ('diamond', 1.0, ('ROAD', 'MACHINERY', 'AHEAD')),
+    'be_prepared_to_stop': ('diamond', 1.0, ('BE', 'PREPARED', 'TO STOP')),
+    'shoulder_closed': ('diamond', 1.0, ('SHOULDER', 'CLOSED')),
+    'uneven_lanes': ('diamond', 1.0, ('UNEVEN', 'LANES')),
+    'loose_gravel': ('diamond', 1.0, ('LOOSE', 'GRAVEL')),
+    'road_closed_ahead': ('diamond', 1.0, ('ROAD', 'CLOSED', 'AHEAD')),
+    'flagger_ahead': ('diamond', 1.0, ('FLAGGER', 'AHEAD')),
+    'workers_ahead': ('diamond', 1.0, ('WORKERS', 'AHEAD')),
+    'road_narrows': ('diamond', 1.0, ('ROAD', 'NARROWS')),
+    'no_center_line': ('diamond', 1.0, ('NO', 'CENTER', 'LINE')),
+    'survey_crew': ('diamond', 1.0, ('SURVEY', 'CREW')),
+    'grooved_pavement': ('diamond', 1.0, ('GROOVED', 'PAVEMENT')),
+    'low_shoulder': ('diamond', 1.0, ('LOW', 'SHOULDER')),
+    'bump': ('diamond', 1.0, ('BUMP',)),
+    'road_work_next_miles': ('rectangle', 2.0, ('ROAD WORK', 'NEXT 2 MILES')),
+    'exit_closed': ('rectangle', 1.25, ('EXIT', 'CLOSED')),
+    'ramp_closed': ('rectangle', 1.25, ('RAMP', 'CLOSED')),
+    'lane_closed': ('rectangle', 1.4, ('LANE', 'CLOSED')),
+    'sidewalk_closed': ('rectangle', 1.6, ('SIDEWALK', 'CLOSED')),
+    'truck_crossing': ('rectangle', 1.0, ('TRUCKS', 'ENTERING', 'HIGHWAY')),
+    'road_work': ('rectangle', 0.8, ('ROAD', 'WORK')),
+}
+
+
+@lru_cache(maxsize=512)
+def legend_face(name: str, size_px: int = 256,
+                orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
+    """Art of one :data:`LEGEND_SIGNS` sign: black legend on orange, a black border, as
+    :func:`sign_face` returns it (read-only premultiplied BGRA, the longer side
+    ``size_px``).
+
+    Raises:
+        ValueError: ``name`` is not in :data:`LEGEND_SIGNS`.
+    """
+    if name not in LEGEND_SIGNS:
+        raise ValueError(f'unknown legend sign {name!r}; known: {sorted(LEGEND_SIGNS)}')
+    shape, aspect, lines = LEGEND_SIGNS[name]
+    size_px = int(max(8, size_px))
+    w, h = (size_px, max(2, round(size_px / aspect))) if aspect >= 1 else \
+        (max(2, round(size_px * aspect)), size_px)
+    W, H = w * _SS, h * _SS
+    img = np.zeros((H + 1, W + 1, 3), np.uint8)
+    mask = np.zeros((H + 1, W + 1), np.uint8)
+    poly = outline(shape, W, H)
+    _poly(mask, poly, 255)
+    _poly(img, poly, orange)
+    if shape == 'diamond':
+        half = _BORDER_HALF_WIDTH * math.sqrt(2.0)
+        _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
+        _poly(img, _inset(poly, _BORDER_INSET + half, W, H), orange)
+        n = len(lines)
+        top, bottom = (0.5 - 0.085 * n) * H, (0.5 + 0.085 * n) * H
+        unit = (bottom - top) / (n + 0.22 * (n - 1))      # _lines' line height and gap
+        edges = [max(abs(top + i * 1.22 * unit - H / 2), abs(top + (i * 1.22 + 1) * unit
+                                                                 - H / 2)) for i in range(n)]
+        widths = [0.84 * (W - 2 * e * W / H) for e in edges]   # the diamond's width there
+    else:
+        b = max(2, int(0.035 * min(W, H)))
+        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
+        top, bottom = 0.16 * H, 0.84 * H
+        widths = [0.84 * W] * len(lines)
+    _lines(img, list(lines), W / 2, top, bottom, widths, BLACK, 0.2, _FONT_BOLD)
+    img[mask == 0] = 0
+    face = _downsample(np.dstack([img, mask]), _SS)
+    face.flags.writeable = False
+    return face
 
 
 @lru_cache(maxsize=4)

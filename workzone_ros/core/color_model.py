@@ -535,9 +535,15 @@ class ColorModel:
         The frame is grey-world balanced and saturation-normalised first when the model was
         trained that way.
         """
-        hsv = self.normalised_hsv(bgr, color)
+        return self.lookup(self.normalised_hsv(bgr, color), color)
+
+    def lookup(self, hsv: np.ndarray, color: str = 'orange') -> np.ndarray:
+        """P(x | colour) of every pixel of an already normalised HSV image (value gate
+        applied), float32: the table read through one flat index (a third of the time of
+        indexing it by hue and saturation arrays)."""
         i = self.index(color)
-        p = self.luts[i][hsv[..., 0], hsv[..., 1]]
+        idx = hsv[..., 0].astype(np.intp) * S_BINS + hsv[..., 1]
+        p = self.luts[i].reshape(-1).take(idx)       # a view of a contiguous table
         p[hsv[..., 2] < self.v_min[i]] = 0.0
         return p
 

@@ -181,9 +181,7 @@ class SignProposer:
             raise ValueError('proposals need a BGR image of at least 2x2 pixels')
         small = self._small(bgr)
         hsv = self.model.normalised_hsv(small, self.color)
-        i = self.model.index(self.color)
-        prob = self.model.luts[i][hsv[..., 0], hsv[..., 1]]      # the model's likelihood
-        prob[hsv[..., 2] < self.model.v_min[i]] = 0.0
+        prob = self.model.lookup(hsv, self.color)                # the model's likelihood
         edges = cv2.Canny(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), 60, 150)
         maps = _Maps(prob, hsv, edges)
         boxes, rows = [], []
@@ -234,9 +232,11 @@ class _Maps:
     """Per-frame maps and integral images the candidate features are read from."""
 
     def __init__(self, prob: np.ndarray, hsv: np.ndarray, edges: np.ndarray) -> None:
-        self.prob = prob.ravel().astype(np.float64)
-        self.sat = hsv[..., 1].ravel().astype(np.float64)
-        self.val = hsv[..., 2].ravel().astype(np.float64)
+        # no float64 copies: np.bincount widens its weights to float64 exactly
+        self.prob = prob.ravel()
+        self.sat = hsv[..., 1].ravel()
+        self.val = hsv[..., 2].ravel()
+        self.val2 = np.square(self.val, dtype=np.float32)       # <= 255^2: exact in float32
         self.shape = prob.shape
         self.edge_ii = cv2.integral((edges > 0).astype(np.uint8))
         self.dark_ii = cv2.integral((hsv[..., 2] < 80).astype(np.uint8))
@@ -248,7 +248,9 @@ class _Maps:
     def features(self, labels: np.ndarray, mask: np.ndarray, n: int, st: np.ndarray,
                  idx: np.ndarray) -> np.ndarray:
         """The :data:`FEATURES` rows of components ``idx`` (0-based, background excluded)."""
-        on = np.flatnonzero(mask.ravel())          # only the mask's pixels are summed
+        xy = cv2.findNonZero(mask)                 # only the mask's pixels are summed
+        xy = np.zeros((0, 2), np.intp) if xy is None else xy.reshape(-1, 2)
+        on = xy[:, 1].astype(np.intp) * mask.shape[1] + xy[:, 0]   # row-major, as scanned
         lab = labels.ravel()[on]
         area = np.maximum(st[:, 4], 1).astype(np.float64)
 
@@ -256,7 +258,7 @@ class _Maps:
             return np.bincount(lab, weights=v[on], minlength=n)[1:] / area
 
         m_p, m_s, m_v = mean(self.prob), mean(self.sat), mean(self.val)
-        m_v2 = mean(self.val * self.val)
+        m_v2 = mean(self.val2)
         spread = np.sqrt(np.maximum(m_v2 - m_v * m_v, 0.0)) / np.maximum(m_v, 1.0)
         x, y, w, h = (st[idx, k] for k in range(4))
         hh, ww = self.shape

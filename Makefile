@@ -28,7 +28,7 @@ demo: $(DEMO_BAG)/metadata.yaml
 test: $(STAMP) lint
 	$(BIN)/python -m pytest -q test
 
-# minutes of live graph (issue 37: loop, kills, lost sensors, load, 10 min RSS soak);
+# minutes of live graph (the reliability campaign: loop, kills, lost sensors, load, 10 min RSS soak);
 # `make test` skips them (marker soak); WORKZONE_SOAK_S shortens the soak
 soak: $(STAMP) $(DEMO_BAG)/metadata.yaml
 	$(BIN)/python -m pytest -q -m soak test/reliability

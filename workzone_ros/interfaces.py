@@ -164,7 +164,7 @@ class Detections(msgspec.Struct, frozen=True, tag='workzone_ros/Detections/1',
 
 
 class Track(msgspec.Struct, frozen=True, **_STRUCT):
-    """One tracked sign (seed 001)."""
+    """One tracked sign (Lee et al.)."""
 
     track_id: int
     box: Box

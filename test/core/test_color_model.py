@@ -1,4 +1,4 @@
-"""core.color_model: boosted stumps -> LUT (seed 000 eq. 2), prior, versioned model file."""
+"""core.color_model: boosted stumps -> LUT (Seo et al. eq. 2), prior, versioned model file."""
 import json
 
 import cv2

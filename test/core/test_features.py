@@ -1,4 +1,4 @@
-"""core.features: crop_sign at the border, log-polar vs raw intensity under scale (seed 000)."""
+"""core.features: crop_sign at the border, log-polar vs raw intensity under scale (Seo et al.)."""
 import cv2
 import numpy as np
 import pytest
@@ -27,7 +27,7 @@ def _relative_distance(f):
                                  'end_road_work', 'stop'])
 @pytest.mark.parametrize('scale', [0.9, 1.1])
 def test_log_polar_varies_less_than_raw_intensity_under_rescaling(key, scale):
-    # Seed 000 III.B: the log-polar image reduces the variation of sign images
+    # Seo et al. III.B: the log-polar image reduces the variation of sign images
     crops = [sign_scene(key), sign_scene(key, scale)]
     lp = _relative_distance(ft.log_polar_features(crops))
     raw = _relative_distance(ft.raw_intensity_features(crops))

@@ -1,4 +1,4 @@
-"""Tests for core/lidar_clustering.py on hand-made clouds (seed 004 section 1)."""
+"""Tests for core/lidar_clustering.py on hand-made clouds (Cahail et al. section 1)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,4 @@
-"""Tests for core/projection.py: pixels by hand (seed 004 s2.4.2), crops, ego motion."""
+"""Tests for core/projection.py: pixels by hand (Cahail et al. s2.4.2), crops, ego motion."""
 import numpy as np
 import pytest
 
@@ -27,7 +27,8 @@ T = extrinsics_from_list([0, -1, 0, 0, 0, 0, -1, -0.5, 1, 0, 0, -0.6, 0, 0, 0, 1
 
 
 def by_hand(p_lidar, k=K, d=D, t=T):
-    """Seed 004 s2.4.2 written out: x' = x/z, radial + tangential distortion, u = fx x'' + cx."""
+    """Cahail et al., section 2.4.2, written out: x' = x/z, radial + tangential distortion,
+    u = fx x'' + cx."""
     x, y, z = t[:3, :3] @ p_lidar + t[:3, 3]
     xp, yp = x / z, y / z
     k1, k2, p1, p2, k3 = d

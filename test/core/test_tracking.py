@@ -1,4 +1,4 @@
-"""Tests of the kernel-based mean-shift tracker (seed 001, III.B) on hand-drawn sequences.
+"""Tests of the kernel-based mean-shift tracker (Lee et al., III.B) on hand-drawn sequences.
 
 Every sequence is drawn here with OpenCV: an orange diamond with a black border and a legend
 (or an orange-top / white-bottom regulatory box) on a textured background, moved and scaled
@@ -344,7 +344,7 @@ def test_bad_inputs_are_rejected():
 def test_fuse_keeps_the_tracked_box_against_a_poor_detection_and_overwrite_does_not():
     """A confident track meets a detection that holds only part of the sign (a blob cut in
     two): ``fuse`` scores both boxes with the target model and keeps the tracked one;
-    seed 001's ``overwrite`` takes the detection.  A good detection is taken by both."""
+    Lee et al.'s ``overwrite`` takes the detection.  A good detection is taken by both."""
     bg = background(10)
     results = {}
     for assoc in ('fuse', 'overwrite'):
@@ -582,7 +582,7 @@ def test_a_complete_detection_whose_anchor_is_the_whole_face_is_not_extended(asp
     height / width as the track's box): it is kept, not extended by the relation
     (``truncated_aspect``; with 0, the previous rule, it tripled the box: the test can
     fail).  The detection corrects the track directly (as when the tracked box is lost, or
-    with seed 001's ``overwrite``), not through the fusion."""
+    with Lee et al.'s ``overwrite``), not through the fusion."""
     bg = background(26)
     tracker = MultiTracker(TrackerConfig(truncated_aspect=aspect, association='overwrite',
                                          anchor_kind_ratio=0.0))

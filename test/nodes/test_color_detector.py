@@ -42,7 +42,7 @@ def _frame(sign=True):
 @pytest.fixture
 def model_path(tmp_path):
     path = tmp_path / 'color_orange.npz'
-    cm.save_model(cm.default_model(), path)        # seed 004 ranges: no training needed
+    cm.save_model(cm.default_model(), path)        # Cahail et al. ranges: no training needed
     return str(path)
 
 

@@ -30,7 +30,7 @@ from workzone_ros.sim.world import SIGN_BOTTOM_HEIGHT, SIGN_LATERAL, Box, Cylind
 PRESETS = ('demo', 'paper_a', 'paper_b', 'paper_c', 'paper_d', 'paper_e', 'curve_dusk',
            'distractors')
 
-# Seed 000, Table IV: frames, weather, and the events each video has (N/A rows left out).
+# Seo et al., Table IV: frames, weather, and the events each video has (N/A rows left out).
 TABLE_IV = {
     'paper_a': (3305, 'winter_overcast', {'begin', 'end'}),
     'paper_b': (4232, 'winter_overcast', {'begin', 'end', 'speed', 'right', 'closed'}),

@@ -1,9 +1,9 @@
 """Work-zone sign classifier: log-polar features, PCA, RBF SVM with probabilities (no ROS).
 
-Seed 000, section III.B (and seed 001, III.C): a crop is intensity-normalised, resampled to a
+Seo et al., section III.B (and Lee et al., III.C): a crop is intensity-normalised, resampled to a
 32 x 32 log-polar image (``workzone_ros.core.features``), projected on the 10 leading
 principal components of the training set (the seed reports they hold 95 % of the variance,
-seed 001 93 %; ours is measured and stored in the metadata) and classified by a one-vs-one
+Lee et al. 93 %; ours is measured and stored in the metadata) and classified by a one-vs-one
 RBF support vector machine whose C and gamma are chosen by cross-validation.  LDA and kNN
 (k = 10) on the same features are the seed's baselines.  Optional extra features (colour
 layout, left-right asymmetry) are standardised and appended after the PCA.

@@ -1,14 +1,14 @@
 """Per-pixel sign colour models: boosted hue/saturation stumps baked into a lookup table.
 
-Seed 000, section III.A (and seed 001, III.A): the likelihood that a pixel belongs to an
+Seo et al., section III.A (and Lee et al., III.A): the likelihood that a pixel belongs to an
 orange work-zone sign is learned with AdaBoost over decision stumps on the pixel's hue and
 saturation,
 
-    f(x) = sum_i alpha_i h_i(x),   h_i(x) in {-1, +1}                  (seed 000, eq. 2)
-    g(f) = e^f / (e^f + e^-f)                                          (seed 000, eq. 2; [8])
+    f(x) = sum_i alpha_i h_i(x),   h_i(x) in {-1, +1}                  (Seo et al., eq. 2)
+    g(f) = e^f / (e^f + e^-f)                                          (Seo et al., eq. 2; [8])
 
 and the posterior multiplies it by a prior over image locations learned from the ground-truth
-boxes (the heat map of seed 000, Fig. 1):  P(sign | x) = eta P(x | sign) P(sign)  (eq. 1).
+boxes (the heat map of Seo et al., Fig. 1):  P(sign | x) = eta P(x | sign) P(sign)  (eq. 1).
 
 scikit-learn's discrete SAMME AdaBoost fits those stumps (:func:`fit_boosted`; each stump
 votes +-1).
@@ -19,7 +19,7 @@ then costs one lookup per pixel instead of H stump evaluations (``workzone-ros b
 measures the ratio).
 
 The red and yellow models of the general signs (stop, yield, do-not-enter; yellow warning
-diamonds) are the seed 004 (section 3.4.2) HSV ranges baked into the same kind of table.
+diamonds) are the Cahail et al. (section 3.4.2) HSV ranges baked into the same kind of table.
 
 A model file is a compressed ``.npz`` read with ``allow_pickle=False`` (loading it never
 executes code).  It carries a schema name and version, the tables, the class list, the prior
@@ -53,10 +53,10 @@ VERSION = 1
 H_BINS = 180       # OpenCV 8-bit hue 0..179
 S_BINS = 256       # saturation 0..255
 
-#: Seed 004 section 3.4.2 colour-blob ranges (OpenCV HSV, inclusive): a colour is a list of
+#: Cahail et al. section 3.4.2 colour-blob ranges (OpenCV HSV, inclusive): a colour is a list of
 #: (h_lo, h_hi, s_lo, v_lo) intervals.  The seed names the colours, not the numbers; these are
 #: the usual MUTCD sheeting hues and were set on our development renders, not the evaluation
-#: scenarios.  ``orange`` is used only by the seed 004 baseline.
+#: scenarios.  ``orange`` is used only by the Cahail et al. baseline.
 HSV_RANGES: dict[str, list[tuple[int, int, int, int]]] = {
     'red': [(0, 6, 110, 60), (168, 179, 110, 60)],
     'orange': [(7, 19, 130, 90)],
@@ -71,7 +71,7 @@ class ModelError(Exception):
 # --- the boosted model -------------------------------------------------------------------
 
 def logistic_link(f: np.ndarray) -> np.ndarray:
-    """g(f) = e^f / (e^f + e^-f) = 1 / (1 + e^(-2f)) (seed 000, eq. 2), overflow-safe."""
+    """g(f) = e^f / (e^f + e^-f) = 1 / (1 + e^(-2f)) (Seo et al., eq. 2), overflow-safe."""
     f = np.asarray(f, dtype=np.float64)
     return 0.5 * (1.0 + np.tanh(f))
 
@@ -81,7 +81,7 @@ def stump_margin(clf: Any, X: np.ndarray) -> np.ndarray:
 
     ``alpha_i`` is half of scikit-learn's SAMME estimator weight: for two classes SAMME's
     weight is log((1 - err) / err), twice the discrete-AdaBoost coefficient that the
-    logistic link of Friedman et al. [8] (seed 000) assumes.
+    logistic link of Friedman et al. [8] (Seo et al.) assumes.
 
     Args:
         clf: a fitted binary ``AdaBoostClassifier`` over (hue, saturation).
@@ -185,7 +185,7 @@ def fit_boosted(pos: np.ndarray, neg: np.ndarray, n_estimators: int = 40,
 
 def hsv_range_lut(ranges: Sequence[tuple[int, int, int, int]],
                   inside: float = 0.95) -> tuple[np.ndarray, int]:
-    """A hue x saturation table from seed 004 HSV ranges.
+    """A hue x saturation table from Cahail et al. HSV ranges.
 
     Returns:
         (lut, v_min): ``inside`` on the bins of any range, 0 elsewhere, and the smallest
@@ -321,7 +321,7 @@ def saturation_table(gain: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class SpatialPrior:
-    """P(sign) over image locations (seed 000, Fig. 1) and the ROI it implies.
+    """P(sign) over image locations (Seo et al., Fig. 1) and the ROI it implies.
 
     Attributes:
         heat: (gh, gw) float32 in [0, 1]: smoothed box density normalised to its maximum.
@@ -376,7 +376,7 @@ def fit_prior(boxes: Sequence[tuple[float, float, float, float]], image_size: tu
               roi_margin: int = 16, floor: float = 0.2,
               saturate: float = 1.0,
               camera_jitter: Optional[tuple[float, float, float]] = None) -> SpatialPrior:
-    """Project every ground-truth box onto one image and smooth it (seed 000, Fig. 1).
+    """Project every ground-truth box onto one image and smooth it (Seo et al., Fig. 1).
 
     Args:
         boxes: (x, y, w, h) ground-truth boxes in pixels.
@@ -455,7 +455,7 @@ class ColorModel:
         prior: the spatial prior of the orange work-zone signs.
         metadata: training metadata (JSON-serialisable).
         extras: further numeric arrays saved with the model (``rgb_lp_thresholds``: the
-            seed 002 thresholds chosen by the trainer).
+            Balali and Golparvar-Fard thresholds chosen by the trainer).
     """
 
     classes: tuple[str, ...]
@@ -601,9 +601,9 @@ class ColorModel:
 def default_model(orange_lut: Optional[np.ndarray] = None, orange_v_min: int = 60,
                   prior: Optional[SpatialPrior] = None,
                   metadata: Optional[Mapping[str, Any]] = None) -> ColorModel:
-    """A model with the given (learned) orange table and the seed 004 red/yellow ranges.
+    """A model with the given (learned) orange table and the Cahail et al. red/yellow ranges.
 
-    Without ``orange_lut`` the orange table is the seed 004 orange range too (a fallback
+    Without ``orange_lut`` the orange table is the Cahail et al. orange range too (a fallback
     that needs no training).
     """
     red, v_red = hsv_range_lut(HSV_RANGES['red'])

@@ -1,6 +1,6 @@
 """Sign crops and the feature vectors of the sign classifier (no ROS import).
 
-Seed 000, section III.B (and seed 001, III.C): a region localised as a potential work-zone
+Seo et al., section III.B (and Lee et al., III.C): a region localised as a potential work-zone
 sign is cropped with a margin, its intensity normalised, and it is resampled into a
 log-polar image of rho x theta = 32 x 32 bins: dense samples near the centre, where sign
 images differ little, sparse ones at the border, where perspective and box jitter distort
@@ -113,7 +113,7 @@ def _square(crop: np.ndarray, side: int) -> np.ndarray:
 def normalised_grey(crop: np.ndarray, side: int = BASE_SIDE) -> np.ndarray:
     """The crop as a ``side`` x ``side`` float32 grey image of zero mean and unit deviation.
 
-    The intensity normalisation of seed 000 III.B: exposure, contrast and sheeting
+    The intensity normalisation of Seo et al. III.B: exposure, contrast and sheeting
     brightness differ from sign to sign, the layout of dark and bright does not.
     """
     if crop.ndim == 3:
@@ -275,7 +275,7 @@ def _centred_log_polar(batch: _Batch, rho: int, theta: int) -> np.ndarray:
 
 def log_polar_features(crops: Sequence[np.ndarray], rho: int = 32, theta: int = 32, *,
                        centred: bool = False) -> np.ndarray:
-    """Log-polar intensity vectors (seed 000 III.B): one row of ``rho * theta`` per crop.
+    """Log-polar intensity vectors (Seo et al. III.B): one row of ``rho * theta`` per crop.
 
     Each crop is resized to ``2 * rho`` square, grey-normalised (:func:`normalised_grey`)
     and resampled on ``theta`` angles x ``rho`` log-spaced radii out to the inscribed

@@ -1,4 +1,4 @@
-"""Work-zone state from classified signs: seed 000 III.C made causal, plus a state machine.
+"""Work-zone state from classified signs: Seo et al. III.C made causal, plus a state machine.
 
 One camera frame's :class:`~workzone_ros.interfaces.Signs` at a time (and metres travelled
 from odometry when there is odometry), :class:`WorkzoneFusion` answers the planner's
@@ -131,7 +131,7 @@ class FusionConfig:
     """
 
     gamma: float = _knob(0.9, 'discount of older classifications in the per-track vote '
-                         '(seed 000 eq. 4; the seed found 0.9 best)', 0.0, 1.0, True)
+                         '(Seo et al. eq. 4; the seed found 0.9 best)', 0.0, 1.0, True)
     vote_window: int = _knob(5, 'T of eq. 4: earlier classifications of a track that vote '
                              'with the newest (the seed found 5 best)', 0, 100)
     min_hits: int = _knob(3, 'observations a track needs before it is evidence (a stray '
@@ -140,7 +140,7 @@ class FusionConfig:
     min_confidence: float = _knob(0.4, 'discounted mean score of the voted class a track '
                                   'needs to be evidence', 0.0, 1.0)
     sigma_m: float = _knob(600.0, "Gaussian propagation of a sign's confidence along the "
-                           'path (m; seed 000: 490-1120 m); over time it is sigma_m / '
+                           'path (m; Seo et al.: 490-1120 m); over time it is sigma_m / '
                            'assumed_speed_mps', 1.0, 1e5)
     assumed_speed_mps: float = _knob(22.35, 'speed that turns time into distance when there '
                                      "is no odometry (m/s; 22.35 = the seed's 50 mph)",

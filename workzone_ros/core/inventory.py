@@ -1,7 +1,7 @@
 """Highway sign inventory: sightings of signs in camera frames -> one record per physical sign.
 
-Balali & Golparvar-Fard (seed 002) build sign inventories for departments of transportation
-from video: every sign along a road, once, with its class and where it stands.  This module
+Balali and Golparvar-Fard build sign inventories for departments of transportation from
+video: every sign along a road, once, with its class and where it stands.  This module
 is the algorithm on plain data (no rclpy, no bag reading; ``workzone_ros.tools.inventory``
 feeds it):
 

@@ -1,6 +1,6 @@
-"""LiDAR sign candidates: pre-filter, region growing, check-to-add filters (seed 004 s1.3).
+"""LiDAR sign candidates: pre-filter, region growing, check-to-add filters (Cahail et al. s1.3).
 
-Implements seed 004 section 1.3 (Velodyne sign detection) with its future work done, for any
+Implements Cahail et al. section 1.3 (Velodyne sign detection) with its future work done, for any
 sensor on any vehicle:
 
 0. **Where the sensor is** (:mod:`workzone_ros.core.lidar_geometry`): the points are taken
@@ -10,16 +10,16 @@ sensor on any vehicle:
    fit where the ground is visible (slopes, pitch, a mounting height a few dm off).
    Intensities are brought to 0-255 units (:mod:`workzone_ros.core.lidar_intensity`: from
    the field's datatype and values, or ``intensity_scale``).
-1. **Pre-clustering filter** (seed 004 s1.3): keep points that are bright enough
+1. **Pre-clustering filter** (Cahail et al. s1.3): keep points that are bright enough
    (intensity), above the road paint (``min_point_height``), far enough and not too far
    (range band), ahead, and within ``right_max`` / ``left_max`` of the sensor (left-side
    signs included: medians and left-lane closures carry them).
-2. **Clustering** (seed 004 s1.3): region growing, two points join when closer than
+2. **Clustering** (Cahail et al. s1.3): region growing, two points join when closer than
    ``d(r) = d0 + k * r`` (:mod:`workzone_ros.core.lidar_region_grow`: the connected
    components of that graph on a voxel grid, DBSCAN's partition for ``k = 0``).  On a sensor
    whose rings are further apart than ``d(r)`` (16 or 32 beams) heights are shrunk so the
    rings of one face join (:func:`_rings_closer`, from the ``ring`` field's beam spacing).
-3. **Check-to-add filters** (seed 004 s1.3): a cluster is added only when it has enough points
+3. **Check-to-add filters** (Cahail et al. s1.3): a cluster is added only when it has enough points
    and its bounding box fits the sign sizes.  Beyond the seed (its s1.5 future work): the
    cluster's top must reach sign height (``min_top_height`` above the road); a pole test; a
    sign is *retroreflective*, not just bright: a thin plate (PCA flatness), vertical, facing
@@ -142,7 +142,7 @@ class ClusterParams:
         x_min: pre-filter, only points at least this far ahead.
         right_max, left_max: pre-filter, how far right / left of the sensor the region
             reaches (``left_max`` 4 keeps only signs over the ego and next lane).
-        cluster_d0, cluster_k: region-growing threshold ``d(r) = d0 + k r`` (seed 004 s1.3's
+        cluster_d0, cluster_k: region-growing threshold ``d(r) = d0 + k r`` (Cahail et al. s1.3's
             dynamic distance threshold).
         min_points: check-to-add, at least this many points.
         max_width: check-to-add, horizontal bounding-box diagonal at most this (guide boards
@@ -495,7 +495,7 @@ class Prefiltered:
 
 def prefilter(points: np.ndarray, params: ClusterParams, scale: float, mount: Mount,
               ground: GroundPlane) -> Prefiltered:
-    """Seed 004 s1.3 pre-clustering filter, vectorised over a structured cloud.
+    """Cahail et al. s1.3 pre-clustering filter, vectorised over a structured cloud.
 
     The intensity test runs first over the whole cloud on the field view (no copy); the
     other tests run on the few bright survivors, in the level frame.
@@ -552,7 +552,7 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *
                   ground_prior: Optional[GroundPlane] = None,
                   beam: Optional[float] = None,
                   top_elevation: Optional[float] = None) -> ClusterResult:
-    """Pre-filter, cluster and check-to-add one scan (seed 004 s1.3 steps 1-3).
+    """Pre-filter, cluster and check-to-add one scan (Cahail et al. s1.3 steps 1-3).
 
     Args:
         points: structured cloud with x, y, z, intensity (more fields allowed, NaN allowed; a
@@ -614,7 +614,7 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *
         why[hit] = REJECT_REASONS.index(reason)
         ok = ok & ~mask
 
-    # Check-to-add (seed 004 s1.3): point count, bounding box within sign sizes.
+    # Check-to-add (Cahail et al. s1.3): point count, bounding box within sign sizes.
     reject(counts < params.min_points, 'few_points')
     reject((width > params.max_width) | (ext[:, 2] > params.max_height), 'too_large')
     reject(np.maximum(width, ext[:, 2]) < params.min_size, 'too_small')
@@ -626,7 +626,7 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *
     # tip are one beam spacing apart, not a measured height).
     reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width)
            & (n_rows >= 3), 'too_thin')
-    # A thin vertical plate facing the sensor (seed 004 s1.5 future work): PCA, ascending.
+    # A thin vertical plate facing the sensor (Cahail et al. s1.5 future work): PCA, ascending.
     evals, evecs = np.linalg.eigh(cov)
     evals = np.maximum(evals, 0.0)
     testable = (counts >= params.flat_min_points) & \

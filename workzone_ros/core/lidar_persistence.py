@@ -1,6 +1,6 @@
-"""Persistence of LiDAR sign candidates over scans, with stable ids (seed 004 s1.4).
+"""Persistence of LiDAR sign candidates over scans, with stable ids (Cahail et al. s1.4).
 
-Seed 004 s1.4 proposes "requiring an object to be present in 3 or so frames": a candidate is
+Cahail et al. s1.4 proposes "requiring an object to be present in 3 or so frames": a candidate is
 published when it was seen in ``k`` of the last ``n`` scans.  With odometry the candidates
 are matched in the odometry frame, so a static sign keeps its id while the car moves.
 :meth:`CandidateTracker.held` says how many of a scan's candidates wait for persistence, so
@@ -23,7 +23,7 @@ class PersistenceError(ValueError):
 
 
 class CandidateTracker:
-    """Persistence k of n with stable ids (seed 004 s1.4's proposed object tracking).
+    """Persistence k of n with stable ids (Cahail et al. s1.4's proposed object tracking).
 
     Candidates are matched to tracks by nearest neighbour (greedy, closest pairs first)
     within a gate.  With a pose (4x4 odom <- lidar at the scan time) matching happens in the

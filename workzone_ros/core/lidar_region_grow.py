@@ -1,6 +1,6 @@
 """Region growing for LiDAR clusters: connected components of "closer than d(r)".
 
-Seed 004 s1.3 grows regions from seed points, joining a point when it is closer than a
+Cahail et al. s1.3 grows regions from seed points, joining a point when it is closer than a
 threshold that grows with range, ``d(r) = d0 + k * r``.  The seed's O(N^2) seed-and-grow
 loop is replaced by an equivalent graph formulation: the clusters are the connected
 components of the "closer than d" graph (single linkage), built on a voxel grid of side
@@ -26,7 +26,7 @@ __all__ = ['region_grow']
 
 def region_grow(xyz: np.ndarray, d0: float, k: float = 0.0,
                 voxel: float = 0.0) -> np.ndarray:
-    """Connected components of "closer than ``d(r) = d0 + k r``" (seed 004 s1.3 clustering).
+    """Connected components of "closer than ``d(r) = d0 + k r``" (Cahail et al. s1.3 clustering).
 
     Args:
         xyz: (N, 3) points.

@@ -1,6 +1,6 @@
-"""Project LiDAR candidates into the camera image and size their crops (seed 004 section 2).
+"""Project LiDAR candidates into the camera image and size their crops (Cahail et al. section 2).
 
-Seed 004 s2.4.2: ``s [u v 1]^T = A [R|t] [X Y Z 1]^T`` with the plumb_bob distortion
+Cahail et al. s2.4.2: ``s [u v 1]^T = A [R|t] [X Y Z 1]^T`` with the plumb_bob distortion
 ``x'' = x'(1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x'y' + p2 (r^2 + 2 x'^2)`` (and the y
 counterpart), computed by OpenCV's ``projectPoints`` (the seed's ``cvProjectPoints2``).
 Beyond the seed (its future work s6.x):
@@ -132,7 +132,7 @@ def extrinsics_from_list(values, name: str = 'lidar_to_camera') -> np.ndarray:
 
 def project_points(xyz_lidar: np.ndarray, lidar_to_camera: np.ndarray, camera: CameraModel,
                    min_depth: float = 0.5, fov_margin: float = 0.25) -> Projected:
-    """Project LiDAR points with K, distortion and extrinsics (seed 004 s2.4.2).
+    """Project LiDAR points with K, distortion and extrinsics (Cahail et al. s2.4.2).
 
     Args:
         xyz_lidar: (N, 3) points in the lidar frame.
@@ -181,7 +181,7 @@ def crop_boxes(uv: np.ndarray, depth: np.ndarray, radius: np.ndarray, camera: Ca
                margin: float = 1.5, min_radius: float = 0.6, pad_px: float = 6.0,
                min_px: float = 16.0, max_px: Optional[float] = None,
                pad_m: float = 0.3) -> np.ndarray:
-    """Crop boxes sized from the candidate radius and range (replaces seed 004's +-250 px).
+    """Crop boxes sized from the candidate radius and range (replaces Cahail et al.'s +-250 px).
 
     ``half = (margin * max(radius, min_radius) + pad_m) * f / depth + pad_px`` (at least
     ``min_px / 2``); ``min_radius`` keeps a sparse cluster (one ring on a far sign, the lower

@@ -1,7 +1,8 @@
 """Sign catalogue: class keys, MUTCD-style codes, face sizes, colors and their effect on state.
 
-The work-zone classes are the classifier targets of seed 000; the general classes come from
-seeds 002 and 004 and never change the work-zone state (DESIGN.md, "Sign catalogue").
+The work-zone classes are the classifier targets of Seo et al.; the general classes come
+from Balali and Golparvar-Fard and from Cahail et al. and never change the work-zone state
+(DESIGN.md, "Sign catalogue").
 """
 from __future__ import annotations
 
@@ -45,12 +46,12 @@ class SignClass:
 
     @property
     def regulatory_two_color(self) -> bool:
-        """True for orange-top / white-bottom regulatory work-zone signs (seed 000 III.A)."""
+        """True for orange-top / white-bottom regulatory work-zone signs (Seo et al. III.A)."""
         return self.category == 'workzone' and self.colors[:2] == ('orange', 'white')
 
 
 CATALOGUE: tuple[SignClass, ...] = (
-    # Work-zone signs (classifier targets, seed 000).
+    # Work-zone signs (classifier targets, Seo et al.).
     SignClass('road_work_ahead', 'W20-1', 'workzone', 'diamond', ('orange', 'black'),
               1.2, 1.2, 'approaching', 'ROAD WORK AHEAD'),
     SignClass('work_zone_begin', 'R22-1', 'workzone', 'rectangle', ('orange', 'white'),
@@ -75,7 +76,8 @@ CATALOGUE: tuple[SignClass, ...] = (
               1.2, 1.2, 'lane_closed_right', 'RIGHT LANE CLOSED AHEAD'),
     SignClass('other_workzone', 'W20-4/W20-7/W21-5', 'workzone', 'diamond', ('orange', 'black'),
               1.2, 1.2, 'in_zone', 'ONE LANE ROAD AHEAD / FLAGGER / SHOULDER WORK'),
-    # General signs (seeds 002, 004): recognised, reported, never change the state.
+    # General signs (Balali and Golparvar-Fard; Cahail et al.): recognised, reported, never
+    # change the state.
     SignClass('stop', 'R1-1', 'general', 'octagon', ('red', 'white'), 0.9, 0.9, 'none', 'STOP'),
     SignClass('yield', 'R1-2', 'general', 'triangle', ('red', 'white'), 0.9, 0.78, 'none',
               'YIELD'),
@@ -96,7 +98,7 @@ CATALOGUE: tuple[SignClass, ...] = (
 BY_KEY: dict[str, SignClass] = {c.key: c for c in CATALOGUE}
 WORKZONE_KEYS: tuple[str, ...] = tuple(c.key for c in CATALOGUE if c.category == 'workzone')
 GENERAL_KEYS: tuple[str, ...] = tuple(c.key for c in CATALOGUE if c.category == 'general')
-#: Classifier targets in seed 000's order, with the reject class last.
+#: Classifier targets in Seo et al.'s order, with the reject class last.
 CLASSIFIER_KEYS: tuple[str, ...] = WORKZONE_KEYS + ('background',)
 
 

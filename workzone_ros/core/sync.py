@@ -5,7 +5,7 @@
   queue size per topic, a maximum interval duration (the ``slop``), the age penalty and the
   optional inter-message lower bounds.  A set is emitted only once it is *provably optimal*:
   its interval ``[start, end]`` is the smallest among the sets that could still be formed,
-  every message is used at most once, and sets come out in time order.  Seed 004 s2.4.1 / s6.2
+  every message is used at most once, and sets come out in time order.  Cahail et al. s2.4.1 / s6.2
   projected "using the last point cloud received" under a mutex; this is what replaces it.
 * :class:`LatestSync` -- that seed baseline: each image is paired with the latest cloud.
 * :class:`NearestSync` -- each image is paired with the candidate set nearest in time within
@@ -241,7 +241,7 @@ class ApproximateTimeSync:
 
 
 class LatestSync:
-    """Seed 004 s2.4.1 baseline: each image is paired with the last cloud received.
+    """Cahail et al. s2.4.1 baseline: each image is paired with the last cloud received.
 
     ``add_cloud`` stores the cloud; ``add_image`` returns ``(cloud_stamp, cloud)`` or None
     when no cloud arrived yet (the seed's mutex-protected "last point cloud").

@@ -1,4 +1,4 @@
-"""``classifier`` node: image + ``/workzone/tracks`` -> ``/workzone/signs`` (seed 000 III.B).
+"""``classifier`` node: image + ``/workzone/tracks`` -> ``/workzone/signs`` (Seo et al. III.B).
 
 Thin wrapper around :mod:`workzone_ros.core.classifier` (log-polar + PCA + SVM with a
 ``background`` reject class), :mod:`workzone_ros.core.digits` (the work-zone speed limit's

@@ -1,10 +1,10 @@
 """``color_detector`` node: camera image (+ LiDAR ROIs) -> ``/workzone/detections``.
 
-Thin wrapper around :mod:`workzone_ros.core.detect` (seed 000 section III.A, with the
-seed 002 / seed 004 alternatives selectable by ``method``).  Each image is converted, handed
-to the core detector together with the ROIs of the same image stamp (the projector stamps
-its ``Rois`` with the image it projected into; a short ring buffer matches them exactly), and
-the ``Detections`` payload is published with the image's header.
+Thin wrapper around :mod:`workzone_ros.core.detect` (Seo et al. section III.A, with the
+alternatives of Balali and Golparvar-Fard and of Cahail et al. selectable by ``method``). Each
+image is converted, handed to the core detector together with the ROIs of the same image stamp (the
+projector stamps its ``Rois`` with the image it projected into; a short ring buffer matches them
+exactly), and the ``Detections`` payload is published with the image's header.
 
 The projector publishes an image's ROIs after the image (it waits for the LiDAR scan nearest
 in time, typically 50-150 ms).  So when the ROI topic has a publisher, each image is held
@@ -68,7 +68,7 @@ class ColorDetectorNode(WorkzoneNode):
         Param('detections_topic', '/workzone/detections', 'output Detections payload',
               read_only=True),
         Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
-              'the seed 004 HSV ranges if that file does not exist)', read_only=True),
+              'the Cahail et al. HSV ranges if that file does not exist)', read_only=True),
         Param('proposals', False, 'also publish the recall-first colour candidates '
               '(core.proposals, Detection.proposal true) for the classifier to decide; off '
               'by default: with the shipped classifier they add more false work-zone signs on '
@@ -106,8 +106,8 @@ class ColorDetectorNode(WorkzoneNode):
                 source = path
             else:
                 self._model = default_model()
-                source = 'seed 004 HSV ranges (no trained model file)'
-                self.get_logger().warning(f'{path} not found: using the seed 004 HSV ranges; '
+                source = 'Cahail et al. HSV ranges (no trained model file)'
+                self.get_logger().warning(f'{path} not found: using the Cahail et al. HSV ranges; '
                                           "train one with 'workzone-ros train color'")
             self._detector = self._make_detector()
             self._proposal_model = load_model(p.proposals_model or PROPOSALS_MODEL) \

@@ -1,6 +1,6 @@
 """``fusion`` node: ``/workzone/signs`` (+ ``/odom``) -> ``/workzone/state`` for a planner.
 
-Thin wrapper around :class:`workzone_ros.core.fusion.WorkzoneFusion` (seed 000 III.C:
+Thin wrapper around :class:`workzone_ros.core.fusion.WorkzoneFusion` (Seo et al. III.C:
 discounted temporal voting per tracked sign, Gaussian propagation of the classification
 confidence -- causal, over metres travelled when odometry is present -- and a state machine
 ``unknown -> none -> approaching -> inside -> leaving -> none``).

@@ -1,4 +1,4 @@
-"""``lidar_cluster`` node: ``/lidar/points`` -> ``/workzone/lidar/candidates`` (seed 004 s1).
+"""``lidar_cluster`` node: ``/lidar/points`` -> ``/workzone/lidar/candidates`` (Cahail et al. s1).
 
 Thin wrapper around :class:`workzone_ros.core.lidar_stream.LidarStream`: view the cloud
 without copies, then the intensity scale (learned from the field's datatype and values, or
@@ -50,7 +50,7 @@ _UNDECLARED = re.compile(r"'(\w+)' is not a parameter")
 
 
 class LidarClusterNode(WorkzoneNode):
-    """PointCloud2 in, sign candidates out (seed 004 s1.3 + persistence)."""
+    """PointCloud2 in, sign candidates out (Cahail et al. s1.3 + persistence)."""
 
     PARAMS = (
         Param('points_topic', '/lidar/points', 'input cloud (x, y, z, intensity)'),

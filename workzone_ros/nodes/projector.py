@@ -1,4 +1,5 @@
-"""``projector`` node: candidates + image + CameraInfo (+ odom) -> ``/workzone/rois`` (seed 004).
+"""``projector`` node: candidates + image + CameraInfo (+ odom) -> ``/workzone/rois``
+(after Cahail et al.).
 
 Thin wrapper around :mod:`workzone_ros.core.sync` and :mod:`workzone_ros.core.projection`:
 
@@ -78,7 +79,7 @@ def _ns(stamp) -> int:
 
 
 class ProjectorNode(WorkzoneNode):
-    """Synchronise, compensate, project, crop (seed 004 s2 and its future work)."""
+    """Synchronise, compensate, project, crop (Cahail et al. s2 and its future work)."""
 
     PARAMS = (
         Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates'),
@@ -96,7 +97,8 @@ class ProjectorNode(WorkzoneNode):
               'lidar pose in base_link: x y z roll pitch yaw (for odometry)'),
         Param('sync_policy', 'nearest', 'nearest (each image: the candidate set nearest in '
               'time within the slop, sets reused), approximate (message_filters '
-              'ApproximateTime, one-to-one) or latest (seed 004 baseline: last cloud received)',
+              'ApproximateTime, one-to-one) or latest (the baseline of Cahail et al.: the last '
+              'cloud received)',
               choices=('nearest', 'approximate', 'latest')),
         Param('slop', 0.1, 'maximum stamp difference image <-> candidates, s', min=0.0,
               max=10.0),

@@ -1,4 +1,4 @@
-"""``tracker`` node: camera image + ``/workzone/detections`` -> ``/workzone/tracks`` (seed 001).
+"""``tracker`` node: camera image + ``/workzone/detections`` -> ``/workzone/tracks`` (Lee et al.).
 
 Thin wrapper around :class:`workzone_ros.core.track.MultiTracker`.  Images are kept in a
 short ring buffer keyed by their stamp; a ``Detections`` payload is processed with the image
@@ -44,7 +44,7 @@ def config_from_params(params: Any) -> TrackerConfig:
 
 
 class TrackerNode(WorkzoneNode):
-    """Kernel-based sign tracking (seed 001): detections + image -> tracks."""
+    """Kernel-based sign tracking (Lee et al.): detections + image -> tracks."""
 
     PARAMS = (
         Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)'),

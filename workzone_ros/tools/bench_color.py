@@ -141,7 +141,7 @@ def run(args: argparse.Namespace) -> dict:
         model = cm.load_model(args.model)
         source = args.model
     except cm.ModelError:
-        model, source = cm.default_model(), 'seed 004 HSV ranges (no model file)'
+        model, source = cm.default_model(), 'Cahail et al. HSV ranges (no model file)'
     frames = _frames()
     out: dict = {'model': source, 'frame': '640x480', 'scale': args.scale,
                  'threads': cv2.getNumThreads()}

@@ -4,7 +4,7 @@ For every switch of :class:`~workzone_ros.core.detect.DetectorConfig` that is on
 (a boolean field whose default is ``True``), the detector is run with that one switch off,
 next to the defaults, over the same frames in one pass:
 
-* held-out synthetic bags (``--bags``): seed 000 Table I (mean area precision and recall of
+* held-out synthetic bags (``--bags``): Seo et al. Table I (mean area precision and recall of
   matched warning and regulatory signs), the share of eligible signs found, and false
   detections per frame -- :func:`workzone_ros.tools.eval_color.evaluate_bags`;
 * the real dashcam clips (``--real``): the share of labelled sign frames where the sign is

@@ -1,4 +1,4 @@
-"""``workzone-ros evaluate classifier``: seed 000 Table III on held-out renders, and more.
+"""``workzone-ros evaluate classifier``: Seo et al. Table III on held-out renders, and more.
 
 What it measures (every number from crops it did not train on):
 

@@ -1,21 +1,21 @@
-"""``workzone-ros evaluate color``: seed 000 Table I metrics on held-out bags; real clips.
+"""``workzone-ros evaluate color``: Seo et al. Table I metrics on held-out bags; real clips.
 
 Synthetic bags (``--bags``; never the ones the model was trained or tuned on): every camera
 frame is run through the detector and matched to ``/groundtruth/signs``:
 
 * a ground-truth work-zone sign is *eligible* when its box is at least ``--min-px`` on its
-  shorter side and at least ``--min-visible`` visible (seed 001 ignores signs under 30 px);
+  shorter side and at least ``--min-visible`` visible (Lee et al. ignores signs under 30 px);
 * a detection matches a sign when IoU > tau = 0.5 (one to one, best IoU first);
-* for a matched pair, area precision = |o n g| / |o| and recall = |o n g| / |g| (seed 000);
+* for a matched pair, area precision = |o n g| / |o| and recall = |o n g| / |g| (Seo et al.);
   Table I macro-averages them over the test images (per image first, then over images),
   separately for warning (diamond) and regulatory (rectangular) signs;
 * we also report what Table I leaves out: the share of eligible signs matched at all
   (detection rate) and the false detections per frame (a detection overlapping no sign of
   any kind, IoU < 0.1; drums, cones and orange vehicles are the usual ones).
 
-Methods: ``learned`` (seed 000), ``rgb_lp`` (seed 002), ``hsv`` (seed 004), each with LiDAR
-guidance off; ``learned`` also with it on.  LiDAR ROIs come from the real LiDAR chain run
-offline on the bag's ``/lidar/points``, ``/odom`` and ``/camera/camera_info`` with the
+Methods: ``learned`` (Seo et al.), ``rgb_lp`` (Balali and Golparvar-Fard), ``hsv`` (Cahail et al.),
+each with LiDAR guidance off; ``learned`` also with it on.  LiDAR ROIs come from the real LiDAR
+chain run offline on the bag's ``/lidar/points``, ``/odom`` and ``/camera/camera_info`` with the
 ``lidar_cluster`` and ``projector`` defaults (:func:`lidar_chain_rois`; no ground truth).
 
 Pixel accuracy of the colour model: ``--pixels DIR`` (a held-out ``synth pixels`` folder).
@@ -104,7 +104,7 @@ def match_frame(dets: Sequence[Box], gts: Sequence[Box], tau: float = 0.5
 
 
 class TableI:
-    """Accumulates seed 000 Table I quantities per (group, kind)."""
+    """Accumulates Seo et al. Table I quantities per (group, kind)."""
 
     def __init__(self) -> None:
         # group -> kind -> list of per-image (mean precision, mean recall)
@@ -440,8 +440,8 @@ def build_detectors(model: cm.ColorModel, methods: Sequence[str], lidar: bool,
     out = {}
     for m in methods:
         if m == 'rgb_lp' and lp is None:
-            print('rgb_lp: the model file has no seed 002 thresholds (train with --rgb-lp); '
-                  'skipped', file=sys.stderr)
+            print('rgb_lp: the model file has no RGB thresholds of Balali and Golparvar-Fard '
+                  '(train with --rgb-lp); skipped', file=sys.stderr)
             continue
         if m == 'learned':
             cfg = dt.DetectorConfig(colors=('orange',), threshold=threshold)

@@ -1,4 +1,4 @@
-"""``workzone-ros evaluate general``: seed 004's results table for the general sign
+"""``workzone-ros evaluate general``: Cahail et al.'s results table for the general sign
 recogniser (core/general) on held-out renders, and false signs on the real clips.
 
 Renders.  Every scenario seed is a :func:`random_scenario` (random weather, road, work zone,
@@ -119,7 +119,7 @@ def _match(dets: Sequence, gts: Sequence, tau: float) -> list[tuple[int, int]]:
 
 
 class Table:
-    """Seed 004's table, in all and per class."""
+    """Cahail et al.'s table, in all and per class."""
 
     def __init__(self) -> None:
         self.n: dict = defaultdict(lambda: defaultdict(int))
@@ -228,7 +228,7 @@ def _pct(v: Sequence[float]) -> dict:
 
 
 def evaluate_renders(specs, det: GeneralSignDetector, args, tiles: list) -> dict:
-    """Seed 004's table over rendered frames of ``specs``; timing at native size and 720p."""
+    """Cahail et al.'s table over rendered frames of ``specs``; timing at native size and 720p."""
     from workzone_ros.sim.camera import CameraRenderer
     from workzone_ros.sim.scenario import FPS, build_scene
     from workzone_ros.sim.world import DEFAULT_CAMERA

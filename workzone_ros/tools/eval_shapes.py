@@ -1,16 +1,16 @@
-"""``workzone-ros evaluate shapes``: the sign-shape cascades (seed 002, Tables 3 and 4) on
-held-out renders, and the drum / cone veto on the real labelled crops.
+"""``workzone-ros evaluate shapes``: the sign-shape cascades (Balali and Golparvar-Fard,
+Tables 3 and 4) on held-out renders, and the drum / cone veto on the real labelled crops.
 
 Candidates are crops as a detector gives them (the renders of ``workzone-ros synth crops``:
 the sign's box jittered by 10-20 %); the candidate box is the whole crop and the cascade
 slides its windows at each scale (``ShapeCascade.scan_scales``).
 
-* Table 3 (seed 002): per shape and window scale, the false-negative rate (crops of the
-  shape its cascade does not accept at that scale) and the false-positive rate (crops of
-  other shapes or background it accepts).
-* Table 4 (seed 002): the answer at all scales together (``ShapeCascade.scan``, with the
-  model's ``min_windows`` accepting windows), one shape against the rest: precision,
-  recall and accuracy ``(TP + TN) / all``.
+* Table 3 (Balali and Golparvar-Fard): per shape and window scale, the false-negative rate
+  (crops of the shape its cascade does not accept at that scale) and the false-positive rate
+  (crops of other shapes or background it accepts).
+* Table 4 (Balali and Golparvar-Fard): the answer at all scales together
+  (``ShapeCascade.scan``, with the model's ``min_windows`` accepting windows), one shape
+  against the rest: precision, recall and accuracy ``(TP + TN) / all``.
 * Sets: held-out renders (``--seeds``, default 5 6 7: never trained on) with faces of at
   least ``--min-side`` px, the same at every size, and sign-art composites on held-out
   render backgrounds (``train_shapes.composite_crops`` with another seed).
@@ -168,8 +168,8 @@ def _pct(v) -> str:
 
 def _print_tables(name: str, t3: dict, t4: dict, scales: Sequence[float]) -> None:
     print(f'\n== {name}: {t4["all"]["n"]} candidates ==')
-    print("Table 3 (seed 002): false negatives / false positives of each shape's cascade "
-          'per window scale')
+    print("Table 3 (Balali and Golparvar-Fard): false negatives / false positives of each "
+          "shape's cascade per window scale")
     sc = ' '.join(f'{s:>7.2f}' for s in scales)
     print(f'{"shape":<10} {"n+":>5} {"n-":>6} | FN {sc} | FP {sc}')
     for shape in sh.SHAPES:
@@ -177,7 +177,7 @@ def _print_tables(name: str, t3: dict, t4: dict, scales: Sequence[float]) -> Non
         print(f'{shape:<10} {r["n_pos"]:>5} {r["n_neg"]:>6} | '
               f'   {" ".join(_pct(v) for v in r["fn"])} | '
               f'   {" ".join(_pct(v) for v in r["fp"])}')
-    print('Table 4 (seed 002): answer at all scales, one shape against the rest')
+    print('Table 4 (Balali and Golparvar-Fard): answer at all scales, one shape against the rest')
     print(f'{"shape":<10} {"TP":>5} {"FP":>5} {"FN":>5} {"TN":>6} {"precision":>9} '
           f'{"recall":>8} {"accuracy":>8}')
     for shape in sh.SHAPES:
@@ -187,7 +187,7 @@ def _print_tables(name: str, t3: dict, t4: dict, scales: Sequence[float]) -> Non
     a = t4['all']
     print(f'mean precision {_pct(a["mean_precision"])}, recall {_pct(a["mean_recall"])}, '
           f'accuracy {_pct(a["mean_accuracy"])}; 5-way accuracy (4 shapes + none) '
-          f'{_pct(a["accuracy_5way"])}   (seed 002: 76.65 %, 99.33 %, 79.30 %)')
+          f'{_pct(a["accuracy_5way"])}   (Balali and Golparvar-Fard: 76.65 %, 99.33 %, 79.30 %)')
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,4 +1,4 @@
-"""Seed 001 Table II on synthetic bags: detection only vs detection + tracking, and peers.
+"""Lee et al. Table II on synthetic bags: detection only vs detection + tracking, and peers.
 
 ``python -m workzone_ros.tools.eval_tracker BAG [BAG ...] [--json OUT] [--overlay PNG]``
 (the lead wires ``workzone-ros evaluate tracker`` to :func:`main`).
@@ -8,21 +8,21 @@ For every camera frame of each bag the detector runs once (the colour detector c
 boxes with simulated misses and jitter), and the same detections feed several trackers in
 lockstep, all from the same starts on the same frames:
 
-* ``detection_only``: seed 001's baseline (detections are the output);
+* ``detection_only``: Lee et al.'s baseline (detections are the output);
 * ``meanshift``: our tracker (``TrackerConfig()`` defaults: fusion of tracked and detected
   boxes with an agreeing complete detection's box preferred, shrinking scales, drift guards,
   no tracking output for targets like their surroundings, with white bands or not more
   saturated than their surroundings' median and more colourful (chroma) than them
   (sign-likeness; then one detection suffices to run on its own), containment duplicates
   (orange-top tracks) removed);
-* ``meanshift_overwrite``: ours with seed 001's association (the detection overwrites);
-* ``meanshift_seed``: seed 001's exact rule (``tracking.seed_config``: plain
+* ``meanshift_overwrite``: ours with Lee et al.'s association (the detection overwrites);
+* ``meanshift_seed``: Lee et al.'s exact rule (``tracking.seed_config``: plain
   ``sqrt(t_u / c_u)`` weights, five only-larger kernels, best Bhattacharyya coefficient,
   previous centre as start, overwrite, no drift guards; the two-colour guard stays);
 * ``meanshift_no_guard``: ours without the regulatory two-colour guard (whole-box model);
 * ``camshift``: OpenCV's ``cv2.CamShift`` on a hue back-projection (our track life).
 
-Quantities (seed 001, IV and Table II; tau = 0.5; see :func:`evaluate_bag`):
+Quantities (Lee et al., IV and Table II; tau = 0.5; see :func:`evaluate_bag`):
 
 * evaluable signs: work-zone signs (``category == 'workzone'``) at least ``--min-size`` px on
   both sides and at least half visible;
@@ -30,7 +30,7 @@ Quantities (seed 001, IV and Table II; tau = 0.5; see :func:`evaluate_bag`):
   on -- "the frames which were executed on the tracking"; everything is counted on these;
 * ``misses``: run sign-frames with no detection at IoU >= tau; ``covered``: those where an
   output of the configuration (any source) has IoU >= tau (also as distinct signs);
-* ``precision`` / ``recall`` (area-based, seed 001: Area(o n g) / Area(o) and / Area(g)) of
+* ``precision`` / ``recall`` (area-based, Lee et al.: Area(o n g) / Area(o) and / Area(g)) of
   the best output box with IoU >= tau, averaged over matched run sign-frames; ``match``
   is the share of run sign-frames with such a box;
 * false outputs: boxes overlapping no work-zone sign (IoU < 0.3 with each), on drums/cones
@@ -96,7 +96,7 @@ def _iou(a, b) -> float:
 
 
 def area_pr(o, g) -> tuple[float, float]:
-    """Seed 001's area-based precision and recall of output box ``o`` for truth ``g``."""
+    """Lee et al.'s area-based precision and recall of output box ``o`` for truth ``g``."""
     iw = min(o[0] + o[2], g[0] + g[2]) - max(o[0], g[0])
     ih = min(o[1] + o[3], g[1] + g[3]) - max(o[1], g[1])
     inter = max(0.0, iw) * max(0.0, ih)
@@ -125,7 +125,7 @@ class _ColorDetector:
         else:
             model = default_model()
             self.model_file = None
-            self.name = 'color (default_model(): seed 004 HSV orange range, no trained model)'
+            self.name = 'color (default_model(): Cahail et al. HSV orange range, no trained model)'
             self.key = 'default'
         bs = tuple(float(v) for v in model.extras.get('box_scale', (1.0, 1.0)))
         self.det = ColorDetector(model, DetectorConfig(colors=('orange',), border_scale=bs))
@@ -387,7 +387,7 @@ def evaluate_bag(bag: str, detector, min_size: float, max_frames: int = 0,
                  trace: Optional[list] = None) -> dict:
     """Run every configuration on one bag; returns the per-configuration figures.
 
-    Definitions (seed 001, IV and Table II; tau = 0.5):
+    Definitions (Lee et al., IV and Table II; tau = 0.5):
 
     * a sign-frame is *run* from the first frame where a detection matched the sign
       (IoU >= tau) on ("the frames which were executed on the tracking");

@@ -12,16 +12,18 @@ from workzone_ros.cli import dispatch
 __all__ = ['EVALUATIONS', 'main']
 
 EVALUATIONS: dict[str, str] = {
-    'lidar': 'LiDAR candidates (FP/FN by range band) and projection error (seed 004)',
-    'color': 'color detection, seed 000 Table I metrics per weather; real clips',
-    'tracker': 'tracking, seed 001 Table II quantities; CamShift peer',
-    'classifier': 'sign classifier, seed 000 Table III; mirror pairs, background, real clips',
-    'workzone': 'work-zone state, seed 000 Table IV: bounds, condition changes, timing, flicker',
+    'lidar': 'LiDAR candidates (FP/FN by range band) and projection error (Cahail et al.)',
+    'color': 'color detection, Seo et al. Table I metrics per weather; real clips',
+    'tracker': 'tracking, Lee et al. Table II quantities; CamShift peer',
+    'classifier': 'sign classifier, Seo et al. Table III; mirror pairs, background, real clips',
+    'workzone': 'work-zone state, Seo et al. Table IV: bounds, condition changes, timing, flicker',
     'digits': 'the work-zone speed limit reader on rendered signs (correct / wrong / unread)',
     'real_signs': 'detector + tracker + classifier on the real dashcam clips, per frame',
     'ablation': 'each default-on switch of the colour stage turned off: Table I, real clips',
-    'shapes': 'sign-shape cascades, seed 002 Tables 3 and 4; drum / cone veto on real crops',
-    'general': 'general signs (stop, yield, warning, speed limit, guide, mile), seed 004 table',
+    'shapes': 'sign-shape cascades (Tables 3 and 4 of Balali and Golparvar-Fard); drum / cone '
+              'veto on real crops',
+    'general': 'general signs (stop, yield, warning, speed limit, guide, mile): the table of '
+               'Cahail et al.',
     'faults': 'malformed messages on every subscription of every node: crashes, recovery',
     'reliability': 'the live graph under a looping bag, killed nodes, lost sensors, load',
 }

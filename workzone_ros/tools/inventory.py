@@ -1,4 +1,5 @@
-"""``workzone-ros inventory``: a highway sign inventory from bags (issue #36; seed 002).
+"""``workzone-ros inventory``: a highway sign inventory from bags (after Balali and
+Golparvar-Fard).
 
 Usage::
 

@@ -11,10 +11,11 @@ from workzone_ros.cli import dispatch
 __all__ = ['TRAINERS', 'main']
 
 TRAINERS: dict[str, str] = {
-    'color': 'boosted hue/saturation color model (seed 000) from `synth pixels` or images+masks',
-    'classifier': 'sign classifier: log-polar + PCA + RBF SVM (seed 000) from renders / folders',
+    'color': 'boosted hue/saturation color model (Seo et al.) from `synth pixels` or images+masks',
+    'classifier': 'sign classifier: log-polar + PCA + RBF SVM (Seo et al.) from renders / folders',
     'proposals': 'the candidate ranker of the recall-first colour proposals, into a colour model',
-    'shapes': 'sign-shape cascades: boosted Haar-like stages (seed 002) from renders',
+    'shapes': 'sign-shape cascades: boosted Haar-like stages (Balali and Golparvar-Fard), '
+              'from renders',
     'cnn': 'sign classifier: small CNN for cv2.dnn (ONNX) from renders / folders; needs .[cnn]',
 }
 

@@ -1,4 +1,4 @@
-"""``workzone-ros train classifier``: the work-zone sign classifier (seed 000, section III.B).
+"""``workzone-ros train classifier``: the work-zone sign classifier (Seo et al., section III.B).
 
 Sources (any mix):
 

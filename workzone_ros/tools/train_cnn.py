@@ -403,6 +403,7 @@ class TrainConfig:
     dropout: float = 0.2
     real_share: float = 0.4
     composite: float = 0.5
+    legends: bool = True
     min_sign_side: float = 12.0
     background_share: float = 0.3
     class_power: float = 0.5
@@ -410,8 +411,8 @@ class TrainConfig:
     seed: int = 0
 
 
-def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
-              ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
+              legends: bool = True) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """The simulator's art of sign ``key`` pasted on part of a background crop.
 
     The renders show signs before grass, sky and asphalt only, so a network learns that a
@@ -420,6 +421,11 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     canvas is 16-64 px (the sign at that size in the frame, drawn anti-aliased by
     ``signart``), the face 45-80 % of it, off-centre, often on a post, in a random orange
     sheeting; returns the canvas and the face's box.
+    ``other_workzone`` is drawn as one of
+    the simulator's variants or, with ``legends``, as any orange MUTCD text sign without a
+    class of its own (:data:`~workzone_ros.sim.signart.LEGEND_SIGNS`: diamonds and
+    rectangles), so that the class means "an orange work-zone sign we have no class for",
+    not three pictures.
     """
     from workzone_ros.sim import signart
     n = int(rng.integers(20, 65))
@@ -429,10 +435,14 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
     canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
     speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
-    variant = str(rng.choice(signart.OTHER_VARIANTS)) if key == 'other_workzone' else None
     orange = signart.sheeting_orange(int(rng.integers(8)), 7)
     side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
-    face = signart.sign_face(key, side, speed, variant, orange)
+    variants = list(signart.OTHER_VARIANTS) + (list(signart.LEGEND_SIGNS) if legends else [])
+    variant = str(rng.choice(variants)) if key == 'other_workzone' else None
+    if variant in signart.LEGEND_SIGNS:
+        face = signart.legend_face(variant, side, orange)
+    else:
+        face = signart.sign_face(key, side, speed, variant, orange)
     h, w = face.shape[:2]
     if h > n or w > n:
         face = cv2.resize(face, (min(w, n), min(h, n)), interpolation=cv2.INTER_AREA)
@@ -557,7 +567,7 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
                     pool = real_bg if len(real_bg) and rng.random() < 0.6 else bg
                     backdrop = crops[int(pool[rng.integers(len(pool))])]
                     if rng.random() < 0.5 or boxes[i] is None:
-                        canvas, box = composite(lab, backdrop, rng)
+                        canvas, box = composite(lab, backdrop, rng, cfg.legends)
                     else:
                         canvas, box = cutout(lab, crops[i], boxes[i], scales[i], backdrop,
                                              rng)
@@ -704,6 +714,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--composite', type=float, default=d.composite,
                    help='share of the rendered sign draws replaced by the sign art pasted on a '
                         f'training background crop (default {d.composite:g})')
+    p.add_argument('--no-legends', dest='legends', action='store_false',
+                   help='draw other_workzone only as the three variants of the simulator, not '
+                        'as any orange MUTCD text sign (the legend art)')
     p.add_argument('--background-share', type=float, default=d.background_share,
                    help='share of the draws that are background crops (0: balanced like '
                         f'the other classes; default {d.background_share:g})')
@@ -780,6 +793,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     cfg = TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
                       samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
                       real_share=args.real_share, composite=args.composite,
+                      legends=args.legends,
                       min_sign_side=args.min_sign_side,
                       background_share=args.background_share,
                       max_minutes=args.max_minutes, seed=args.seed)
@@ -806,7 +820,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                            'macs_per_crop': macs(cfg.width, cfg.input_size, len(classes))},
           'training': {**{k: getattr(cfg, k) for k in (
               'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
-              'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
+              'dropout', 'real_share', 'composite', 'legends', 'min_sign_side', 'background_share',
               'class_power', 'seed')}, **run,
               'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
               'augmentation': 'renders at their size in the frame, shrunk up to 2x, '

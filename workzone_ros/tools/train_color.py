@@ -1,4 +1,4 @@
-"""``workzone-ros train color``: learn the orange sign colour model (seed 000, section III.A).
+"""``workzone-ros train color``: learn the orange sign colour model (Seo et al., section III.A).
 
 Reads one or more folders with ``images/*.png`` and ``masks/*.png`` of the same names
 (``workzone-ros synth pixels -o DIR`` writes them; a user's own images and masks work the
@@ -21,7 +21,7 @@ value = work-zone sign face), then
 4. counts sign / background pixels per (hue, saturation) bin (pixels darker than ``--v-min``
    are left out: the detector gates them out too) and fits AdaBoost over decision stumps
    (``--estimators`` = H weak learners) on those counts;
-5. bakes g(f) into the 180 x 256 table (seed 000 eq. 2);
+5. bakes g(f) into the 180 x 256 table (Seo et al. eq. 2);
 6. builds the spatial prior from the boxes of the masks' connected components (Fig. 1),
    averaged over other cameras' views (``--camera-pitch/-yaw/-zoom``: another mounting
    pitch, yaw and focal length, so the prior does not assume our camera's exact horizon),
@@ -32,7 +32,8 @@ value = work-zone sign face), then
    ``use_geometry`` false).  Both are stored with the training camera (metadata ``camera``:
    the frame size and, with ``--camera FX FY CX CY``, the intrinsics): the detector applies
    them only to frames of that camera and uses a location-free prior on any other;
-7. optionally (``--rgb-lp``) chooses the seed 002 RGB thresholds by the Boolean LP;
+7. optionally (``--rgb-lp``) chooses the RGB thresholds of Balali and Golparvar-Fard by their
+   Boolean LP;
 8. writes the versioned model file and prints training / validation pixel metrics.
 
 Images whose name hashes into the validation share (``--val-frac``) are kept out of training
@@ -289,10 +290,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                         'when it exists (same data and counting options only; not with '
                         '--rgb-lp)')
     p.add_argument('--rgb-lp', action='store_true',
-                   help='also choose the seed 002 RGB thresholds (Boolean LP)')
+                   help='also choose the Balali and Golparvar-Fard RGB thresholds (Boolean LP)')
     p.add_argument('--lp-w', type=float, default=1.0,
-                   help='seed 002 FN weight w, relative to the class sizes (default 1)')
-    p.add_argument('--lp-max', type=int, default=6, help='seed 002 max thresholds (default 6)')
+                   help='FN weight w of the RGB-threshold LP, relative to the class sizes '
+                        '(default 1)')
+    p.add_argument('--lp-max', type=int, default=6,
+                   help='most RGB thresholds the LP may choose (default 6)')
     args = p.parse_args(argv)
 
     try:

@@ -1,4 +1,4 @@
-"""``workzone-ros train shapes``: the sign-shape cascades of seed 002 (Balali and
+"""``workzone-ros train shapes``: the sign-shape cascades of Balali and Golparvar-Fard (Balali and
 Golparvar-Fard) from rendered crops.
 
 Data: the crops ``workzone-ros synth crops`` exports (``workzone_ros.sim.writer.export_crops``:

@@ -1,9 +1,9 @@
 """The ``--report DIR`` of ``workzone-ros evaluate workzone``: Markdown and timeline PNGs.
 
-``DIR/README.md`` holds the command, the pooled figures, Table IV per bag (seed 000: event
+``DIR/README.md`` holds the command, the pooled figures, Table IV per bag (Seo et al.: event
 recognised o/x / sign images / precision / recall), the timing of each bag and, for
 ``--signs pipeline``, the per-frame sign confusion matrix.  ``DIR/<bag>_timeline.png`` is
-seed 000's Fig. 3 for one bag, drawn with OpenCV (no plotting library): frames on x, the
+Seo et al.'s Fig. 3 for one bag, drawn with OpenCV (no plotting library): frames on x, the
 work-zone classes on y, legible ground-truth signs as green circles and the signs given to
 the fusion as red crosses; under it the fusion's likelihood (orange) and two bands, truth
 and prediction, shaded by phase.  ``DIR/stage_latency.png`` holds one histogram per stage
@@ -38,7 +38,7 @@ def _text(img, s: str, org, scale: float = 0.42, color=(0, 0, 0), thick: int = 1
 
 
 def draw_timeline(frames: Sequence, title: str) -> np.ndarray:
-    """Seed 000 Fig. 3 for one bag (see the module docstring); a BGR image."""
+    """Seo et al. Fig. 3 for one bag (see the module docstring); a BGR image."""
     import cv2
     n = max(len(frames), 1)
     plot_w = _W - _LEFT - _RIGHT

@@ -10,7 +10,7 @@ fit), :mod:`.rectangle` (the rectangle fit), :mod:`.plaque` (the two-colour exte
 :mod:`.baselines` (RGB-LP with MSER).  The row and band profiles the detector shares with
 the tracker are in :mod:`workzone_ros.core.profiles`.
 
-Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A):
+Main path (``method='learned'``, Seo et al. section III.A, Lee et al. section III.A):
 
 1. P(x | sign) from the colour model's hue x saturation table, one lookup per pixel, on an
    image downscaled by ``scale`` (a 640x480 frame is looked up at 320x240); pixels darker than
@@ -28,13 +28,13 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    This colour-only pass is the same with or without LiDAR.  A second pass then looks only
    at the LiDAR ROIs (``/workzone/rois``) that no colour detection explains (its centre
    inside): there the prior is raised to ``roi_prior`` and the lower ``roi_threshold`` is
-   used, so a sign the colour model half-sees is still found (seed 004's two-layer idea,
+   used, so a sign the colour model half-sees is still found (Cahail et al.'s two-layer idea,
    done as fusion), while blobs outside those ROIs never merge differently.  A blob inside
    an ROI also needs less shape evidence (``roi_relax``: looser hull-fill / solidity /
    aspect, no legend and no mounting-height test) as long as it lies mostly inside the ROI
    (``roi_contain``); outside ROIs nothing changes.
-3. Erosion then dilation (opening, seed 004 3.4.2) and a closing, connected components
-   (``cv2.connectedComponentsWithStats``), radius filters (seed 000 footnote 2: centroid to
+3. Erosion then dilation (opening, Cahail et al. 3.4.2) and a closing, connected components
+   (``cv2.connectedComponentsWithStats``), radius filters (Seo et al. footnote 2: centroid to
    side distance, here half the smaller box side).
    Before the table the frame is grey-world balanced when the model was trained so
    (colour constancy outside the table: a dusk cast no longer turns sky and lane paint
@@ -71,7 +71,7 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
    is the mode of the blob's pixels' probabilities (eq. 2: mode of g(f(x_j))).  The seed
    takes the mode over all pixels of the box; we take it over the blob's pixels, because
    on a diamond half of the box is background and the mode would be the background's.
-5. The regulatory two-colour extension (seed 000): a wide orange rectangle with white rows
+5. The regulatory two-colour extension (Seo et al.): a wide orange rectangle with white rows
    under it (orange top, white bottom: R22-1, R2-1 + G20-5aP) is extended down over the
    white part; the aspect ratio selects the candidates, the white rows decide how far.
 6. Non-maximum suppression; unlike the seed (which keeps the largest box) every sign in the
@@ -83,10 +83,10 @@ Main path (``method='learned'``, seed 000 section III.A, seed 001 section III.A)
 
 Alternatives, selectable with ``method``:
 
-- ``rgb_lp`` (seed 002, "Color-based Candidate Detection"): the OR of linear RGB thresholds
-  alpha R + beta G + lambda B >= t (eq. 1), the subset chosen by a Boolean linear program
-  minimising FP + w FN (eq. 2, ``scipy.optimize.milp``), pixels grouped by MSER.
-- ``hsv`` (seed 004, section 3.4.2): fixed HSV ranges, erosion then dilation, aspect-ratio
+- ``rgb_lp`` (Balali and Golparvar-Fard, "Color-based Candidate Detection"): the OR of
+  linear RGB thresholds alpha R + beta G + lambda B >= t (eq. 1), the subset chosen by a Boolean
+  linear program minimising FP + w FN (eq. 2, ``scipy.optimize.milp``), pixels grouped by MSER.
+- ``hsv`` (Cahail et al., section 3.4.2): fixed HSV ranges, erosion then dilation, aspect-ratio
   and fill-ratio filters.
 """
 from workzone_ros.core.detect.baselines import (

@@ -39,7 +39,7 @@ def _bin_centres() -> np.ndarray:
 
 def candidate_rgb_thresholds(pos_rgb: np.ndarray, levels: Sequence[float] = (
         0.02, 0.1, 0.25, 0.5)) -> np.ndarray:
-    """Candidate thresholds (alpha, beta, lambda, t) of seed 002 eq. 1.
+    """Candidate thresholds (alpha, beta, lambda, t) of Balali and Golparvar-Fard eq. 1.
 
     Directions: every (alpha, beta, lambda) in {-1, -0.5, 0, 0.5, 1}^3 up to scale; levels t:
     quantiles of the positive pixels' projections (a threshold keeps at least that share
@@ -61,7 +61,8 @@ def candidate_rgb_thresholds(pos_rgb: np.ndarray, levels: Sequence[float] = (
 
 @dataclass(frozen=True)
 class RgbLpModel:
-    """The selected thresholds rho* of seed 002 (rows alpha, beta, lambda, t on R, G, B)."""
+    """The selected thresholds rho* of Balali and Golparvar-Fard (rows alpha, beta, lambda, t
+    on R, G, B)."""
 
     thresholds: np.ndarray
     metadata: dict = field(default_factory=dict)
@@ -84,7 +85,8 @@ class RgbLpModel:
 def fit_rgb_lp(pos: np.ndarray, neg: np.ndarray, w: float = 1.0, max_thresholds: int = 6,
                max_candidates: int = 80, time_limit: float = 60.0,
                max_bins: int = 3000) -> RgbLpModel:
-    """Choose rho* = argmin FP(rho) + w FN(rho) over subsets of thresholds (seed 002, eq. 2).
+    """Choose rho* = argmin FP(rho) + w FN(rho) over subsets of thresholds (Balali and
+    Golparvar-Fard, eq. 2).
 
     Boolean linear program over quantised RGB bins with pixel counts as weights: x_k selects
     threshold k, y_i = 1 when positive bin i passes a selected threshold (y_i <= sum_k A_ik

@@ -31,7 +31,7 @@ class BlobMixin:
         if not cv2.countNonZero(mask):
             return []               # nothing to open, close or label (most red / yellow masks)
         if cfg.method == 'hsv':
-            # seed 004: erosion removes speckle, dilation reconnects the remaining blobs
+            # Cahail et al.: erosion removes speckle, dilation reconnects the remaining blobs
             k = np.ones((3, 3), np.uint8)
             mask = cv2.dilate(cv2.erode(mask, k), k, iterations=2)
         else:
@@ -130,7 +130,7 @@ class BlobMixin:
             return None
         pts = cv2.findNonZero(pix.astype(np.uint8))
         hull_fill = float(cv2.contourArea(cv2.convexHull(pts))) / (bw * bh)
-        # seed 004 compares the (dilated) blob's area with its box's
+        # Cahail et al. compares the (dilated) blob's area with its box's
         fill = blob_fill if cfg.method == 'hsv' else area / (bw * bh)
         aspect = bw / bh
         if color == 'orange' and cfg.method == 'learned':
@@ -138,7 +138,7 @@ class BlobMixin:
                 return None
             kind = 'warning' if hull_fill < cfg.diamond_hull_fill else 'regulatory'
         else:
-            # seed 004: width/height close to 1, blob fills much of its box
+            # Cahail et al.: width/height close to 1, blob fills much of its box
             if max(aspect, 1 / aspect) > cfg.general_max_aspect or fill < cfg.general_min_fill:
                 return None
             if color == 'orange':

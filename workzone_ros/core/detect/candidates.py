@@ -68,8 +68,8 @@ def nms(cands: list[Candidate], iou: float, contain: float,
 
     ``by='confidence'``: most confident first (ties: larger first), so a large, weakly
     orange region (sunlit asphalt, a vehicle) does not swallow a sign inside it.
-    ``by='area'``: larger first (the seed 002 MSER path, whose nested regions of one sign
-    share a confidence scale with their fill).
+    ``by='area'``: larger first (the MSER path after Balali and Golparvar-Fard, whose nested
+    regions of one sign share a confidence scale with their fill).
     """
     if by == 'area':
         order = sorted(cands, key=lambda c: (c.w * c.h, c.confidence), reverse=True)
@@ -88,7 +88,7 @@ def nms(cands: list[Candidate], iou: float, contain: float,
 def box_metrics(det: Box, gt: Box) -> tuple[float, float, float]:
     """(IoU, area precision, area recall) of a detection against a ground-truth box.
 
-    Seed 000, section III.A: precision = |o n g| / |o|, recall = |o n g| / |g|.
+    Seo et al., section III.A: precision = |o n g| / |o|, recall = |o n g| / |g|.
     """
     iw = min(det.x2, gt.x2) - max(det.x, gt.x)
     ih = min(det.y2, gt.y2) - max(det.y, gt.y)

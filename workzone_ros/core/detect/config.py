@@ -28,8 +28,8 @@ class DetectorConfig:
         ValueError: a value out of its range (checked on construction), naming the field.
     """
 
-    method: str = knob('learned', 'learned (seed 000: the colour model of Seo et al.), rgb_lp '
-                       '(seed 002: Balali and Golparvar-Fard) or hsv (seed 004: Cahail et al.)',
+    method: str = knob('learned', 'learned (the colour model of Seo et al.), rgb_lp '
+                       '(Balali and Golparvar-Fard) or hsv (Cahail et al.)',
                        choices=METHODS)
     colors: tuple[str, ...] = knob(('orange', 'red', 'yellow'), 'colours to detect: orange (work '
                                    'zone), red, yellow (general signs)')
@@ -246,7 +246,7 @@ class DetectorConfig:
                           0.0, 1.0, check=False)
     nms_contain: float = knob(0.7, 'boxes lying more than this share inside a kept box are '
                               'suppressed')
-    extension: bool = knob(True, 'the regulatory two-colour box extension (Seo et al., seed 000)')
+    extension: bool = knob(True, 'the regulatory two-colour box extension (Seo et al.)')
     ext_min_aspect: float = knob(1.5, 'an orange rectangle at least this wide (w/h) is examined '
                                  'for a white part',
                                  0.5, 10.0, check=False)

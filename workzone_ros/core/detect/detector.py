@@ -48,7 +48,8 @@ __all__ = ['ColorDetector']
 
 class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMixin,
                     WarningMixin, RectangleMixin, PlaqueMixin, LidarMixin, MserMixin):
-    """Colour sign detector over a :class:`ColorModel` (and optional seed 002 thresholds).
+    """Colour sign detector over a :class:`ColorModel` (and optional RGB thresholds of Balali
+    and Golparvar-Fard).
 
     Args:
         model: the colour model (tables and prior).
@@ -67,8 +68,9 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         #: places (16 px cells) of the last frame's blobs rejected as drums or cones
         self.channelizers: set = set()
         if config.method == 'rgb_lp' and rgb_lp is None:
-            raise ModelError("method 'rgb_lp' needs the seed 002 thresholds (train them with "
-                             'workzone-ros train color --rgb-lp)')
+            raise ModelError("method 'rgb_lp' needs the RGB thresholds of Balali and "
+                             'Golparvar-Fard (train them with workzone-ros train color '
+                             '--rgb-lp)')
         colors = config.colors if config.method != 'rgb_lp' else ('orange',)
         self.colors = tuple(colors)
         self._idx = {c: model.index(c) for c in self.colors} if config.method == 'learned' \
@@ -146,7 +148,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
                 prior = self.model.prior
             else:
                 # another camera: the heat map's rows and columns are other directions
-                # there, so only its location-free content is kept (seed 000's prior is a
+                # there, so only its location-free content is kept (Seo et al.'s prior is a
                 # property of the training camera, not of the signs)
                 prior = SpatialPrior.flat(self.foreign_prior(), width, height)
             p = prior.prior_image(sw, sh)

@@ -21,7 +21,7 @@ class LidarMixin:
 
     def _fuse(self, cands: list[Candidate], rois: Sequence[Roi], bgr: np.ndarray,
               thr_base: np.ndarray) -> list[Candidate]:
-        """Mark LiDAR-supported blobs; add LiDAR-only detections (seed 004, as fusion).
+        """Mark LiDAR-supported blobs; add LiDAR-only detections (Cahail et al., as fusion).
 
         A colour blob whose centre lies in an (expanded) ROI gets the ROI's id, both sources
         and a noisy-OR confidence; an unsupported blob keeps its own.  An ROI that no colour

@@ -50,7 +50,7 @@ class PlaqueMixin:
     """The detector's two-colour extension."""
 
     def _extend(self, bgr: np.ndarray, cand: Candidate, orange_hsv: np.ndarray) -> None:
-        """Seed 000's regulatory two-colour extension: grow the box over a white bottom."""
+        """Seo et al.'s regulatory two-colour extension: grow the box over a white bottom."""
         cfg = self.config
         H = bgr.shape[0]
         x0, x1 = int(cand.x), int(cand.x + cand.w)

@@ -1,4 +1,4 @@
-"""Kernel-based mean-shift sign tracking (seed 001, section III.B) and its track life.
+"""Kernel-based mean-shift sign tracking (Lee et al., section III.B) and its track life.
 
 Modules: :mod:`.config` (parameters), :mod:`.meanshift` (histograms, mean-shift and
 CamShift localisation), :mod:`.appearance` (the target model and the sign-likeness gates),
@@ -6,8 +6,8 @@ CamShift localisation), :mod:`.appearance` (the target model and the sign-likene
 
 The target is a hue-saturation histogram of ``nh x ns = 20 x 20`` bins weighted by a kernel
 that multiplies the Epanechnikov profile by the detection's shape mask over normalized pixel
-coordinates (seed 001, Fig. 2 and eq. 1).  In the next frame five candidates (kernels 0, 2, 5,
-7 and 10 % larger) are each moved by mean-shift (seed 001, eq. 3, weights
+coordinates (Lee et al., Fig. 2 and eq. 1).  In the next frame five candidates (kernels 0, 2, 5,
+7 and 10 % larger) are each moved by mean-shift (Lee et al., eq. 3, weights
 ``sqrt(t_u / c_u(z))``) until the shift is below a threshold or a maximum number of iterations
 is reached; the candidate with the highest Bhattacharyya coefficient is the result.
 
@@ -23,7 +23,7 @@ are computed once per window; a mean-shift iteration is a ``bincount`` and two d
 
 Track life (:class:`MultiTracker`): a track starts from a detection; detections are associated
 to tracks by IoU, then by histogram similarity; every live track is localised by mean-shift
-on every frame.  With seed 001's rule (``association='overwrite'``) an associated detection
+on every frame.  With Lee et al.'s rule (``association='overwrite'``) an associated detection
 replaces the track's box.  Ours (``'fuse'``): for a confident track the detection is scored
 like a mean-shift candidate with the track's model (Bhattacharyya coefficient minus the
 surround term, plus ``fuse_bias``) and by its size consistency with the track's recent growth;
@@ -36,7 +36,7 @@ the detector misses, the tracker runs on its own; the track ends when the simila
 below a threshold, the box leaves the image or grows past a size limit, and (drift guards,
 not in the seed) when the target's colour continues all around the box (a large orange
 vehicle) or the box grows past the perspective trend of the track's own detections.
-:func:`seed_config` gives seed 001's exact rule.
+:func:`seed_config` gives Lee et al.'s exact rule.
 
 Regulatory two-colour boxes (orange top, white bottom; ``work_zone_begin``,
 ``work_zone_speed_limit``): white has no usable hue and almost no saturation, so in a

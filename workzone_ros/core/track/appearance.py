@@ -99,7 +99,7 @@ def chroma_contrast(win: SearchWindow, zx: float, zy: float, ax: float, ay: floa
 
 def shape_mask(hsv: np.ndarray, min_saturation: int = 70, min_value: int = 50,
                hue_tolerance: int = 12, min_fraction: float = 0.08) -> Optional[np.ndarray]:
-    """Shape mask of a detection (seed 001, Fig. 2): convex hull of its dominant-hue pixels.
+    """Shape mask of a detection (Lee et al., Fig. 2): convex hull of its dominant-hue pixels.
 
     The dominant hue is the mode of the chromatic pixels near the box centre; the mask is the
     filled convex hull of the pixels within ``hue_tolerance`` of it (so a black legend and the
@@ -187,7 +187,7 @@ class TargetModel:
 
 def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
                  luts: Optional[np.ndarray] = None) -> Optional[TargetModel]:
-    """Target model of a detection box (seed 001, eq. 1) with its anchor and shape mask.
+    """Target model of a detection box (Lee et al., eq. 1) with its anchor and shape mask.
 
     Args:
         frame: BGR uint8 image.
@@ -241,7 +241,7 @@ def build_target(frame: np.ndarray, box: Sequence[float], cfg: TrackerConfig,
     q = None if kern is None else _histogram(kern[0], kern[1], nb)
     if q is None:
         return None
-    # Surroundings: the window outside the anchor box (seed 001 has no such check).
+    # Surroundings: the window outside the anchor box (Lee et al. has no such check).
     inside = np.zeros(win.bins.shape, bool)
     kx0, kx1, ky0, ky1 = win.span(zx, zy, ax, ay)
     inside[ky0:ky1, kx0:kx1] = True

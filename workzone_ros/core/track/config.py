@@ -16,9 +16,9 @@ MODES = ('detection_only', 'detection_and_tracking')
 METHODS = ('meanshift', 'camshift')
 #: How an associated detection updates a confident track: ``fuse`` (ours) weighs the tracked
 #: and the detected box by their agreement with the target model and the track's scale;
-#: ``overwrite`` (seed 001) replaces the track's box by the detection's.
+#: ``overwrite`` (Lee et al.) replaces the track's box by the detection's.
 ASSOCIATIONS = ('fuse', 'overwrite')
-#: Kernel sizes of the candidates relative to the previous box (seed 001, III.B).
+#: Kernel sizes of the candidates relative to the previous box (Lee et al., III.B).
 SCALES = (1.0, 1.02, 1.05, 1.07, 1.10)
 #: Ours: around the previous size, shrinking allowed.  With only-larger kernels a box can
 #: never shrink, so scale noise ratchets it up whenever a detection does not reset it (on
@@ -39,8 +39,8 @@ class TrackerConfig:
     default is what it is.
 
     Attributes:
-        mode: ``detection_only`` (seed 001's baseline) or ``detection_and_tracking``.
-        method: ``meanshift`` (seed 001) or ``camshift`` (OpenCV peer).
+        mode: ``detection_only`` (Lee et al.'s baseline) or ``detection_and_tracking``.
+        method: ``meanshift`` (Lee et al.) or ``camshift`` (OpenCV peer).
         hue_bins: nh (seed: 20).
         sat_bins: ns (seed: 20).
         scales: candidate kernel sizes relative to the previous box (seed: 0/2/5/7/10 %,
@@ -81,14 +81,14 @@ class TrackerConfig:
             (a detection merging a sign with a tinted sky does not swallow the sign's track).
         background_weighting: scale the mean-shift weights of bins that are common in the
             target's surroundings down (corrected background-weighted histogram, Ning et al.
-            2012; not in seed 001, whose plain ``sqrt(t_u / c_u)`` weights give every bin
+            2012; not in Lee et al., whose plain ``sqrt(t_u / c_u)`` weights give every bin
             present in the target, including its background fringe, the same pull).
         surround_weight: candidate score = ``B(t, c) - surround_weight * B(t, ring)`` where
             ring is the band outside the candidate's shape up to ``surround_size`` times its
-            box: a too-small candidate leaves sign colour in its ring (0 = seed 001: the
+            box: a too-small candidate leaves sign colour in its ring (0 = Lee et al.: the
             best Bhattacharyya coefficient alone, which prefers the smallest kernel).
         surround_size: outer size of that band relative to the candidate box.
-        association: ``fuse`` or ``overwrite`` (seed 001), see :data:`ASSOCIATIONS`.  With
+        association: ``fuse`` or ``overwrite`` (Lee et al.), see :data:`ASSOCIATIONS`.  With
             ``fuse``, a detection associated with a confident track (``min_hits_to_fuse``
             hits, tracked similarity >= ``min_similarity``) is scored like a mean-shift
             candidate with the track's model at the detection's anchor (Bhattacharyya
@@ -265,15 +265,15 @@ class TrackerConfig:
     """
 
     mode: str = knob(
-        'detection_and_tracking', 'detection_only (seed 001 baseline) or detection_and_tracking',
+        'detection_and_tracking', 'detection_only (Lee et al. baseline) or detection_and_tracking',
         choices=MODES)
     method: str = knob(
-        'meanshift', 'meanshift (seed 001) or camshift (OpenCV peer)', choices=METHODS)
+        'meanshift', 'meanshift (Lee et al.) or camshift (OpenCV peer)', choices=METHODS)
     hue_bins: int = knob(20, 'hue bins nh of the target histogram', min=2, max=180)
     sat_bins: int = knob(20, 'saturation bins ns of the target histogram', min=2, max=256)
     scales: tuple[float, ...] = knob(
-        OUR_SCALES, 'candidate kernel sizes relative to the previous box (seed 001: 1.0 1.02 1.05 '
-        '1.07 1.10)')
+        OUR_SCALES, 'candidate kernel sizes relative to the previous box (Lee et al.: 1.0 1.02 '
+        '1.05 1.07 1.10)')
     max_iterations: int = knob(10, 'mean-shift iterations per candidate', min=1, max=100)
     shift_threshold_px: float = knob(0.3, 'stop when the centre moves less', min=0.0, max=10.0)
     max_samples: int = knob(900, 'pixels sampled inside a box', min=16, max=100000)
@@ -319,7 +319,7 @@ class TrackerConfig:
         max=5.0)
     surround_size: float = knob(1.2, 'outer size of that band', min=1.0, max=3.0)
     association: str = knob(
-        'fuse', 'fuse (ours) or overwrite (seed 001): how an associated detection updates a '
+        'fuse', 'fuse (ours) or overwrite (Lee et al.): how an associated detection updates a '
         'confident track', choices=ASSOCIATIONS)
     fuse_temperature: float = knob(
         0.05, 'score scale of the fusion weights', min=1e-3, max=1000.0)
@@ -442,7 +442,7 @@ class TrackerConfig:
 
 
 def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
-    """Seed 001's exact rule on top of ``config``: plain ``sqrt(t_u / c_u)`` weights (eq. 3),
+    """Lee et al.'s exact rule on top of ``config``: plain ``sqrt(t_u / c_u)`` weights (eq. 3),
     the best Bhattacharyya coefficient alone picks the kernel size, mean-shift starts at
     the previous centre, an associated detection overwrites the track and no drift guards,
     publication gates or containment duplicates (``min_hits_to_coast`` = 2, as before).

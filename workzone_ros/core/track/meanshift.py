@@ -34,7 +34,7 @@ def _luts(nh: int, ns: int) -> np.ndarray:
 
 
 def bhattacharyya(p: np.ndarray, q: np.ndarray) -> float:
-    """Bhattacharyya coefficient of two normalized histograms (seed 001, B(t, c))."""
+    """Bhattacharyya coefficient of two normalized histograms (Lee et al., B(t, c))."""
     return float(np.sqrt(p * q).sum())
 
 
@@ -146,7 +146,7 @@ def _histogram(bins: np.ndarray, k: np.ndarray, nb: int) -> Optional[np.ndarray]
 def meanshift_localise(win: SearchWindow, target: TargetModel, zx: float, zy: float,
                        ax: float, ay: float, cfg: TrackerConfig
                        ) -> tuple[float, float, float, float, float]:
-    """Seed 001's multi-scale mean-shift: five kernel sizes, eq. 3, best Bhattacharyya.
+    """Lee et al.'s multi-scale mean-shift: five kernel sizes, eq. 3, best Bhattacharyya.
 
     Args:
         win: search window of the current frame.

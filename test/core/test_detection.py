@@ -1,5 +1,7 @@
-"""core.detect: a synthetic sign at a known box, the regulatory extension, LiDAR fusion,
-degenerate frames, and the seed 002 / seed 004 alternatives."""
+"""core.detect: drawn and rendered signs boxed, the regulatory extension, LiDAR fusion,
+degenerate frames, things that are not signs, the HSV and RGB-LP baselines, and the
+measuring functions the detector is built from.  The shipped detector on labelled camera
+frames, rendered signs, cones and drums: ``test_detection_frames.py``."""
 import cv2
 import numpy as np
 import pytest
@@ -83,13 +85,6 @@ def _default_detector():
     return ec.build_detectors(model, ['learned'], False, 0.5)['learned'][0]
 
 
-def _data_frame(name):
-    """A camera frame (JPEG) from ``test/data``."""
-    from pathlib import Path
-    data = np.fromfile(Path(__file__).parent.parent / 'data' / name, np.uint8)
-    return cv2.imdecode(data, cv2.IMREAD_COLOR)
-
-
 @pytest.fixture(scope='module')
 def model():
     pos = np.zeros((cm.H_BINS, cm.S_BINS))
@@ -125,19 +120,6 @@ def _one(dets, gt, iou=0.8):
     hits = [d for d in dets if d.box.iou(Box(*map(float, gt))) >= iou]
     assert len(hits) == 1, (gt, dets)
     return hits[0]
-
-
-def _label_frame_box(name, label, kind):
-    """The default detector's one ``kind`` detection on ``test/data/name`` whose box is
-    within a pixel of ``label`` on every side (asserted), the detector and the frame."""
-    gt = Box(*map(float, label))
-    det = _default_detector()
-    img = _data_frame(name)
-    d = _one(det.detect(img), label, 0.85)
-    assert d.kind == kind
-    assert max(abs(d.box.x - gt.x), abs(d.box.x2 - gt.x2), abs(d.box.y - gt.y),
-               abs(d.box.y2 - gt.y2)) <= 1.0, d.box
-    return d, det, img
 
 
 @pytest.mark.parametrize('r', [10, 25, 70])
@@ -187,11 +169,14 @@ def test_orange_rectangle_without_white_is_not_extended(detector):
 
 @pytest.mark.parametrize('value', [0, 255])
 def test_black_and_overexposed_frames(detector, value):
+    """An all-black frame (a covered lens) and an all-white one (the sun in the lens) give
+    no detection, by either method, with a LiDAR ROI, and from the shipped detector."""
     img = np.full((480, 640, 3), value, np.uint8)
     for method in ('learned', 'hsv'):
         assert detector.with_config(method=method).detect(img) == []
     assert detector.detect(img, [Roi(1, Box(100, 100, 40, 40), (120, 120), 30, 0.6,
                                      (1, 0, 30))]) == []
+    assert _default_detector().detect(img) == []
 
 
 def test_tiny_and_odd_frames(detector):
@@ -316,7 +301,7 @@ def test_nms_keeps_separate_boxes():
     assert [(k.x, k.y) for k in kept] == [(0, 0), (50, 50)]
 
 
-def test_box_metrics_seed_000_definitions():
+def test_box_metrics_definitions():
     iou, p, r = box_metrics(Box(0, 0, 10, 10), Box(0, 0, 10, 20))
     assert iou == pytest.approx(0.5) and p == pytest.approx(1.0) and r == pytest.approx(0.5)
 
@@ -328,7 +313,7 @@ def test_hsv_baseline_finds_square_signs_only(detector):
     hsv = detector.with_config(method='hsv', scale=1)
     dets = hsv.detect(img)
     _one(dets, gt, 0.7)
-    assert all(d.box.w / d.box.h < 1.7 for d in dets)          # seed 004 aspect filter
+    assert all(d.box.w / d.box.h < 1.7 for d in dets)          # its aspect filter
 
 
 def test_rgb_lp_thresholds_and_mser(model):
@@ -444,8 +429,9 @@ def test_soft_mounting_limit_keeps_low_sign_faces(model):
 
 def test_saturation_norm_finds_hazy_signs_and_ignores_warm_grey():
     """A table that wants saturated orange (S >= 150) finds a washed-out sign on a hazy
-    frame once the frame's saturation is normalised, and still ignores warm grey ground on
-    a colourful frame (the real-camera failure: asphalt and dry lawns at S 50..120)."""
+    frame once the frame's saturation is normalised (without it, nothing is found), and
+    still ignores warm grey ground on a colourful frame (asphalt and dry lawns at S
+    50..120)."""
     lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
     lut[5:22, 150:] = 0.97
     meta = {'sat_norm': cm.SatNorm(0.9, 120.0, 4.0).to_dict()}
@@ -567,12 +553,10 @@ def test_sign_in_front_of_a_brick_wall_is_separated():
 
 @pytest.mark.parametrize('r', [60])
 def test_diamond_paler_at_its_tips_is_grown_whole(r):
-    """Real frames: on another camera the posterior threshold is the
-    sheeting's own likelihood (0.94 here), and part of a real diamond's face lies lower (paler
-    under the sky: 0.85-0.95).  Above the threshold is a band across its middle, a blob no
-    test takes; grown into its neighbours above ``grow_level`` x the threshold and measured
-    again at that level it is the whole diamond.  A warm surface at 0.75 stays out; off
-    (``grow_level`` 0) the sign is lost."""
+    """On another camera the posterior threshold is the sheeting's own likelihood (0.94
+    here), and part of a diamond's face lies lower (paler under the sky: 0.85-0.95): above
+    the threshold is only a band across its middle.  The diamond is still found whole, and
+    the warm wall beside it (0.75) stays out of its box."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
     lut = np.zeros((cm.H_BINS, cm.S_BINS), np.float32)
     lut[4:22, 48:100] = 0.75                       # brick, lawns, beige fronts
@@ -594,8 +578,6 @@ def test_diamond_paler_at_its_tips_is_grown_whole(r):
     gt = (cx - r, cy - r, 2 * r + 1, 2 * r + 1)
     d = _one(det.detect(img), gt, 0.85)
     assert d.kind == 'warning' and d.box.x2 < 520   # the wall is not in it
-    assert not [o for o in det.with_config(grow_level=0.0).detect(img)
-                if o.box.iou(Box(*map(float, gt))) >= 0.5]
 
 
 def test_foreign_prior_config_and_default(model):
@@ -665,6 +647,8 @@ def _flagged_diamond(img, cx, cy, r):
 
 @pytest.mark.parametrize('r', [14, 20, 35])
 def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
+    """A portable stand's two orange flags just above a diamond's top corner: the box is
+    the diamond's, its top edge at the top corner."""
     img = _background()
     gt = _flagged_diamond(img, 420, 150, r)
     d = _one(detector.detect(img), gt, 0.5)
@@ -672,11 +656,6 @@ def test_flags_above_a_diamond_stay_out_of_its_box(detector, r):
     assert d.kind == 'warning'
     assert precision > 0.8 and recall > 0.9
     assert d.box.y >= gt[1] - 0.15 * gt[3] - 1      # the top edge at the top corner
-    # without the diamond fit the flags are part of the box (the test measures the change)
-    old = [c for c in detector.with_config(diamond_trim=-1.0, diamond_scale=0.0).detect(img)
-           if c.box.iou(Box(*map(float, gt))) > 0.3]
-    assert old and old[0].box.y < gt[1] - 0.2 * gt[3]
-    assert box_metrics(old[0].box, Box(*map(float, gt)))[1] < precision - 0.08
 
 
 def _plain(bgr, noise, seed, shape=(480, 640)):
@@ -713,27 +692,18 @@ def _render_art_sign(img, x, y, size, key='road_work_ahead', blur=0.7, orange=No
 
 @pytest.mark.parametrize('size', [28, 40, 64])
 def test_art_diamond_box_within_a_pixel(detector, size):
-    """A warning diamond with its black border (the simulator's art): the box is the
-    fitted diamond scaled out by the border, each edge within about a pixel of the truth,
-    where the orange hull's box grown by a fixed fraction misses by up to 3 px."""
-    errs, old_errs = [], []
+    """A warning diamond with its black border (the simulator's art) at sub-pixel
+    positions: each edge of its box within about a pixel of the label, half a pixel on
+    average."""
+    errs = []
     for off in (0.0, 0.3, 0.6):
         img, gt = _render_art_sign(_background(), 400.3 + off, 140.6 + off, size)
         g = Box(*map(float, gt))
-        for det, out in ((detector, errs), (detector.with_config(diamond_scale=0.0,
-                                                                 diamond_refine=False),
-                                            old_errs)):
-            d = _one(det.detect(img), gt, 0.7)
-            assert d.kind == 'warning'
-            out.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
-    errs, old_errs = np.abs(errs), np.abs(old_errs)
+        d = _one(detector.detect(img), gt, 0.7)
+        assert d.kind == 'warning'
+        errs.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
+    errs = np.abs(errs)
     assert errs.max() <= 1.25 and errs.mean() <= 0.6
-    # at 40 px the fixed 4 % growth happens to fit the border too; at 28 px both are at the
-    # ground truth's own half-pixel quantisation
-    if size == 64:
-        assert old_errs.mean() > errs.mean() + 0.1
-    if size == 64:
-        assert old_errs.max() >= 2.0
 
 
 def _snow(seed=0, shape=(480, 640)):
@@ -755,55 +725,37 @@ def test_regulatory_extension_ends_at_the_bottom_border_over_snow(detector, size
     d = _one(detector.detect(img), gt, 0.5)
     assert d.color == 'orange'
     assert abs(d.box.y2 - g.y2) <= 2.0 and box_metrics(d.box, g)[0] > 0.8
-    old = [c for c in detector.with_config(ext_frame=False).detect(img)
-           if c.box.iou(g) > 0.2]
-    assert not old or old[0].box.iou(g) < 0.5
 
 
 @pytest.mark.parametrize('key', ['work_zone_speed_limit', 'work_zone_begin'])
 @pytest.mark.parametrize('size', [24, 28, 44])
 def test_bold_legend_row_over_snow_is_not_the_bottom_border(detector, key, size):
     """On a small blurred two-colour sign over snow a bold legend row is as dark as the
-    bottom border: of the dark rows, the one that gives the sign a catalogue two-colour
-    sign's height / width ends it (``ext_ratio_tol``); taking the first dark row (0) cut
-    "WORK ZONE BEGINS" 8-14 px short at every size and the speed limit at 24 px."""
+    bottom border: the box still ends at the bottom border, within a pixel."""
     img, gt = _render_art_sign(_snow(), 400.3, 190.4, size, key=key)
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert abs(d.box.y2 - g.y2) <= 1.0 and box_metrics(d.box, g)[0] > 0.9
-    first = [c for c in detector.with_config(ext_ratio_tol=0.0).detect(img)
-             if c.box.iou(g) > 0.2]
-    if key == 'work_zone_begin' or size < 26:
-        assert first and first[0].box.y2 < g.y2 - 4.0
 
 
 @pytest.mark.parametrize('size', [26, 34, 44])
 def test_two_colour_sign_ends_where_a_darker_grey_background_begins(detector, size):
     """A dim "WORK ZONE BEGINS" (winter light: orange sheeting at about the grey
     background's brightness) in front of a grey wall: the wall counts as white next to the
-    dim orange, so the white part runs on to the end of the reach, and every row below the
-    sign is darker than the sheeting.  The sign ends where that long dark band begins (its
-    bottom border merges with the wall); taking the band's end, or (no catalogue ratio
-    matching) the first dark row, the legend's, cut the box at "BEGINS"."""
+    dim orange, and every row below the sign is darker than the sheeting.  The box ends at
+    the sign's bottom (its border merges with the wall), not at the "BEGINS" legend row."""
     img, gt = _render_art_sign(_plain((150, 153, 150), 8, size), 400.3, 190.4, size,
                                key='work_zone_begin', orange=(0, 66, 150))
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.5)
     assert abs(d.box.y2 - g.y2) <= 1.5 and box_metrics(d.box, g)[1] > 0.9
-    # (the white part judged against its own level, ``white_own_rel``, ends it too)
-    old = [c for c in detector.with_config(ext_band_long=100.0, white_own_rel=0.0).detect(img)
-           if c.box.iou(g) > 0.2]
-    assert old and old[0].box.y2 < g.y2 - 4.0
 
 
 @pytest.mark.parametrize('bg', [130, 140])
 def test_white_part_judged_against_its_own_level_over_a_duller_grey(bg):
     """A small dim "WORK ZONE BEGINS" (20 px; overcast haze: the orange at V 130, the white
-    sheeting at 172) before a grey background at V 106-111: above 0.8 x the orange's
-    brightness, so the background passes for white and the white part ran on to the end of
-    the reach; the bottom border merged with it and the box was the plaque alone (IoU 0.3).
-    Judged against the white part's own level (``white_own_rel``) the background is not
-    white, and the white part ends at the sign's bottom."""
+    sheeting at 172) before a grey background at V 106-111, bright enough next to the
+    orange to pass for white: the box is the whole sign, its bottom within a pixel."""
     img, gt = _render_art_sign(_plain((bg, bg, bg), 8, 20), 400.3, 190.4, 20,
                                key='work_zone_begin', orange=(0, 60, 180))
     img = cv2.addWeighted(img, 0.55, np.full_like(img, 70), 0.45, 0)
@@ -811,25 +763,6 @@ def test_white_part_judged_against_its_own_level_over_a_duller_grey(bg):
     detector = _default_detector()
     d = _one(detector.detect(img), gt, 0.85)
     assert d.kind == 'regulatory' and abs(d.box.y2 - g.y2) <= 1.0, d.box
-    old = [c for c in detector.with_config(white_own_rel=0.0).detect(img)
-           if c.box.iou(g) > 0.2]
-    assert old and old[0].box.iou(g) < 0.5
-
-
-def test_winter_sign_white_part_ends_where_the_grey_ground_begins():
-    """A "WORK ZONE BEGINS" in winter light (a simulator frame, seed 12205 frame 356, the
-    camera's JPEG: ``test/data/winter_grey_ground_begins.jpg``; label (482, 204, 20, 26)):
-    the dull plaque (V 92-107) over white sheeting at V 140 and grey ground at V 80 below
-    the sign.  By the plaque's brightness the ground is white, so the white part ran to the
-    end of the reach and the sign was boxed as its plaque (20 x 9, unmatched); by the white
-    part's own level (``white_own_rel``) it ends at the sign's bottom: boxed within a
-    pixel."""
-    _, det, img = _label_frame_box('winter_grey_ground_begins.jpg', (482, 204, 20, 26),
-                                   'regulatory')
-    det = det.with_config(white_own_rel=0.0)
-    det.reset()
-    old = [c for c in det.detect(img) if c.box.iou(Box(482.0, 204.0, 20.0, 26.0)) > 0.2]
-    assert old and old[0].box.h <= 10, old
 
 
 def _cone(img, cx, base_y, h):
@@ -990,9 +923,9 @@ def test_patch_of_a_sign_coloured_surface_rejected_sign_kept():
 def test_orange_patch_without_border_edges_is_dropped_sign_with_them_kept(detector):
     """A rectangular orange blob that is neither a two-colour sign nor shows a face-to-
     border step on its sides (``rect_needs_edges``) is a patch of something orange (dirt,
-    a cone, a vest, a brick wall: on the real clips 70 % of the false detections), not a
-    sign: a dirt patch that the surround test lets through is dropped; an orange END ROAD
-    WORK rectangle with its black border line is kept."""
+    a cone, a vest, a brick wall), not a
+    sign: a dirt patch that the surround test lets through (found when the edge test is
+    off) is dropped; an orange END ROAD WORK rectangle with its black border line is kept."""
     prior = cm.fit_prior([(380, 100, 80, 80)] * 5, (640, 480), floor=0.2, saturate=0.1)
     det = ColorDetector(_step_model(prior), DetectorConfig(colors=('orange',),
                                                                  max_surround_like=1.0))
@@ -1017,17 +950,12 @@ def _foliage(seed=0, shape=(480, 640)):
 @pytest.mark.parametrize('size', [40, 56])
 def test_speed_limit_under_a_thin_plaque_is_extended_over_its_legend(detector, size):
     """R2-1 + G20-5aP (the simulator's art): a thin orange WORK ZONE plaque over a tall white
-    speed-limit sign whose large black numerals split the white rows.  The extension reaches
-    ``ext_max_wratio`` x the plaque's width (not only ``ext_max_ratio`` x its small height)
-    and bridges achromatic legend rows (``ext_gap_w``); with neither (the previous rule) the
-    box stops at the plaque or at the numerals."""
+    speed-limit sign whose large black numerals split the white rows.  The box reaches past
+    the numerals to the sign's bottom (within 8 % of its height)."""
     img, gt = _render_art_sign(_foliage(), 300.3, 60.4, size, key='work_zone_speed_limit')
     g = Box(*map(float, gt))
     d = _one(detector.detect(img), gt, 0.6)
     assert d.kind == 'regulatory' and abs(d.box.y2 - g.y2) <= 0.08 * g.h
-    old = detector.with_config(ext_max_wratio=0.0, ext_gap_w=0.0)
-    short = [c for c in old.detect(img) if c.box.iou(g) > 0.1]
-    assert short and all(c.box.y2 < g.y2 - 0.15 * g.h for c in short)
 
 
 def _sign_value(cx, cy, a_face, shape=(90, 90), ss=8, blur=0.6, face=200.0, line=20.0,
@@ -1130,8 +1058,8 @@ def _catalogue_diamond(img, cx, cy, outer, ss=8):
 def test_refined_diamond_box_in_the_detector(detector):
     """``diamond_refine`` (default): the warning box comes from the face's brightness edges
     scaled by the art's face ratio.  A catalogue-proportioned sign (face, black line, margin)
-    drawn at a sub-pixel position is boxed within 1 px per side (the mask-based box, option
-    off, is 1.6 px off here); without the option it still gives its mask-based box."""
+    drawn at a sub-pixel position is boxed within 1 px per side; with the option off the
+    sign is still found, by its mask-based box."""
     img = _background()
     cx, cy, outer = 420.4, 150.7, 22.3
     gt = _catalogue_diamond(img, cx, cy, outer)
@@ -1223,8 +1151,8 @@ def test_refine_rectangle_hull_short_of_a_pale_side(w, short):
 def test_refine_rectangle_hull_wider_than_the_sign():
     """A 16 px sign whose orange hull took in 1.8 px of background on each side (a dusk
     sky of its colour): the face is 25 % narrower than the hull and is still measured,
-    within 0.4 px (``max_change`` 0.3, the detector's ``rect_max_change``); at 0.2 it was
-    not."""
+    within 0.4 px (``max_change`` 0.3, the detector's ``rect_max_change``); a
+    ``max_change`` of 0.2 does not allow that change and gives None."""
     x, y, w = 20.3, 15.6, 16.0
     h = 1.8 * w
     img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, 70))
@@ -1240,7 +1168,7 @@ def test_refine_rectangle_hull_wider_than_the_sign():
 def test_refine_rectangle_side_at_the_image_edge():
     """A sign at the image's right edge: the right side's profiles would leave the image,
     so that side is returned as None (the caller keeps the hull's and clips the box to
-    the image) and the left and top are measured; before, nothing was."""
+    the image) and the left and top are measured."""
     x, y, w = 20.3, 15.6, 30.0
     h = 1.4 * w
     img = _rect_sign_value(x, y, w, h, shape=(int(y + h) + 12, int(x + w) + 1))
@@ -1284,29 +1212,22 @@ def test_soft_mounting_limit_keeps_symbol_and_flag_diamonds(model):
     _one(dets, arrow, 0.6)
     _one(dets, flagged, 0.6)
     assert not [d for d in dets if d.box.x > 420]
-    # the old test: a solid face only
-    strict = det.with_config(low_min_inliers=1.01, diamond_trim=-1.0).detect(img)
-    assert not [d for d in strict if d.box.iou(Box(*map(float, arrow))) > 0.3]
 
 
 @pytest.mark.parametrize('size', [30, 48])
 def test_art_two_colour_sign_box_from_its_edges(detector, size):
-    """The simulator's WORK ZONE BEGINS art at sub-pixel positions: with ``rect_refine``
-    (default) the box's sides are measured on the brightness and land within a pixel of the
-    truth (0.3 px on average), where the orange hull grown by the border misses by up to
-    2 px."""
-    errs, old_errs = [], []
+    """The simulator's WORK ZONE BEGINS art at sub-pixel positions: every side of the box
+    within a pixel of the label, under half a pixel on average."""
+    errs = []
     for off in (0.0, 0.3, 0.6):
         img, gt = _render_art_sign(_background(), 380.3 + off, 110.6 + off, size,
                                    key='work_zone_begin')
         g = Box(*map(float, gt))
-        for det, out in ((detector, errs), (detector.with_config(rect_refine=False), old_errs)):
-            d = _one(det.detect(img), gt, 0.7)
-            assert d.kind == 'regulatory'
-            out.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
-    errs, old_errs = np.abs(errs), np.abs(old_errs)
+        d = _one(detector.detect(img), gt, 0.7)
+        assert d.kind == 'regulatory'
+        errs.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
+    errs = np.abs(errs)
     assert errs.max() <= 1.0 and errs.mean() <= 0.45, errs
-    assert old_errs.mean() > errs.mean() + 0.1, (errs.mean(), old_errs.mean())
 
 
 def test_extension_crosses_large_numerals_with_noisy_black(detector):
@@ -1336,8 +1257,7 @@ def test_extension_crosses_large_numerals_with_noisy_black(detector):
 @pytest.mark.parametrize('method', ['learned', 'hsv'])
 def test_sign_cut_by_the_bottom_of_an_odd_sized_frame(model, height, method):
     """A frame of odd height with an orange blob cut by its bottom edge: the half-resolution
-    blob scaled back up reaches a row past the frame; no error (it used to raise a
-    broadcast ValueError and lose the frame)."""
+    blob scaled back up reaches a row past the frame: no error, finite boxes."""
     img = np.full((height, 240, 3), (90, 90, 90), np.uint8)
     pts = np.array([[120, height - 30], [150, height - 1], [120, height + 29],
                     [90, height - 1]], np.int32)
@@ -1477,13 +1397,11 @@ def _lane_ends_value(cx, cy, a_face, seed, ss=8, blur=0.6):
 
 
 def test_refine_diamond_leaves_out_stretches_a_stroke_runs_into():
-    """A legend stroke running into an edge reads there as a soft step inside the edge
-    (tuning bags: lane-ends and lane-shift diamonds 0.6 px too short).  With
-    ``stroke_steps`` such stretches, fitted much blurrier than the sign's others, are left
-    out: over ten noise draws the face of a 29 px lane-ends diamond is measured within
-    0.3 px (centre and half-diagonals) in at least eight, where without it at most three
-    are (the others fail or come out up to a pixel short); on a plain diamond it changes
-    nothing."""
+    """A legend stroke running into an edge reads there as a soft step inside the edge.
+    With ``stroke_steps`` such stretches, fitted much blurrier than the sign's others, are
+    left out: over ten noise draws the face of a 29 px lane-ends diamond is measured within
+    0.3 px (centre and half-diagonals) in at least eight; on a plain diamond it changes
+    nothing.  Out-of-range settings are refused."""
     cx, cy, a_face = 45.3, 44.8, 14.5
     start = (cx + 0.4, cy - 0.3, 1.04 * a_face, 0.96 * a_face)
 
@@ -1491,16 +1409,14 @@ def test_refine_diamond_leaves_out_stretches_a_stroke_runs_into():
         return np.inf if got is None else max(abs(got[0] - cx), abs(got[1] - cy),
                                               abs(got[2] - a_face), abs(got[3] - a_face))
 
-    on, off = [], []
+    on = []
     for seed in range(10):
         img = _lane_ends_value(cx, cy, a_face, seed)
         on.append(error(refine_diamond(img, start, stroke_steps=2)))
-        off.append(error(refine_diamond(img, start, stroke_steps=0)))
         plain = _sign_value(cx, cy, a_face, seed=seed)
         assert refine_diamond(plain, start, stroke_steps=2) == \
             refine_diamond(plain, start, stroke_steps=0)
     assert sum(e < 0.3 for e in on) >= 8
-    assert sum(e < 0.3 for e in off) <= 3
     with pytest.raises(ValueError, match='diamond_stroke_steps'):
         DetectorConfig(diamond_stroke_steps=7)
     with pytest.raises(ValueError, match='diamond_stroke_steps'):
@@ -1554,8 +1470,7 @@ def test_table_lookup_equals_two_index_lookup():
 def test_extension_bridges_a_bold_legend_row(detector, width):
     """A small two-colour sign whose bold legend row ("BEGINS") is ink across its white
     part, too few bright pixels to tell its colour by: as black it is bridged like a legend
-    gap, and the white part runs on to the sign's bottom border (it ended at the ink row,
-    a third of the sign short)."""
+    gap, and the white part runs on to the sign's bottom border."""
     img = _foliage()
     x0, y0 = 400, 150
     h = int(round(1.25 * width))                       # a catalogue two-colour h / w
@@ -1575,10 +1490,8 @@ def test_extension_bridges_a_bold_legend_row(detector, width):
 
 def test_refined_diamond_size_does_not_depend_on_the_background(detector):
     """Blurred along the road (a 5 px motion blur), a warning sign is boxed the same size
-    against a bright blue-white sky as against dark foliage when its edges are measured on
-    the luma (``diamond_luma``, default): a blend of the orange margin and the sky is linear
-    in luma, not in the HSV value (the max of B, G, R), which made the face larger against
-    the sky, twice as much."""
+    against a bright blue-white sky as against dark foliage (width + height of sub-pixel
+    boxes, mean of 12 placements per background, within 0.9 px of each other)."""
     kern = np.full((1, 5), 0.2, np.float32)
 
     def size_err(det, colour):
@@ -1593,23 +1506,18 @@ def test_refined_diamond_size_does_not_depend_on_the_background(detector):
                 errs.append(d.box.w - gt[2] + d.box.h - gt[3])
         return float(np.mean(errs))
 
-    gaps = {}
-    for luma in (True, False):
-        det = detector.with_config(diamond_luma=luma, pixel_boxes=False)
-        gaps[luma] = size_err(det, (235, 205, 170)) - size_err(det, (40, 55, 45))
-    # width + height, sub-pixel boxes, mean of 12 placements (measured 0.70 vs 1.48)
-    assert abs(gaps[True]) <= 0.9
-    assert abs(gaps[False]) > abs(gaps[True]) + 0.5
+    det = detector.with_config(pixel_boxes=False)
+    assert abs(size_err(det, (235, 205, 170)) - size_err(det, (40, 55, 45))) <= 0.9
 
 
 @pytest.mark.parametrize('size', [32, 46])
 def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detector, size):
     """A sign whose blob takes in a rim of a duller orange background all round (a dusk sky
     blended into its edge): the catalogue's outline leaves that rim out on every side, but
-    the rim is less saturated than the face, so the refined fit is kept (``hold_sat``), box
-    within about a pixel; with the check off the mask's box takes the rim in.  A face the
-    same rim of its own orange surrounds (a wider margin) is still not measured so:
-    :func:`test_diamond_at_known_box` and the brick-wall test."""
+    the rim is less saturated than the face, so the refined fit is kept (``hold_sat``): the
+    box leaves the rim out, every side within a pixel.  (A face that a rim of its own orange
+    surrounds, a wider margin, is boxed with it: :func:`test_diamond_at_known_box` and the
+    brick-wall test.)"""
     x, y = 380.3, 130.6
     img = _background()
     rim = np.zeros(img.shape[:2], np.uint8)
@@ -1620,31 +1528,23 @@ def test_refined_fit_kept_when_the_orange_left_out_is_a_blended_background(detec
     img[rim > 0] = (60, 120, 200)
     img, gt = _render_art_sign(img, x, y, size)
     g = Box(*map(float, gt))
-    errs = []
-    for det in (detector, detector.with_config(hold_sat=0.0)):
-        d = _one(det.detect(img), gt, 0.5)
-        errs.append(max(abs(d.box.x - g.x), abs(d.box.y - g.y), abs(d.box.x2 - g.x2),
-                        abs(d.box.y2 - g.y2)))
-    assert errs[0] <= 1.0 and errs[1] >= 2.0, errs
+    d = _one(detector.detect(img), gt, 0.5)
+    assert max(abs(d.box.x - g.x), abs(d.box.y - g.y), abs(d.box.x2 - g.x2),
+               abs(d.box.y2 - g.y2)) <= 1.0, d.box
 
 
 def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
     """A guardrail across a sign's lower part, the tip showing below it: the labels are
-    the whole sign's, and the refined outline (from the edges above the rail) gives its
-    bottom within about a pixel (``refined_clamp``, and the face's rows end in a cut:
-    ``cut_min_width``); clamped to the face seen (0.12 of the half-diagonal) and with no
-    cut found it stops short."""
+    the whole sign's, and the outline measured on the edges above the rail gives its
+    bottom within a pixel."""
     size = 44
     img, gt = _render_art_sign(_background(), 380.4, 120.3, size)
     rail_top = int(120.3 + 0.82 * size)
     img[rail_top:rail_top + 5, 340:470] = (150, 152, 150)
     g = Box(*map(float, gt))
-    bottoms = []
-    for det in (detector, detector.with_config(refined_clamp=0.12, cut_min_width=0.0)):
-        d = _one(det.detect(img), gt, 0.7)
-        assert d.kind == 'warning'
-        bottoms.append(g.y2 - d.box.y2)
-    assert abs(bottoms[0]) <= 1.0 and bottoms[1] >= 2.0, bottoms
+    d = _one(detector.detect(img), gt, 0.7)
+    assert d.kind == 'warning'
+    assert abs(g.y2 - d.box.y2) <= 1.0, d.box
 
 
 @pytest.mark.parametrize('size, x, top', [(30, 380.7, 120.1), (36, 420.6, 140.2),
@@ -1652,21 +1552,15 @@ def test_refined_outline_extrapolates_a_tip_a_guardrail_hides(detector):
 def test_guardrail_across_the_lower_face_the_tip_below_it_boxed(detector, size, x, top):
     """A guardrail across a sign's lower part (a portable stand's sign behind it) hides a
     band of the face, and the tip shows again below it; the labels are the visible pixels'
-    box, the tip included.  The face's rows end in a straight cut, so its edges are measured
-    above the rail (``cut_min_width``) and the outline's bottom is not clamped: every side
-    within a pixel.  Without that the lower edges' stretches fall on the rail and the box
-    stops 2 px or more short of the tip."""
+    box, the tip included: every side within a pixel."""
     img, gt = _render_art_sign(_background(), x, top, size)
     rail = int(top + 0.7 * size)
     img[rail:rail + max(4, int(0.2 * size)), 200:600] = (150, 152, 150)
     g = Box(*map(float, gt))
-    errs = []
-    for det in (detector, detector.with_config(cut_min_width=0.0)):
-        d = _one(det.detect(img), gt, 0.5)
-        assert d.kind == 'warning'
-        errs.append([d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2])
-    assert np.abs(errs[0]).max() <= 1.0, errs
-    assert errs[1][3] >= 2.0, errs
+    d = _one(detector.detect(img), gt, 0.5)
+    assert d.kind == 'warning'
+    errs = [d.box.x - g.x, g.x2 - d.box.x2, d.box.y - g.y, g.y2 - d.box.y2]
+    assert np.abs(errs).max() <= 1.0, errs
 
 
 def test_small_refined_diamond_taken_as_square(detector):
@@ -1698,23 +1592,6 @@ def test_small_refined_diamond_taken_as_square(detector):
                 dict(diamond_box_bias=3.0)):
         with pytest.raises(ValueError, match='diamond_square|diamond_box_bias'):
             DetectorConfig(**bad)
-
-
-def test_underexposed_plaque_split_by_its_legend_is_found_whole():
-    """A work-zone speed limit in an under-exposed sunny frame (a simulator frame, seed
-    11601 frame 160, as the camera's JPEG: ``test/data/underexposed_plaque.jpg``; label
-    (419, 198, 19, 34)): its plaque is clearly orange but dim, and its legend darkens half
-    its pixels below the model's brightness gate (``v_min``), leaving two specks that the
-    mask's opening removes: no detection.  Dim pixels of the colour join the bright ones
-    within their box (``v_hysteresis``): the sign is boxed exactly."""
-    img = _data_frame('underexposed_plaque.jpg')
-    gt = Box(419.0, 198.0, 19.0, 34.0)
-    det = _default_detector()
-    d = _one(det.detect(img), (419, 198, 19, 34), 0.9)
-    assert d.kind == 'regulatory' and d.box.iou(gt) >= 0.9, d.box
-    det = det.with_config(v_hysteresis=0.0)
-    det.reset()
-    assert not _near(det.detect(img), (419, 198, 19, 34), 0.1)
 
 
 @pytest.mark.parametrize('blur', [0.7, 1.5])
@@ -1829,20 +1706,17 @@ def test_refine_reports_the_edge_blur_and_the_detector_takes_its_bias(detector):
 
 def test_faded_legend_kept_by_its_measured_outline(detector):
     """A warning sign whose legend has faded to 0.72 of the face's brightness has no dark
-    pixels for the legend test: with ``outline_evidence`` (default) its diamond edges,
-    measured in the brightness, keep it, boxed as usual; without, it is lost.  A legendless
-    orange blob of the same size (three discs: a warning's hull fill, found when the legend
-    test is off) has no diamond edges and stays rejected either way."""
+    pixels for the legend test: its diamond edges, measured in the brightness, keep it.  A
+    legendless orange blob of the same size (three discs: a warning's hull fill, found when
+    the legend test is off) has no diamond edges and is rejected."""
     img, gt = _render_art_sign(_background(), 400.3, 130.6, 44)
     x, y, w, h = gt
     face = img[y:y + h, x:x + w]
     # the legend and border lightened to dark orange (the outline's contrast with the
     # background stays)
     img[y:y + h, x:x + w] = np.maximum(face, (np.array(ORANGE) * 0.72).astype(np.uint8))
-    on, off = detector, detector.with_config(outline_evidence=False)
-    d = _one(on.detect(img), gt, 0.7)
+    d = _one(detector.detect(img), gt, 0.7)
     assert d.kind == 'warning'
-    assert not _near(off.detect(img), gt)
 
     blob = _background()
     for c, r in (((292, 125), 14), ((310, 140), 13), ((300, 120), 10)):
@@ -1850,7 +1724,7 @@ def test_faded_legend_kept_by_its_measured_outline(detector):
     patch = (278, 110, 46, 44)
     found = detector.with_config(min_dark_inside=0.0).detect(blob)
     assert _near(found, patch) and _near(found, patch)[0].kind == 'warning'
-    assert not _near(on.detect(blob), patch) and not _near(off.detect(blob), patch)
+    assert not _near(detector.detect(blob), patch)
 
 
 @pytest.mark.parametrize('size, top', [(30, 222.4), (34, 223.4), (40, 220.4), (40, 226.4)])
@@ -1858,18 +1732,15 @@ def test_low_sign_behind_a_guardrail_kept_by_its_measured_outline(size, top):
     """A portable stand's sign mounted low (its bottom below the usual mounting row of the
     default model's geometry) with a guardrail across its lower corner: the mask is no clear
     diamond, which the mounting test demands down there (it rejects drums, cones and
-    vehicles), so the sign was lost; with ``outline_evidence`` its edges, measured in the
-    brightness above the rail, keep it (IoU >= 0.8 with the whole sign).  Not claimed: at
-    30 px the refinement misses at some sub-pixel positions (3 of 14 one-pixel steps)."""
+    vehicles); its edges, measured in the brightness above the rail, keep it (IoU >= 0.8
+    with the whole sign).  Not claimed: at 30 px the refinement misses at some sub-pixel
+    positions (3 of 14 one-pixel steps)."""
     det = _default_detector()
     img, gt = _render_art_sign(_background(), 500.3, top, size)
     rail = gt[1] + int(0.75 * gt[3])
     img[rail:rail + 5, 380:640] = (150, 152, 150)
     d = _one(det.detect(img), gt, 0.8)
     assert d.kind == 'warning'
-    off = det.with_config(outline_evidence=False)
-    off.reset()
-    assert not _near(off.detect(img), gt, 0.1)
 
 
 @pytest.mark.parametrize('sx, sy', [(1.0, 1.16), (1.12, 1.0)])
@@ -1894,11 +1765,11 @@ def test_refined_face_cut_back_to_a_plausible_shape(detector, sx, sy):
 
 
 def test_rectangle_top_measured_beside_the_legend():
-    """A work-zone speed-limit sign under a dim reddish dusk sky: the orange plaque's top
-    edge, measured on stretches near its corners (``RECT_TOP_STRETCHES``), is right on
-    average; over the middle the legend's first line (just under the top border) pulls
-    it 0.5-1 px up into the sky."""
-    errs = {'corner': [], 'middle': []}
+    """A work-zone speed-limit sign under a dim reddish dusk sky, the legend's first line
+    just under the plaque's top border: the plaque's top edge, measured on stretches near
+    its corners (``RECT_TOP_STRETCHES``), is right on average (within 0.15 px) and within
+    0.3 px in most placements."""
+    errs = []
     for size in (22, 26, 32, 40):
         for off in (0.0, 0.25, 0.5, 0.75):
             img = _plain((48, 62, 85), 6, int(size * 10 + off * 4))
@@ -1906,26 +1777,22 @@ def test_rectangle_top_measured_beside_the_legend():
             img, _ = _render_art_sign(img, x, y, size, key='work_zone_speed_limit', blur=0.8)
             face_top = y + 0.045 * size                 # inside the border line and margin
             hull = (x + 0.5, y + 0.5, size - 1.0, 0.25 * 1.75 * size - 1.0)
-            for name, at in (('corner', RECT_TOP_STRETCHES),
-                             ('middle', ((0.2, 0.45), (0.55, 0.8)))):
-                r = refine_rectangle(img.max(axis=2), hull, size, free_top=True, top_at=at)
-                assert r is not None and r[2] is not None
-                errs[name].append(r[2] - face_top)
-    corner, middle = np.array(errs['corner']), np.array(errs['middle'])
-    assert abs(corner.mean()) < 0.15 and np.median(np.abs(corner)) < 0.3
-    assert middle.mean() < -0.5 and np.median(np.abs(middle)) > 0.5
+            r = refine_rectangle(img.max(axis=2), hull, size, free_top=True,
+                                 top_at=RECT_TOP_STRETCHES)
+            assert r is not None and r[2] is not None
+            errs.append(r[2] - face_top)
+    errs = np.array(errs)
+    assert abs(errs.mean()) < 0.15 and np.median(np.abs(errs)) < 0.3
 
 
 @pytest.mark.parametrize('size', [16, 18])
 def test_small_two_colour_sign_thinner_than_the_radius_filter(detector, size):
     """A 16-18 px wide "WORK ZONE BEGINS": its orange part (6-7 px) is thinner than the
-    radius filter (``min_radius_px``), so it was dropped; it is kept as a plaque when the
+    radius filter (``min_radius_px``); it is kept as a regulatory sign because the
     extension finds the white part below it (``thin_min_radius_px``)."""
     img, gt = _render_art_sign(_background(), 400.3, 190.4, size, key='work_zone_begin')
     d = _one(detector.detect(img), gt, 0.5)
     assert d.color == 'orange' and d.kind == 'regulatory'
-    assert not [c for c in detector.with_config(thin_min_radius_px=0.0).detect(img)
-                if c.box.iou(Box(*map(float, gt))) > 0.2]
 
 
 def test_thin_orange_strip_without_a_white_part_is_not_a_sign(detector):
@@ -1936,19 +1803,6 @@ def test_thin_orange_strip_without_a_white_part_is_not_a_sign(detector):
     img = cv2.GaussianBlur(img, (0, 0), 0.7)
     assert not [d for d in detector.detect(img) if d.box.x < 430 and d.box.x2 > 395
                 and d.box.y < 200 and d.box.y2 > 185]
-
-
-def test_begins_legend_row_not_taken_for_the_bottom_border():
-    """A small "WORK ZONE BEGINS" sign in winter light (a simulator frame, seed 10902 frame
-    327, the camera's JPEG: ``test/data/winter_begins_legend.jpg``; label (486, 205, 21,
-    26)) before a pale background: the white part runs on to the end of the reach and ends
-    at a dark row.  The white part judged against its own level (``white_own_rel``) ends
-    at the border below the bold "BEGINS" row, not at that row: the box is the sign's
-    (IoU >= 0.85)."""
-    img = _data_frame('winter_begins_legend.jpg')
-    det = _default_detector()
-    d = _one(det.detect(img), (486, 205, 21, 26), 0.85)
-    assert d.kind == 'regulatory'
 
 
 def test_bright_shift_tapers_with_the_border_line():
@@ -1985,9 +1839,8 @@ def test_small_diamond_against_a_brighter_background_taken_further_out(bg):
     """A 14 px diamond (the catalogue art, blurred 0.6 px) over grey: against a
     background brighter than its face (luma 230 vs about 100) each edge stretch is taken
     ``diamond_bright_bias`` (0.3 px) further out along its normal, so the half-diagonals
-    come out 0.3 x sqrt(2) px larger (drawn so, they measured 0.34 px less than over a
-    dark background); against a darker one (luma 60) the measurement is the same with and
-    without it."""
+    come out 0.3 x sqrt(2) px larger; against a darker one (luma 60) the measurement is the
+    same with and without it."""
     rng = np.random.default_rng(3)
     diffs = []
     for _ in range(12):
@@ -2005,73 +1858,6 @@ def test_small_diamond_against_a_brighter_background_taken_further_out(bg):
         assert 0.38 <= float(np.median(diffs)) <= 0.46, diffs
 
 
-def test_small_winter_sign_against_a_brighter_ground():
-    """An 18 px "ROAD WORK AHEAD" in winter light in front of pale grey-green ground
-    brighter than its face (a simulator frame, seed 12302 frame 148, the camera's JPEG:
-    ``test/data/winter_small_sign_bright_ground.jpg``; label (417, 214, 18, 18)): its
-    edges measured 1-2 px inside the label (box 16 x 15, IoU 0.74); taken further out
-    against the brighter ground (``diamond_bright_bias``) it is boxed within a pixel."""
-    label = (417, 214, 18, 18)
-    _, det, img = _label_frame_box('winter_small_sign_bright_ground.jpg', label, 'warning')
-    det = det.with_config(diamond_bright_bias=(0.0, 0.47, 0.95))
-    det.reset()
-    old = _one(det.detect(img), label, 0.5)
-    assert old.box.iou(Box(*map(float, label))) < 0.8, old.box
-
-
-def test_dim_plaque_sides_not_taken_inside():
-    """A "WORK ZONE SPEED LIMIT 40" in rain (a simulator frame, seed 12407 frame 297, the
-    camera's JPEG: ``test/data/rain_dim_speed_limit.jpg``; label (449, 203, 17, 27)) with a
-    dim plaque (median V 115): its sides were measured inside the label and the box was
-    15 px wide (IoU 0.88, one pixel in on each side).  A dim plaque's sides move in less
-    (``rect_dim_bias``): boxed within a pixel."""
-    label = (449, 203, 17, 27)
-    _, det, img = _label_frame_box('rain_dim_speed_limit.jpg', label, 'regulatory')
-    det = det.with_config(rect_dim_bias=(0.0, 80.0, 170.0))
-    det.reset()
-    old = _one(det.detect(img), label, 0.5)
-    assert old.box.w <= label[2] - 2, old.box
-
-
-@pytest.mark.parametrize('name, label, off, old_iou', [
-    ('rain_pale_wall_speed_limit.jpg', (505, 182, 26, 45), {'ext_overlong': 0.0}, 0.2),
-    ('rain_wall_below_sign.jpg', (509, 183, 24, 43), {'ext_overlong_border': 0.0}, 0.3)])
-def test_white_part_not_run_on_over_a_pale_wall(name, label, off, old_iou):
-    """Speed limits in rain in front of a pale wall (simulator frames, the camera's JPEGs in
-    ``test/data``): by the orange's level the wall is white and the white part ran on down
-    the wall, 20-32 px past the label.  Seed 13005 frame 301 (label (505, 182, 26, 45)): the
-    legend-gap rule bridged the sign's black bottom border; taller than any two-colour sign,
-    the part now ends at the bridged row that gives a catalogue shape (``ext_overlong``).
-    Seed 13006 frame 140 (label (509, 183, 24, 43)): the plaque is dim, so by its level the
-    blurred bottom border passed for white and no row was bridged; the row after the dark
-    border band gives a catalogue shape (``ext_overlong_border``).  The bottom is within a
-    pixel of the label."""
-    gt = Box(*map(float, label))
-    det = _default_detector()
-    img = _data_frame(name)
-    d = _one(det.detect(img), label, 0.8)
-    assert d.kind == 'regulatory' and abs(d.box.y2 - gt.y2) <= 1.0, d.box
-    det = det.with_config(**off)
-    det.reset()
-    old = _one(det.detect(img), label, old_iou)
-    assert old.box.y2 >= gt.y2 + 20, old.box
-
-
-def test_plaque_sides_measured_inside_a_pale_wall():
-    """A "WORK ZONE SPEED LIMIT 40" in rain right in front of a pale wall (a simulator
-    frame, seed 13006 frame 142, the camera's JPEG: ``test/data/rain_wall_beside_plaque.jpg``;
-    label (537, 176, 28, 49)): the wall passes for orange beside the plaque and for white
-    beside the white part, so the fit found no step on the left side from either start and
-    the box was the hull's grown, 4 px out on the left.  With the side's stretches moved in
-    (``rect_inward``) the box is within a pixel of the label on every side."""
-    label = (537, 176, 28, 49)
-    _, det, img = _label_frame_box('rain_wall_beside_plaque.jpg', label, 'regulatory')
-    det = det.with_config(rect_inward=())
-    det.reset()
-    old = _one(det.detect(img), label, 0.5)
-    assert old.box.x <= label[0] - 3 and old.box.w >= label[2] + 5, old.box
-
-
 def test_white_beyond_a_side_measured_inside_the_sign():
     """:func:`white_beyond`: a white part (a black border line, a grey legend bar) whose
     face is given at its true sides is not white beyond them; given 3 px inside on one side,
@@ -2084,21 +1870,6 @@ def test_white_beyond_a_side_measured_inside_the_sign():
     assert white_beyond(img, (53.0, 91.0), (30.0, 91.0), 2.0)
     assert white_beyond(img, (50.0, 88.0), (30.0, 91.0), 2.0)
     assert not white_beyond(img[:, 51:], (0.0, 40.0), (30.0, 91.0), 2.0)
-
-
-def test_clipped_plaque_face_joins_its_core():
-    """A sunlit "WORK ZONE BEGINS" (a simulator frame, seed 13003 frame 290, the camera's
-    JPEG: ``test/data/sunny_clipped_plaque.jpg``; label (446, 207, 18, 23)): the plaque's
-    red is clipped at 255, its face reads yellowish and the table rates it 0.4 beside a
-    0.98 core along the legend, so the box was the core's, 3 px in on the left and 2 px
-    out above.  The clipped pixels connected to the core now join the face (``clip_grow``):
-    within a pixel of the label on every side."""
-    label = (446, 207, 18, 23)
-    _, det, img = _label_frame_box('sunny_clipped_plaque.jpg', label, 'regulatory')
-    det = det.with_config(clip_grow=0.0)
-    det.reset()
-    old = _one(det.detect(img), label, 0.5)
-    assert old.box.x >= label[0] + 3, old.box
 
 
 def test_clipped_growth_only_through_clipped_pixels():
@@ -2119,21 +1890,3 @@ def test_clipped_growth_only_through_clipped_pixels():
     weak[5:35, 0:60] = 1
     bgr[5:35, 0:60, 2], bgr[5:35, 0:60, 1] = 255, 120   # a clipped surface around the core
     assert not _clipped_growth(bgr, weak, strong, 0.5).any()
-
-
-def test_clipped_plaque_edges_moved_in():
-    """A sunlit two-colour sign whose plaque and white part the camera clipped (a simulator
-    frame, seed 12103 frame 290, the camera's JPEG: ``test/data/sunny_clipped_sign.jpg``;
-    label (447, 208, 17, 23)): the clipped profiles put the left side and the bottom half a
-    pixel or more out, boxed 18 x 24.  Moved in by the clipped share (``rect_clip_bias``) the
-    box is the label's."""
-    label = Box(447.0, 208.0, 17.0, 23.0)
-    det = _default_detector()
-    img = _data_frame('sunny_clipped_sign.jpg')
-    d = _one(det.detect(img), (447, 208, 17, 23), 0.85)
-    assert max(abs(d.box.x - label.x), abs(d.box.x2 - label.x2), abs(d.box.y - label.y),
-               abs(d.box.y2 - label.y2)) <= 0.5, d.box
-    det = det.with_config(rect_clip_bias=0.0)
-    det.reset()
-    old = _one(det.detect(img), (447, 208, 17, 23), 0.7)
-    assert old.box.w >= label.w + 1 and old.box.h >= label.h + 1, old.box

@@ -182,7 +182,7 @@ def test_without_odometry_the_same_crawl_times_out_and_says_why():
 # --- eq. 4 and hysteresis -------------------------------------------------------------------
 
 def test_discounted_vote_corrects_a_wrong_latest_classification():
-    """Seed 000 Fig. 3(b): two of the last five decisions wrong, the end sign still wins."""
+    """Seo et al. Fig. 3(b): two of the last five decisions wrong, the end sign still wins."""
     seq = ['end_road_work', 'end_road_work', 'other_workzone', 'end_road_work',
            'other_workzone']
 

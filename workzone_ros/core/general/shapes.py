@@ -1,5 +1,5 @@
-"""Sign shape by boosted cascades of Haar-like features (seed 002, "Shape-based Candidate
-Classification").
+"""Sign shape by boosted cascades of Haar-like features (Balali and Golparvar-Fard,
+"Shape-based Candidate Classification").
 
 Balali and Golparvar-Fard, "Video-based Detection and Classification of US Traffic Signs and
 Mile Markers using Color Candidate Extraction and Feature-Based Recognition", refine colour
@@ -61,7 +61,8 @@ NONE = 'none'
 CATALOGUE_SHAPE: dict[str, str] = {'diamond': 'diamond', 'rectangle': 'rectangle',
                                    'square': 'rectangle', 'octagon': 'octagon',
                                    'triangle': 'triangle', 'none': NONE}
-DEFAULT_SCALES: tuple[float, ...] = (0.75, 1.0, 1.25)    # seed 002, "Sliding Window Comparison"
+#: Window scales (Balali and Golparvar-Fard, "Sliding Window Comparison").
+DEFAULT_SCALES: tuple[float, ...] = (0.75, 1.0, 1.25)
 DEFAULT_SHIFT = 1.0 / 15.0                                # 6.67 % of the window per step
 DEFAULT_MIN_WINDOWS = 3       # windows that must accept a shape (OpenCV's minNeighbors default)
 FEATURE_TYPES: tuple[str, ...] = ('type-2-x', 'type-2-y', 'type-3-x', 'type-3-y', 'type-4')
@@ -446,7 +447,7 @@ def _fit_stage(x: np.ndarray, pos: np.ndarray, neg: np.ndarray, far: float, tpr:
                max_stumps: int):
     """One stage: boosted stumps on ``x[pos]`` vs ``x[neg]``, cut to the fewest stumps whose
     threshold, lowered until the stage keeps ``tpr`` of the positives, passes at most
-    ``far`` of the negatives (Viola and Jones; seed 002 Table 1)."""
+    ``far`` of the negatives (Viola and Jones; Balali and Golparvar-Fard Table 1)."""
     idx = np.concatenate([pos, neg])
     xs = x[idx]
     stumps = _boost_stumps(xs, np.r_[np.ones(len(pos), bool), np.zeros(len(neg), bool)],
@@ -483,9 +484,9 @@ def train_cascade(crops: Sequence[np.ndarray], labels: Sequence[str], *, window:
         window: window side in pixels.
         n_candidates: random Haar features (over both channels) the selector ranks.
         n_features: features kept (their coordinates are stored).
-        stages: stages per cascade (seed 002: 5).
-        false_alarm_rate: most negatives a stage may pass (seed 002: 0.2).
-        true_positive_rate: least positives a stage keeps (seed 002: 0.995).
+        stages: stages per cascade (Balali and Golparvar-Fard: 5).
+        false_alarm_rate: most negatives a stage may pass (Balali and Golparvar-Fard: 0.2).
+        true_positive_rate: least positives a stage keeps (Balali and Golparvar-Fard: 0.995).
         max_stumps: most stumps per stage.
         max_negatives: negatives per stage at most (a random subset of those still passing).
         seed: random seed.

@@ -1,0 +1,239 @@
+"""Camera-like degradation of training crops for ``workzone-ros train cnn``.
+
+A training crop is re-cut as the detector cuts a frame (``_window``), brought to the size the
+object had in the frame, and degraded like a phone camera's frame (:func:`augment`); rendered
+signs are also pasted on real background crops (:func:`composite`: the simulator's sign art,
+:func:`cutout`: the render cut along its outline).  ``train_cnn``'s module docstring says what
+each step is for.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import cv2
+import numpy as np
+
+__all__ = ['RUN_MARGIN', 'augment', 'composite', 'cutout']
+
+#: The margin and squaring of ``classify_boxes`` (the node's default margin).
+RUN_MARGIN = 0.1
+
+def _window(crop: np.ndarray, box, rng: np.random.Generator) -> np.ndarray:
+    """A detector-like, run-time-like square cut around the object (see module doc)."""
+    H, W = crop.shape[:2]
+    if box is None:
+        box = (0.1 * W / 1.2, 0.1 * H / 1.2, W / 1.2, H / 1.2)
+    x, y, w, h = box
+    side = max(w, h, 2.0) * (1 + 2 * RUN_MARGIN) * math.exp(rng.uniform(-0.15, 0.35))
+    cx = x + w / 2 + rng.uniform(-0.12, 0.12) * side
+    cy = y + h / 2 + rng.uniform(-0.12, 0.12) * side
+    x0, y0 = int(round(cx - side / 2)), int(round(cy - side / 2))
+    n = max(2, int(round(side)))
+    x1, y1 = x0 + n, y0 + n
+    if rng.random() < 0.5:                   # clip to what exists (an image border)
+        cx0, cy0, cx1, cy1 = max(x0, 0), max(y0, 0), min(x1, W), min(y1, H)
+        if (cx1 - cx0) * (cy1 - cy0) >= 0.55 * n * n and cx1 - cx0 >= 3 and cy1 - cy0 >= 3:
+            return crop[cy0:cy1, cx0:cx1]
+    pad = max(0, -x0, -y0, x1 - W, y1 - H)
+    if pad:
+        crop = cv2.copyMakeBorder(crop, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+        x0, y0, x1, y1 = x0 + pad, y0 + pad, x1 + pad, y1 + pad
+    return crop[y0:y1, x0:x1]
+
+
+def _resize(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    interp = cv2.INTER_AREA if img.shape[1] >= w and img.shape[0] >= h else cv2.INTER_LINEAR
+    return cv2.resize(img, (w, h), interpolation=interp)
+
+
+def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
+            texture: Optional[np.ndarray] = None, min_side: float = 0.0) -> np.ndarray:
+    """One camera-like variant of a training crop (BGR ``uint8``, about the size the object
+    had in the frame or smaller; the network's input resize then enlarges it smoothly, as
+    at run time).
+
+    Args:
+        crop: the stored crop.
+        box: the object's box in it (``None``: the whole crop).
+        rng: randomness.
+        scale: frame pixels per crop pixel; a render of a small sign stored enlarged (with
+            blocky pixels) is first brought back to its size in the frame.
+        texture: another crop, pasted as an occluder sometimes.
+        min_side: never shrink the object's box below this (px): the node publishes
+            smaller boxes as ``unknown`` and never classifies them.
+    """
+    if scale < 0.95:
+        h, w = crop.shape[:2]
+        nw, nh = max(4, int(round(w * scale))), max(4, int(round(h * scale)))
+        crop = cv2.resize(crop, (nw, nh), interpolation=cv2.INTER_AREA)
+        if box is not None:
+            box = (box[0] * nw / w, box[1] * nh / h, box[2] * nw / w, box[3] * nh / h)
+    if rng.random() < 0.4:          # a tilted post, camera roll, a sign seen at an angle
+        H, W = crop.shape[:2]
+        M = cv2.getRotationMatrix2D((W / 2, H / 2), rng.uniform(-12, 12), 1.0)
+        M[0, :2] *= rng.uniform(0.75, 1.08)
+        M[0, 2] = W / 2 - M[0, 0] * W / 2 - M[0, 1] * H / 2
+        crop = cv2.warpAffine(crop, M, (W, H), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+    win = _window(crop, box, rng)
+    h0, w0 = win.shape[:2]
+    # as seen from farther away (never closer: that would invent detail), or, sometimes, a
+    # close sign: the run-time path of big crops
+    s = min(1.0, max(8.0 / max(h0, w0), math.exp(rng.uniform(math.log(0.5), 0.0))))
+    if min_side and box is not None:
+        s = min(1.0, max(s, min_side / max(1.0, min(box[2], box[3]))))
+    if rng.random() < 0.08:
+        s = rng.uniform(70, 130) / max(h0, w0)
+    img = _resize(win, max(3, int(round(w0 * s))), max(3, int(round(h0 * s))))
+    img = img.astype(np.float32)
+    # colour: white balance, exposure, gamma, contrast, saturation, haze
+    img *= np.exp(rng.normal(0, 0.10, 3)).astype(np.float32)
+    img *= float(math.exp(rng.uniform(-0.55, 0.4)))
+    img = np.clip(img, 0, 255)
+    img = 255.0 * (img / 255.0) ** float(math.exp(rng.uniform(-0.35, 0.35)))
+    mean = img.mean()
+    img = mean + (img - mean) * float(rng.uniform(0.6, 1.15))
+    grey = img.mean(axis=2, keepdims=True)
+    img = grey + (img - grey) * float(rng.uniform(0.45, 1.35))
+    if rng.random() < 0.5:                   # sheeting and lighting hue, +-6 deg
+        hsv = cv2.cvtColor(np.clip(img, 0, 255).astype(np.uint8), cv2.COLOR_BGR2HSV)
+        hsv[..., 0] = ((hsv[..., 0].astype(int) + int(rng.integers(-3, 4))) % 180)
+        img = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).astype(np.float32)
+    if rng.random() < 0.2:
+        haze = rng.uniform(120, 230) * np.exp(rng.normal(0, 0.05, 3))
+        a = rng.uniform(0.1, 0.4)
+        img = img * (1 - a) + haze.astype(np.float32) * a
+    # occlusion from a border
+    if rng.random() < 0.25:
+        h, w = img.shape[:2]
+        side = int(rng.integers(4))
+        depth = rng.uniform(0.1, 0.35)
+        if texture is not None and rng.random() < 0.5:
+            fill = _resize(texture, w, h).astype(np.float32)
+        else:
+            fill = np.empty_like(img)
+            fill[:] = rng.uniform(0, 255, 3)
+            fill += rng.normal(0, rng.uniform(2, 25), fill.shape)
+        if side == 0:
+            d = max(1, int(round(depth * w)))
+            img[:, :d] = fill[:, :d]
+        elif side == 1:
+            d = max(1, int(round(depth * w)))
+            img[:, w - d:] = fill[:, w - d:]
+        elif side == 2:
+            d = max(1, int(round(depth * h)))
+            img[h - d:] = fill[h - d:]
+        else:
+            d = max(1, int(round(depth * h)))
+            img[:d] = fill[:d]
+    # optics and sensor
+    r = rng.random()
+    if r < 0.45:
+        sigma = rng.uniform(0.3, 1.0)
+        img = cv2.GaussianBlur(img, (0, 0), sigma)
+    elif r < 0.42:
+        k = int(rng.integers(3, 6))
+        kern = np.zeros((k, k), np.float32)
+        kern[k // 2] = 1.0 / k
+        if rng.random() < 0.3:
+            kern = kern.T
+        img = cv2.filter2D(img, -1, kern)
+    img += rng.normal(0, rng.uniform(0, 7), img.shape).astype(np.float32)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    if rng.random() < 0.7:
+        q = int(rng.integers(30, 96))
+        ok, enc = cv2.imencode('.jpg', out, [cv2.IMWRITE_JPEG_QUALITY, q])
+        if ok:
+            out = cv2.imdecode(enc, cv2.IMREAD_COLOR)
+    return out
+
+
+def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
+              legends: bool = True) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """The simulator's art of sign ``key`` pasted on part of a background crop.
+
+    The renders show signs before grass, sky and asphalt only, so a network learns that a
+    busy real backdrop (houses, brick, trees, traffic) means ``background``; pasted on the
+    training clips' own background crops, the signs come with real surroundings.  The
+    canvas is 16-64 px (the sign at that size in the frame, drawn anti-aliased by
+    ``signart``), the face 45-80 % of it, off-centre, often on a post, in a random orange
+    sheeting; returns the canvas and the face's box.
+    ``other_workzone`` is drawn as one of
+    the simulator's variants or, with ``legends``, as any orange MUTCD text sign without a
+    class of its own (:data:`~workzone_ros.sim.signart.LEGEND_SIGNS`: diamonds and
+    rectangles), so that the class means "an orange work-zone sign we have no class for",
+    not three pictures.
+    """
+    from workzone_ros.sim import signart
+    n = int(rng.integers(20, 65))
+    H, W = backdrop.shape[:2]
+    f = rng.uniform(0.5, 1.0)
+    bw, bh = max(4, int(W * f)), max(4, int(H * f))
+    x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
+    canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
+    speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
+    orange = signart.sheeting_orange(int(rng.integers(8)), 7)
+    side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
+    variants = list(signart.OTHER_VARIANTS) + (list(signart.LEGEND_SIGNS) if legends else [])
+    variant = str(rng.choice(variants)) if key == 'other_workzone' else None
+    if variant in signart.LEGEND_SIGNS:
+        face = signart.legend_face(variant, side, orange)
+    else:
+        face = signart.sign_face(key, side, speed, variant, orange)
+    h, w = face.shape[:2]
+    if h > n or w > n:
+        face = cv2.resize(face, (min(w, n), min(h, n)), interpolation=cv2.INTER_AREA)
+        h, w = face.shape[:2]
+    x = int(np.clip((n - w) / 2 + rng.uniform(-0.1, 0.1) * n, 0, n - w))
+    y = int(np.clip((n - h) / 2 + rng.uniform(-0.1, 0.1) * n, 0, n - h))
+    if rng.random() < 0.6 and y + h < n:            # a post below the face
+        pw = max(1, int(round(w * 0.06)))
+        grey = rng.uniform(60, 170)
+        canvas[y + h:, x + w // 2 - pw // 2:x + w // 2 - pw // 2 + pw] = grey
+    # sheeting under daylight: a tint, a light gradient across the face, grain
+    art = face.astype(np.float32)
+    gy, gx = np.mgrid[0:h, 0:w].astype(np.float32)
+    light = 1.0 + rng.uniform(-0.25, 0.25) * (gx / w - 0.5) + rng.uniform(-0.25, 0.25) * (
+        gy / h - 0.5)
+    art[..., :3] *= light[..., None] * np.exp(rng.normal(0, 0.06, 3)).astype(np.float32)
+    art[..., :3] += rng.normal(0, rng.uniform(0, 8), (h, w, 3)) * art[..., 3:] / 255.0
+    canvas[y:y + h, x:x + w] = signart.over(art, canvas[y:y + h, x:x + w])
+    return np.clip(canvas, 0, 255).astype(np.uint8), (float(x), float(y), float(w), float(h))
+
+
+def cutout(key: str, crop: np.ndarray, box, scale: float, backdrop: np.ndarray,
+           rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
+    """A rendered sign cut out along its outline (the class's shape in its box) and put
+    before part of a background crop, at the size it had in the frame; returns the canvas
+    and the box.  The renderer's sheeting and light, with real surroundings."""
+    from workzone_ros.core import signs
+    from workzone_ros.sim import signart
+    if scale < 0.95:
+        h, w = crop.shape[:2]
+        nw, nh = max(4, int(round(w * scale))), max(4, int(round(h * scale)))
+        crop = cv2.resize(crop, (nw, nh), interpolation=cv2.INTER_AREA)
+        box = (box[0] * nw / w, box[1] * nh / h, box[2] * nw / w, box[3] * nh / h)
+    # the render on a canvas with room around it (renders are cut tight to the sign)
+    ch, cw = crop.shape[:2]
+    m = int(round(0.25 * max(ch, cw)))
+    H, W = ch + 2 * m, cw + 2 * m
+    x, y, w, h = box[0] + m, box[1] + m, box[2], box[3]
+    poly = signart.outline(signs.get(key).shape, w, h) + (x, y)
+    mask = np.zeros((H, W), np.uint8)
+    cv2.fillPoly(mask, [np.round(poly * 16).astype(np.int32)], 255, cv2.LINE_AA, shift=4)
+    mask[:m] = mask[m + ch:] = 0
+    mask[:, :m] = mask[:, m + cw:] = 0
+    a = (mask.astype(np.float32) / 255.0)[..., None]
+    crop = cv2.copyMakeBorder(crop, m, m, m, m, cv2.BORDER_CONSTANT)
+    bh_, bw_ = backdrop.shape[:2]
+    f = rng.uniform(0.5, 1.0)
+    sw, sh = max(4, int(bw_ * f)), max(4, int(bh_ * f))
+    x0, y0 = int(rng.integers(0, bw_ - sw + 1)), int(rng.integers(0, bh_ - sh + 1))
+    canvas = _resize(backdrop[y0:y0 + sh, x0:x0 + sw], W, H).astype(np.float32)
+    if rng.random() < 0.6 and y + h < H:            # a post below the face
+        pw = max(1, int(round(w * 0.06)))
+        px = int(round(x + w / 2 - pw / 2))
+        canvas[int(y + h):, max(0, px):max(0, px + pw)] = rng.uniform(60, 170)
+    out = canvas * (1 - a) + crop.astype(np.float32) * a
+    return np.clip(out, 0, 255).astype(np.uint8), (x, y, w, h)

@@ -150,7 +150,7 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
 
 
 def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
-              legends: bool = True) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+              legends: bool = False) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """The simulator's art of sign ``key`` pasted on part of a background crop.
 
     The renders show signs before grass, sky and asphalt only, so a network learns that a
@@ -173,10 +173,10 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
     x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
     canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
     speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
-    orange = signart.sheeting_orange(int(rng.integers(8)), 7)
-    side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
     variants = list(signart.OTHER_VARIANTS) + (list(signart.LEGEND_SIGNS) if legends else [])
     variant = str(rng.choice(variants)) if key == 'other_workzone' else None
+    orange = signart.sheeting_orange(int(rng.integers(8)), 7)
+    side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
     if variant in signart.LEGEND_SIGNS:
         face = signart.legend_face(variant, side, orange)
     else:

@@ -269,7 +269,7 @@ class TrainConfig:
     dropout: float = 0.2
     real_share: float = 0.4
     composite: float = 0.5
-    legends: bool = True
+    legends: bool = False
     min_sign_side: float = 12.0
     background_share: float = 0.3
     class_power: float = 0.5
@@ -490,9 +490,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--composite', type=float, default=d.composite,
                    help='share of the rendered sign draws replaced by the sign art pasted on a '
                         f'training background crop (default {d.composite:g})')
-    p.add_argument('--no-legends', dest='legends', action='store_false',
-                   help='draw other_workzone only as the three variants of the simulator, not '
-                        'as any orange MUTCD text sign (the legend art)')
+    p.add_argument('--legends', action='store_true',
+                   help='draw other_workzone also as any orange MUTCD text sign without a class '
+                        'of its own (the legend art; docs/classifier.md measures it)')
     p.add_argument('--background-share', type=float, default=d.background_share,
                    help='share of the draws that are background crops (0: balanced like '
                         f'the other classes; default {d.background_share:g})')

@@ -23,7 +23,7 @@ from workzone_ros.interfaces import (
     encode,
 )
 from workzone_ros.nodes.conversions import numpy_to_image, time_to_stamp
-from workzone_ros.nodes.tracker import TrackerNode
+from workzone_ros.nodes.tracker import EVALUATION_ONLY, TrackerNode
 
 W, H = 640, 480
 
@@ -107,16 +107,24 @@ def test_tracker_node_runs_on_detector_misses(ros):
         assert 0.75 <= tr.similarity <= 1.0
 
 
-def test_tracker_node_detection_only_and_detections_before_images(ros):
-    node, got, gts = _run(ros, [Parameter('mode', value='detection_only')],
-                          frames=8, detect=lambda i: i % 2 == 0, detections_first=True)
-    assert node.params.mode == 'detection_only'
+def test_tracker_node_detections_before_images_and_missed_frames(ros):
+    node, got, gts = _run(ros, [], frames=8, detect=lambda i: i % 2 == 0,
+                          detections_first=True)
+    assert len(got) == len(gts)
     for ns, tracks in got.items():
         i, gt = gts[ns]
-        assert all(t.source == 'detection' for t in tracks.tracks)
-        assert len(tracks.tracks) == (1 if i % 2 == 0 else 0)
-        if tracks.tracks:
-            assert tracks.tracks[0].track_id == 1          # ids survive a missed frame
+        assert len(tracks.tracks) == 1, f'frame {i}'
+        tr = tracks.tracks[0]
+        assert tr.track_id == 1                            # the id survives a missed frame
+        assert tr.source == ('detection' if i % 2 == 0 else 'tracking')
+        assert _iou(tr.box, gt) > 0.75, f'frame {i}: {tr.box} vs {gt}'
+
+
+def test_tracker_node_has_no_evaluation_switches(ros):
+    node = ros.add(TrackerNode(context=ros.context))
+    for name in ('mode', 'method', 'association'):
+        assert not node.has_parameter(name)
+    assert node.params.iou_gate == TrackerConfig().iou_gate
 
 
 def test_tracker_node_drops_malformed_detections(ros):
@@ -134,11 +142,14 @@ def test_tracker_node_drops_malformed_detections(ros):
 
 
 def test_tracker_node_parameters_are_the_tracker_config(ros):
-    """Every TrackerConfig field is a node parameter (default, description, range from its
-    knob); out-of-range changes are rejected and accepted ones reach the tracker."""
+    """Every TrackerConfig field but the evaluation's switches is a node parameter (default,
+    description, range from its knob); out-of-range changes are rejected and accepted ones
+    reach the tracker."""
     node = ros.add(TrackerNode(context=ros.context))
     core = TrackerConfig()
     for f in dataclasses.fields(TrackerConfig):
+        if f.name in EVALUATION_ONLY:
+            continue
         want = 0.0 if f.name == 'min_approach_speed' else getattr(core, f.name)  # node: off
         got = getattr(node.params, f.name)
         assert got == want, f.name
@@ -152,7 +163,6 @@ def test_tracker_node_parameters_are_the_tracker_config(ros):
 
     assert 'out of range' in reason('min_similarity', 1.5)
     assert 'out of range' in reason('hue_bins', 1)
-    assert "is not one of 'fuse', 'overwrite'" in reason('association', 'blend')
-    assert reason('min_similarity', 0.6) is None and reason('association', 'overwrite') is None
+    assert reason('min_similarity', 0.6) is None and reason('max_lost_frames', 4) is None
     assert node._tracker.config.min_similarity == 0.6
-    assert node._tracker.config.association == 'overwrite'
+    assert node._tracker.config.max_lost_frames == 4

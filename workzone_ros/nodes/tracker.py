@@ -29,10 +29,16 @@ from workzone_ros.nodes.params import params_from_dataclass
 
 __all__ = ['TrackerNode', 'NODE_CLASS', 'main']
 
-#: One parameter per TrackerConfig field: default, description and range from its knob().
-#: The motion cue is off unless configured (config/workzone.yaml turns it on): the node's own
-#: test draws a sign approached far slower (2 %/frame at 50 px) than the cue's minimum.
-_CORE_PARAMS = params_from_dataclass(TrackerConfig, defaults={'min_approach_speed': 0.0})
+#: The core's switches for the evaluation's comparisons (Lee et al.'s detection-only baseline
+#: and their association rule, CamShift as a peer): ``evaluate tracker`` names them as its
+#: configurations; a node always runs the mean-shift tracker with our association.
+EVALUATION_ONLY = ('mode', 'method', 'association')
+#: One parameter per other TrackerConfig field: default, description and range from its
+#: knob().  The motion cue is off unless configured (config/workzone.yaml turns it on): the
+#: node's own test draws a sign approached far slower (2 %/frame at 50 px) than the cue's
+#: minimum.
+_CORE_PARAMS = params_from_dataclass(TrackerConfig, skip=EVALUATION_ONLY,
+                                     defaults={'min_approach_speed': 0.0})
 
 
 def config_from_params(params: Any) -> TrackerConfig:

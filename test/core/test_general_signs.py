@@ -254,3 +254,36 @@ def test_result_type(detector):
     g = detector.detect(img)[0]
     assert isinstance(g, GeneralSign)
     assert all(isinstance(v, int) for v in g.box) and 0.0 <= g.score <= 1.0
+
+
+def test_local_white_keeps_a_grey_panel_apart_from_grey_rain():
+    """In rain the frame's brightest pixels are the panel's, so the frame-wide white
+    threshold also takes the grey background; the locally bright mask does not."""
+    import cv2
+
+    from workzone_ros.core.general import candidates, colour
+    rng = np.random.default_rng(2)
+    img = np.clip(np.full((360, 640, 3), 150, np.float32) + rng.normal(0, 5, (360, 640, 3)),
+                  0, 255).astype(np.uint8)
+    x, y, w, h = paste(img, 'speed_limit', 30, 300, 150)
+    img = (img.astype(np.float32) * 0.72).astype(np.uint8)
+    cfg = GeneralConfig()
+    hsv = cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+    background = np.ones(hsv.shape[:2], bool)
+    background[y - 25:y + h + 25, x - 25:x + w + 25] = False
+    frame_wide = colour.white_mask(hsv, cfg) > 0
+    local = candidates._local_white(hsv, cfg) > 0
+    assert frame_wide[background].mean() > 0.3
+    assert local[background].mean() < 0.01
+    assert local[y + 2:y + h - 2, x + 2:x + w - 2].mean() > 0.4
+
+
+@pytest.mark.parametrize('band, general', (((40, 40, 170), True), ((0, 120, 255), False)))
+def test_red_wall_above_a_panel_is_no_work_zone_plaque(cnn, band, general):
+    """An orange band on top of a speed limit panel is a WORK ZONE plaque (the sign is the
+    classifier's); a red one is a brick wall behind the panel."""
+    img = scene()
+    x, y, w, h = paste(img, 'speed_limit', 30, 300, 150)
+    img[y - 12:y, x:x + w] = band
+    found = [g.class_key for g in cnn.detect(img)]
+    assert found == (['speed_limit'] if general else []), found

@@ -1,5 +1,5 @@
-"""The sign-shape cascade of seed 002 (workzone_ros.core.general.shapes): the shipped model
-labels rendered sign art, rejects a drum, and its file is versioned and checked."""
+"""The sign-shape cascade of Balali and Golparvar-Fard (workzone_ros.core.general.shapes): the
+shipped model labels rendered sign art, rejects a drum, and its file is versioned and checked."""
 from __future__ import annotations
 
 import json

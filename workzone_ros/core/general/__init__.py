@@ -1,5 +1,5 @@
 """General (non-work-zone) US sign recognition: red and yellow signs by colour blobs and
-templates (seed 004, Cahail et al.), white regulatory rectangles, green guide signs and mile
+templates (Cahail et al., Cahail et al.), white regulatory rectangles, green guide signs and mile
 markers by colour and shape.  No ROS import.
 """
 from workzone_ros.core.general.config import (

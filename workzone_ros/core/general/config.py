@@ -182,6 +182,12 @@ class GeneralConfig:
     #: of its colour.
     edge_cut: tuple[str, ...] = ()
     edge_thresholds: tuple[int, int] = (60, 150)
+    #: white candidates also come from pixels brighter by ``local_white_delta`` than the
+    #: mean of the ``local_white_block`` (working px) square around them, with saturation
+    #: at most ``local_white_saturation``: a panel against grey rain, a warm-lit panel.
+    local_white_block: int = 41
+    local_white_delta: int = 30
+    local_white_saturation: int = 90
     #: red candidates are also proposed grown by this share of their size (DO NOT ENTER's
     #: disc on its white plate, a STOP with its white rim).
     candidate_grow: float = 0.3
@@ -245,6 +251,7 @@ class GeneralConfig:
             (self.erode_px >= 1 and self.template_px >= 12, 'erode_px >= 1, template_px >= 12'),
             (self.max_aspect >= 1.0, 'max_aspect must be >= 1'),
             (self.max_candidates >= 1, 'max_candidates must be >= 1'),
+            (self.local_white_block >= 3, 'local_white_block must be >= 3'),
             (self.border_sides <= 4, 'border_sides must be 0..4'),
             (self.fill_constant >= 1.0, 'fill_constant must be >= 1'),
             (self.red_median_max < self.yellow_median_min,

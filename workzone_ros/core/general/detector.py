@@ -1,4 +1,4 @@
-"""The general (non-work-zone) sign recogniser: red and yellow signs after seed 004, white
+"""The general (non-work-zone) sign recogniser: red and yellow signs after Cahail et al., white
 and green panels by colour and shape.
 
 Pipeline per frame (docs/general_signs.md):
@@ -91,17 +91,19 @@ def _dedupe(signs: list[GeneralSign]) -> list[GeneralSign]:
     return out
 
 
-def _prefer_whole(signs: list[GeneralSign], within: float = 0.05) -> list[GeneralSign]:
+def _prefer_whole(signs: list[GeneralSign]) -> list[GeneralSign]:
     """Drop a yellow, white or green sign that lies (80 % of its area) inside a larger one
-    of the same class the CNN is about as sure of (``within``): the larger is the whole face,
-    the smaller a piece of it (half a diamond cut by its arrow).  Red signs are left to the
+    of the same class the CNN is at least as sure of: the larger is the whole face, the
+    smaller a piece of it (half a diamond cut by its arrow).  A larger box the CNN is less
+    sure of is the face with some background (a diamond with the flags above it): the
+    smaller stays and the detection NMS keeps the likelier.  Red signs are left to the
     probabilities (a grown red box holds the white rim)."""
     out = []
     for a in signs:
         area = a.box[2] * a.box[3]
         if a.colour != 'red' and any(
                 b is not a and b.class_key == a.class_key and b.box[2] * b.box[3] > area
-                and _overlap(a.box, b.box) >= 0.8 and b.score >= a.score - within
+                and _overlap(a.box, b.box) >= 0.8 and b.score >= a.score
                 for b in signs):
             continue
         out.append(a)
@@ -110,8 +112,17 @@ def _prefer_whole(signs: list[GeneralSign], within: float = 0.05) -> list[Genera
 
 def _plaque_above(hsv: np.ndarray, box: Box, cfg: GeneralConfig) -> bool:
     """:func:`panels._plaque_above` on either half of the box's width: a WORK ZONE plaque
-    spans the panel, the edge of an orange-brown wall behind it does not."""
+    spans the panel, the edge of an orange-brown wall behind it does not; and the band's
+    saturated pixels must be orange, not red (median hue above ``red_median_max``, the
+    red / orange split of the colour checks): a red brick wall behind a panel is no
+    plaque."""
     x, y, w, h = box
+    band = hsv[max(0, y - int(0.4 * h)):y, x:x + w]
+    sat = band[..., 1] >= cfg.min_saturation
+    if sat.any():
+        hue = band[..., 0][sat].astype(np.int16)
+        if float(np.median(np.where(hue >= 90, hue - 180, hue))) <= cfg.red_median_max:
+            return False
     half = max(1, w // 2)
     return all(panels._plaque_above(hsv, (x0, y, half, h), cfg) for x0 in (x, x + w - half))
 
@@ -239,14 +250,14 @@ class GeneralSignDetector:
         likelier; a small red sign on a warning sign is its symbol (the paper's rule)."""
         cfg = self.config
         s = work.scale
-        cands = candidates.propose(work, cfg, rois)
+        cands = candidates.propose(work, cfg, rois, keep=lambda c: self._colour_ok(work, c))
         if not cands:
             return []
         boxes = [self._full(c.box, s) for c in cands]
         preds = self.classifier.classify_boxes(img, boxes)
         found = []
         for c, box, p in zip(cands, boxes, preds):
-            if p is None or not self._colour_ok(work, c):
+            if p is None:
                 continue
             allowed = COLOUR_CLASSES[c.colour]
             prob = {k: float(p.probabilities.get(k, 0.0)) for k in allowed}

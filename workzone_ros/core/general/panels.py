@@ -1,8 +1,8 @@
 """White regulatory rectangles, green guide signs and mile markers, by colour and shape.
 
-Seed 004 (Cahail et al.) recognises red and yellow signs only; the catalogue's other general
-signs (seed 002's classes, DESIGN.md "Sign catalogue") are found here by the same colour blob
-idea with stricter shape and legend tests:
+Cahail et al. recognise red and yellow signs only; the catalogue's other general signs
+(Balali and Golparvar-Fard's classes, DESIGN.md "Sign catalogue") are found here by the
+same colour blob idea with stricter shape and legend tests:
 
 * ``speed_limit`` (R2-1): a white region of sign proportions (taller than wide) that fills
   its box, holds a dark legend in its upper and lower parts and is framed by a dark ring

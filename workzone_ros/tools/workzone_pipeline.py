@@ -11,8 +11,9 @@ The chain the nodes run, in process and in frame order, from ``workzone_ros.core
   speed limit's value is read with ``core.digits.read_speed_limit`` on its crop, and the
   distance comes from the apparent size and CameraInfo's focal length
   (``core.sign_distance.estimate_distance``; no LiDAR ROIs here);
-* the general signs of the whole frame (``core.general.GeneralSignDetector``, as the
-  classifier node's ``general_signs: true``; ``opts.general_signs = False`` leaves them out).
+* the general signs of the whole frame on every third frame (``core.general.
+  GeneralSignDetector``, as the classifier node's ``general_signs: true`` and
+  ``general_every: 3``; ``opts.general_signs = False`` leaves them out).
 
 Each frame's channelizer count is the colour detector's (``ColorDetector.channelizers``:
 the blobs it rejected as banded drums or cones, one per place), as the ``color_detector``
@@ -40,7 +41,10 @@ __all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN
 MIN_SIZE = 12           # classifier node: min_size
 MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
-_CACHE_VERSION = 3      # 2: frames carry the colour detector's channelizer count; 3: general signs
+GENERAL_EVERY = 3       # classifier node: general_every
+# 2: frames carry the colour detector's channelizer count; 3: general signs; 4: general
+# signs every GENERAL_EVERY-th frame
+_CACHE_VERSION = 4
 
 
 def _classifier_path(opts) -> str:
@@ -146,6 +150,9 @@ class PipelineSource:
         if getattr(opts, 'general_signs', True):
             from workzone_ros.core.general import GeneralSignDetector
             self.general = GeneralSignDetector.sharing(self.model)
+        #: general signs on every n-th frame, as the classifier node's ``general_every``
+        self.general_every = int(getattr(opts, 'general_every', GENERAL_EVERY))
+        self._frames = 0
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:
@@ -167,7 +174,8 @@ class PipelineSource:
         signs = self.recognizer.recognize(frame, items, focal)[0]
         t1 = time.perf_counter()
         self.timings['classifier'].append((t1 - t0) * 1e3)
-        if self.general is None:
+        self._frames += 1
+        if self.general is None or self._frames % self.general_every:
             return signs
         from workzone_ros.core.recognition import general_signs
         signs = signs + general_signs(self.general.detect(frame), focal, (), signs)

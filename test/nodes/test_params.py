@@ -88,6 +88,8 @@ def test_knobs_and_the_core_configs_import_without_rclpy():
 
 #: Node defaults that deliberately differ from the dataclass (see nodes/tracker.py).
 NODE_DEFAULTS = {'tracker': {'min_approach_speed': 0.0}}
+#: Fields that are no node parameter: the tracker evaluation's switches.
+NOT_PARAMETERS = {'tracker': tracker.EVALUATION_ONLY}
 
 
 @pytest.mark.parametrize('section,cls,table', [
@@ -99,8 +101,10 @@ def test_every_config_field_is_a_node_parameter_with_its_knob(section, cls, tabl
     node_class = {'tracker': tracker, 'fusion': fusion,
                   'lidar_cluster': lidar_cluster}[section].NODE_CLASS
     declared = {p.name: p for p in node_class.PARAMS}
-    assert [p.name for p in table] == [f.name for f in dataclasses.fields(cls)]
-    for f in dataclasses.fields(cls):
+    fields = [f for f in dataclasses.fields(cls) if f.name not in NOT_PARAMETERS.get(section, ())]
+    assert [p.name for p in table] == [f.name for f in fields]
+    assert not set(NOT_PARAMETERS.get(section, ())) & set(declared)
+    for f in fields:
         p = declared[f.name]
         want = NODE_DEFAULTS.get(section, {}).get(f.name, f.default)
         assert p.default == (list(want) if isinstance(want, tuple) else want), f.name

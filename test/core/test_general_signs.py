@@ -287,3 +287,28 @@ def test_red_wall_above_a_panel_is_no_work_zone_plaque(cnn, band, general):
     img[y - 12:y, x:x + w] = band
     found = [g.class_key for g in cnn.detect(img)]
     assert found == (['speed_limit'] if general else []), found
+
+
+def test_candidate_shortcuts_match_the_plain_computation():
+    """The faster candidate stage gives what the plain one gives: the joins equal
+    :func:`colour._stacked_pairs` (and it transposed) over all pairs, and a mask's boxes
+    from its padded crop equal those from the whole frame, in the same order."""
+    from workzone_ros.core.general import candidates, colour
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        b = np.column_stack([rng.integers(0, 120, (60, 2)), rng.integers(2, 25, (60, 2))])
+        stacked, side = candidates._join_pairs(b.astype(np.int32))
+        t = b[:, [1, 0, 3, 2]]
+        assert stacked == [tuple(p) for p in colour._stacked_pairs(b).tolist()]
+        assert side == [tuple(p) for p in colour._stacked_pairs(t).tolist()]
+    for k in range(12):
+        m = np.zeros((120, 160), np.uint8)
+        x, y = int(rng.integers(0, 140)), int(rng.integers(0, 100))
+        sub = m[y:y + 20, x:x + 20]
+        sub[:] = (rng.random(sub.shape) < 0.6) * 255
+        which = ('red', 'yellow', 'white', 'green')[k % 4]
+        x0, y0, x1, y1 = candidates._crop(m)
+        part = candidates._ops(which, m[y0:y1, x0:x1])
+        for (op, full), (_, crop) in zip(candidates._ops(which, m), part):
+            assert candidates._components(full) == candidates._components(crop, (x0, y0)), op
+            assert np.array_equal(candidates._paste(crop, m.shape, x0, y0), full), op

@@ -296,12 +296,17 @@ def _paint_diamond(f: _Face) -> None:
     # side wide) as the face's margin and face filled over black: exact to the
     # catalogue (a thick anti-aliased polyline, its width a whole number of pixels,
     # came out 9-25 % wider and its face that much smaller)
-    half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
-    _poly(f.img, _inset(f.poly, _BORDER_INSET - half, f.W, f.H), BLACK)
-    _poly(f.img, _inset(f.poly, _BORDER_INSET + half, f.W, f.H), bg)
+    _diamond_border(f.img, f.poly, f.W, f.H, bg)
     legend = _DIAMOND_LEGENDS.get(f.key)
     if legend is not None:
         legend(f)
+
+
+def _diamond_border(img: np.ndarray, poly: np.ndarray, W: float, H: float, bg) -> None:
+    """The diamond's black border line over its sheeting ``bg`` (see :func:`_paint_diamond`)."""
+    half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
+    _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
+    _poly(img, _inset(poly, _BORDER_INSET + half, W, H), bg)
 
 
 def _legend_road_work_ahead(f: _Face) -> None:
@@ -480,17 +485,24 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     # one pixel more than the face: OpenCV puts a pixel's centre at its integer coordinate,
     # so the face's rectangle [0, W] x [0, H] reaches half a pixel into the last row and
     # column (:func:`_downsample` takes half of them)
-    img = np.zeros((H + 1, W + 1, 3), np.uint8)
-    mask = np.zeros((H + 1, W + 1), np.uint8)
     shape = signs.get(key).shape
-    poly = outline(shape, W, H)
-    _poly(mask, poly, 255)
+    img, mask, poly = _canvas(shape, W, H)
     paint = _SHAPE_PAINTERS.get(shape) or _CLASS_PAINTERS.get(key)
     if paint is None:
         raise signs.UnknownSignError(f'no art for sign class {key!r}')
     paint(_Face(key, W, H, speed, variant, orange, img, poly))
     img[mask == 0] = 0
     return np.dstack([img, mask])
+
+
+def _canvas(shape: str, W: int, H: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A supersampled face's empty BGR canvas, its alpha mask of ``shape`` and the outline
+    (one pixel more each way, see :func:`_draw`)."""
+    img = np.zeros((H + 1, W + 1, 3), np.uint8)
+    mask = np.zeros((H + 1, W + 1), np.uint8)
+    poly = outline(shape, W, H)
+    _poly(mask, poly, 255)
+    return img, mask, poly
 
 
 @lru_cache(maxsize=1024)
@@ -622,15 +634,10 @@ def legend_face(name: str, size_px: int = 256,
     w, h = (size_px, max(2, round(size_px / aspect))) if aspect >= 1 else \
         (max(2, round(size_px * aspect)), size_px)
     W, H = w * _SS, h * _SS
-    img = np.zeros((H + 1, W + 1, 3), np.uint8)
-    mask = np.zeros((H + 1, W + 1), np.uint8)
-    poly = outline(shape, W, H)
-    _poly(mask, poly, 255)
+    img, mask, poly = _canvas(shape, W, H)
     _poly(img, poly, orange)
     if shape == 'diamond':
-        half = _BORDER_HALF_WIDTH * math.sqrt(2.0)
-        _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
-        _poly(img, _inset(poly, _BORDER_INSET + half, W, H), orange)
+        _diamond_border(img, poly, W, H, orange)
         n = len(lines)
         top, bottom = (0.5 - 0.085 * n) * H, (0.5 + 0.085 * n) * H
         unit = (bottom - top) / (n + 0.22 * (n - 1))      # _lines' line height and gap

@@ -13,7 +13,7 @@ from typing import Any, Optional
 import cv2
 import numpy as np
 
-from workzone_ros.core.kernels import hue_sat_take
+from workzone_ros.core.color_model import table_lookup
 
 __all__ = ['pixel_box']
 
@@ -94,14 +94,9 @@ def pixel_box(x: float, y: float, w: float, h: float) -> tuple[float, float, flo
     return float(x0), float(y0), float(max(x1 - x0, 1)), float(max(y1 - y0, 1))
 
 
-def _lookup(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndarray:
-    """``table[hue, sat]`` of a colour table over (hue, saturation) and 2-d uint8 channels
-    (compiled: :func:`~workzone_ros.core.kernels.hue_sat_take`)."""
-    if (hue.ndim != 2 or hue.shape != sat.shape or table.ndim != 2
-            or hue.dtype != np.uint8 or sat.dtype != np.uint8
-            or table.dtype not in (np.float32, np.uint8)):
-        return table[hue, sat]
-    return hue_sat_take(table, hue, sat)
+#: ``table[hue, sat]`` of a colour table, compiled for uint8 channels (one mechanism with
+#: :meth:`ColorModel.lookup <workzone_ros.core.color_model.ColorModel.lookup>`).
+_lookup = table_lookup
 
 
 def _components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:

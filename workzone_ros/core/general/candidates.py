@@ -185,9 +185,8 @@ def _join_pairs(b: np.ndarray) -> tuple[list, list]:
         return [], []
     ox, oy = ox[i, j], oy[i, j]
     wi, wj, hi, hj = w[i], w[j], h[i], h[j]
-    stacked = (ox >= 0.7 * np.maximum(wi, wj)) & (oy <= 2) & \
-        (-oy <= 0.5 * np.minimum(hi, hj) + 2)
-    side = (oy >= 0.7 * np.maximum(hi, hj)) & (ox <= 2) & (-ox <= 0.5 * np.minimum(wi, wj) + 2)
+    stacked = colour.stacked_test(ox, -oy, wi, wj, hi, hj)
+    side = colour.stacked_test(oy, -ox, hi, hj, wi, wj)
     i, j = i.tolist(), j.tolist()
     return ([(i[k], j[k]) for k in np.flatnonzero(stacked).tolist()],
             [(i[k], j[k]) for k in np.flatnonzero(side).tolist()])

@@ -163,8 +163,15 @@ def _stacked_pairs(boxes: np.ndarray) -> np.ndarray:
     xt, yt, wt, ht = (boxes[:, k][None, :] for k in range(4))
     ox = np.minimum(x + w, xt + wt) - np.maximum(x, xt)
     gap = np.maximum(y, yt) - np.minimum(y + h, yt + ht)
-    ok = (ox >= 0.7 * np.maximum(w, wt)) & (gap >= -2) & (gap <= 0.5 * np.minimum(h, ht) + 2)
-    return np.argwhere(np.triu(ok, 1))
+    return np.argwhere(np.triu(stacked_test(ox, gap, w, wt, h, ht), 1))
+
+
+def stacked_test(ox, gap, w1, w2, h1, h2):
+    """Two boxes of widths ``w1``, ``w2`` and heights ``h1``, ``h2`` whose x ranges overlap
+    by ``ox`` and which are ``gap`` apart in y are pieces of one panel (:func:`_stacked_pairs`);
+    with x and y swapped, pieces side by side."""
+    return (ox >= 0.7 * np.maximum(w1, w2)) & (gap >= -2) & \
+        (gap <= 0.5 * np.minimum(h1, h2) + 2)
 
 
 def merge_stacked(blobs: list[Blob]) -> list[Blob]:

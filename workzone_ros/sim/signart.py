@@ -296,17 +296,12 @@ def _paint_diamond(f: _Face) -> None:
     # side wide) as the face's margin and face filled over black: exact to the
     # catalogue (a thick anti-aliased polyline, its width a whole number of pixels,
     # came out 9-25 % wider and its face that much smaller)
-    _diamond_border(f.img, f.poly, f.W, f.H, bg)
+    half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
+    _poly(f.img, _inset(f.poly, _BORDER_INSET - half, f.W, f.H), BLACK)
+    _poly(f.img, _inset(f.poly, _BORDER_INSET + half, f.W, f.H), bg)
     legend = _DIAMOND_LEGENDS.get(f.key)
     if legend is not None:
         legend(f)
-
-
-def _diamond_border(img: np.ndarray, poly: np.ndarray, W: float, H: float, bg) -> None:
-    """The diamond's black border line over its sheeting ``bg`` (see :func:`_paint_diamond`)."""
-    half = _BORDER_HALF_WIDTH * math.sqrt(2.0)     # across a 45 deg edge, per side
-    _poly(img, _inset(poly, _BORDER_INSET - half, W, H), BLACK)
-    _poly(img, _inset(poly, _BORDER_INSET + half, W, H), bg)
 
 
 def _legend_road_work_ahead(f: _Face) -> None:
@@ -485,24 +480,17 @@ def _draw(key: str, W: int, H: int, speed: int, variant: str,
     # one pixel more than the face: OpenCV puts a pixel's centre at its integer coordinate,
     # so the face's rectangle [0, W] x [0, H] reaches half a pixel into the last row and
     # column (:func:`_downsample` takes half of them)
+    img = np.zeros((H + 1, W + 1, 3), np.uint8)
+    mask = np.zeros((H + 1, W + 1), np.uint8)
     shape = signs.get(key).shape
-    img, mask, poly = _canvas(shape, W, H)
+    poly = outline(shape, W, H)
+    _poly(mask, poly, 255)
     paint = _SHAPE_PAINTERS.get(shape) or _CLASS_PAINTERS.get(key)
     if paint is None:
         raise signs.UnknownSignError(f'no art for sign class {key!r}')
     paint(_Face(key, W, H, speed, variant, orange, img, poly))
     img[mask == 0] = 0
     return np.dstack([img, mask])
-
-
-def _canvas(shape: str, W: int, H: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A supersampled face's empty BGR canvas, its alpha mask of ``shape`` and the outline
-    (one pixel more each way, see :func:`_draw`)."""
-    img = np.zeros((H + 1, W + 1, 3), np.uint8)
-    mask = np.zeros((H + 1, W + 1), np.uint8)
-    poly = outline(shape, W, H)
-    _poly(mask, poly, 255)
-    return img, mask, poly
 
 
 @lru_cache(maxsize=1024)
@@ -585,75 +573,6 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
         orange = ORANGE
     return _cached(class_key, int(max(8, size_px)), int(speed_value), variant,
                    tuple(int(c) for c in orange))
-
-
-#: Orange MUTCD text signs that have no class of their own (``other_workzone``): name ->
-#: (shape, width / height, legend lines).  Training art only (``train cnn`` pastes them on
-#: real backgrounds); the simulator's scenes draw :data:`OTHER_VARIANTS`.  The legends of
-#: the signs in the shared real clips (UTILITY WORK AHEAD, LEFT TURN LANE CLOSED AHEAD,
-#: DETOUR) are left out on purpose, so that those clips measure legends never drawn.
-LEGEND_SIGNS = {
-    'road_machinery_ahead': ('diamond', 1.0, ('ROAD', 'MACHINERY', 'AHEAD')),
-    'be_prepared_to_stop': ('diamond', 1.0, ('BE', 'PREPARED', 'TO STOP')),
-    'shoulder_closed': ('diamond', 1.0, ('SHOULDER', 'CLOSED')),
-    'uneven_lanes': ('diamond', 1.0, ('UNEVEN', 'LANES')),
-    'loose_gravel': ('diamond', 1.0, ('LOOSE', 'GRAVEL')),
-    'road_closed_ahead': ('diamond', 1.0, ('ROAD', 'CLOSED', 'AHEAD')),
-    'flagger_ahead': ('diamond', 1.0, ('FLAGGER', 'AHEAD')),
-    'workers_ahead': ('diamond', 1.0, ('WORKERS', 'AHEAD')),
-    'road_narrows': ('diamond', 1.0, ('ROAD', 'NARROWS')),
-    'no_center_line': ('diamond', 1.0, ('NO', 'CENTER', 'LINE')),
-    'survey_crew': ('diamond', 1.0, ('SURVEY', 'CREW')),
-    'grooved_pavement': ('diamond', 1.0, ('GROOVED', 'PAVEMENT')),
-    'low_shoulder': ('diamond', 1.0, ('LOW', 'SHOULDER')),
-    'bump': ('diamond', 1.0, ('BUMP',)),
-    'road_work_next_miles': ('rectangle', 2.0, ('ROAD WORK', 'NEXT 2 MILES')),
-    'exit_closed': ('rectangle', 1.25, ('EXIT', 'CLOSED')),
-    'ramp_closed': ('rectangle', 1.25, ('RAMP', 'CLOSED')),
-    'lane_closed': ('rectangle', 1.4, ('LANE', 'CLOSED')),
-    'sidewalk_closed': ('rectangle', 1.6, ('SIDEWALK', 'CLOSED')),
-    'truck_crossing': ('rectangle', 1.0, ('TRUCKS', 'ENTERING', 'HIGHWAY')),
-    'road_work': ('rectangle', 0.8, ('ROAD', 'WORK')),
-}
-
-
-@lru_cache(maxsize=512)
-def legend_face(name: str, size_px: int = 256,
-                orange: tuple[int, int, int] = ORANGE) -> np.ndarray:
-    """Art of one :data:`LEGEND_SIGNS` sign: black legend on orange, a black border, as
-    :func:`sign_face` returns it (read-only premultiplied BGRA, the longer side
-    ``size_px``).
-
-    Raises:
-        ValueError: ``name`` is not in :data:`LEGEND_SIGNS`.
-    """
-    if name not in LEGEND_SIGNS:
-        raise ValueError(f'unknown legend sign {name!r}; known: {sorted(LEGEND_SIGNS)}')
-    shape, aspect, lines = LEGEND_SIGNS[name]
-    size_px = int(max(8, size_px))
-    w, h = (size_px, max(2, round(size_px / aspect))) if aspect >= 1 else \
-        (max(2, round(size_px * aspect)), size_px)
-    W, H = w * _SS, h * _SS
-    img, mask, poly = _canvas(shape, W, H)
-    _poly(img, poly, orange)
-    if shape == 'diamond':
-        _diamond_border(img, poly, W, H, orange)
-        n = len(lines)
-        top, bottom = (0.5 - 0.085 * n) * H, (0.5 + 0.085 * n) * H
-        unit = (bottom - top) / (n + 0.22 * (n - 1))      # _lines' line height and gap
-        edges = [max(abs(top + i * 1.22 * unit - H / 2), abs(top + (i * 1.22 + 1) * unit
-                                                                 - H / 2)) for i in range(n)]
-        widths = [0.84 * (W - 2 * e * W / H) for e in edges]   # the diamond's width there
-    else:
-        b = max(2, int(0.035 * min(W, H)))
-        cv2.rectangle(img, (b, b), (W - b, H - b), BLACK, b, cv2.LINE_AA)
-        top, bottom = 0.16 * H, 0.84 * H
-        widths = [0.84 * W] * len(lines)
-    _lines(img, list(lines), W / 2, top, bottom, widths, BLACK, 0.2, _FONT_BOLD)
-    img[mask == 0] = 0
-    face = _downsample(np.dstack([img, mask]), _SS)
-    face.flags.writeable = False
-    return face
 
 
 @lru_cache(maxsize=4)

@@ -149,8 +149,8 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
     return out
 
 
-def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
-              legends: bool = False) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
+              ) -> tuple[np.ndarray, tuple[float, float, float, float]]:
     """The simulator's art of sign ``key`` pasted on part of a background crop.
 
     The renders show signs before grass, sky and asphalt only, so a network learns that a
@@ -159,11 +159,6 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
     canvas is 16-64 px (the sign at that size in the frame, drawn anti-aliased by
     ``signart``), the face 45-80 % of it, off-centre, often on a post, in a random orange
     sheeting; returns the canvas and the face's box.
-    ``other_workzone`` is drawn as one of
-    the simulator's variants or, with ``legends``, as any orange MUTCD text sign without a
-    class of its own (:data:`~workzone_ros.sim.signart.LEGEND_SIGNS`: diamonds and
-    rectangles), so that the class means "an orange work-zone sign we have no class for",
-    not three pictures.
     """
     from workzone_ros.sim import signart
     n = int(rng.integers(20, 65))
@@ -173,14 +168,10 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator,
     x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
     canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
     speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
-    variants = list(signart.OTHER_VARIANTS) + (list(signart.LEGEND_SIGNS) if legends else [])
-    variant = str(rng.choice(variants)) if key == 'other_workzone' else None
+    variant = str(rng.choice(signart.OTHER_VARIANTS)) if key == 'other_workzone' else None
     orange = signart.sheeting_orange(int(rng.integers(8)), 7)
     side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
-    if variant in signart.LEGEND_SIGNS:
-        face = signart.legend_face(variant, side, orange)
-    else:
-        face = signart.sign_face(key, side, speed, variant, orange)
+    face = signart.sign_face(key, side, speed, variant, orange)
     h, w = face.shape[:2]
     if h > n or w > n:
         face = cv2.resize(face, (min(w, n), min(h, n)), interpolation=cv2.INTER_AREA)

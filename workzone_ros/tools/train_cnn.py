@@ -269,7 +269,6 @@ class TrainConfig:
     dropout: float = 0.2
     real_share: float = 0.4
     composite: float = 0.5
-    legends: bool = False
     min_sign_side: float = 12.0
     background_share: float = 0.3
     class_power: float = 0.5
@@ -343,7 +342,7 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
                     pool = real_bg if len(real_bg) and rng.random() < 0.6 else bg
                     backdrop = crops[int(pool[rng.integers(len(pool))])]
                     if rng.random() < 0.5 or boxes[i] is None:
-                        canvas, box = composite(lab, backdrop, rng, cfg.legends)
+                        canvas, box = composite(lab, backdrop, rng)
                     else:
                         canvas, box = cutout(lab, crops[i], boxes[i], scales[i], backdrop,
                                              rng)
@@ -490,9 +489,6 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--composite', type=float, default=d.composite,
                    help='share of the rendered sign draws replaced by the sign art pasted on a '
                         f'training background crop (default {d.composite:g})')
-    p.add_argument('--legends', action='store_true',
-                   help='draw other_workzone also as any orange MUTCD text sign without a class '
-                        'of its own (the legend art; docs/classifier.md measures it)')
     p.add_argument('--background-share', type=float, default=d.background_share,
                    help='share of the draws that are background crops (0: balanced like '
                         f'the other classes; default {d.background_share:g})')
@@ -569,7 +565,6 @@ def main(argv: Optional[list[str]] = None) -> int:
     cfg = TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
                       samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
                       real_share=args.real_share, composite=args.composite,
-                      legends=args.legends,
                       min_sign_side=args.min_sign_side,
                       background_share=args.background_share,
                       max_minutes=args.max_minutes, seed=args.seed)
@@ -596,7 +591,7 @@ def main(argv: Optional[list[str]] = None) -> int:
                            'macs_per_crop': macs(cfg.width, cfg.input_size, len(classes))},
           'training': {**{k: getattr(cfg, k) for k in (
               'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
-              'dropout', 'real_share', 'composite', 'legends', 'min_sign_side', 'background_share',
+              'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
               'class_power', 'seed')}, **run,
               'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
               'augmentation': 'renders at their size in the frame, shrunk up to 2x, '

@@ -8,9 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, Optional
 
-import cv2
 import numpy as np
 
 from workzone_ros.core.color_model import table_lookup
@@ -48,32 +46,6 @@ def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) 
     return float(0.5 * (edges[i] + edges[i + 1]))
 
 
-def _median(values: np.ndarray, axis: Optional[int] = None) -> Any:
-    """``np.median(values, axis)`` of NaN-free data, the same values, by a partial sort.
-
-    The middle order statistic, or the mean of the middle two: in the data's own float type
-    (float64 for integers), as np.median takes it; without np.median's generic machinery
-    (about 10 us per call, more than the partial sort of the small arrays here).
-    """
-    if axis is None:
-        values, axis = values.ravel(), 0
-    n = values.shape[axis]
-    if n == 0:
-        return np.median(values, axis=axis)
-    k = n // 2
-    # a short axis is sorted outright (quicker than the partial sort at these lengths)
-    part = np.sort(values, axis=axis) if n <= 64 else np.partition(values, (k - 1, k),
-                                                                    axis=axis)
-    # (the middle entries by a basic index: np.take's values, without its call overhead)
-    lead = (slice(None),) * (axis % values.ndim)
-    hi = part[lead + (k,)]
-    lo = part[lead + (k - 1,)] if n % 2 == 0 else None
-    if values.dtype.kind != 'f':
-        hi = hi.astype(np.float64)
-        lo = None if lo is None else lo.astype(np.float64)
-    return hi if lo is None else (lo + hi) / 2
-
-
 def _padded(window: tuple, bw: int, bh: int) -> tuple[int, int, int, int]:
     """A blob's window ``(x0, y0, x1, y1)`` grown by a quarter of the blob's size ``(bw,
     bh)`` + 3 px (a mask fit that is too large puts an edge's outer samples beyond it)."""
@@ -97,22 +69,6 @@ def pixel_box(x: float, y: float, w: float, h: float) -> tuple[float, float, flo
 #: ``table[hue, sat]`` of a colour table, compiled for uint8 channels (one mechanism with
 #: :meth:`ColorModel.lookup <workzone_ros.core.color_model.ColorModel.lookup>`).
 _lookup = table_lookup
-
-
-def _components(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    """``cv2.connectedComponentsWithStats(mask, connectivity=8)``, by the BBDT labelling when
-    OpenCV runs on one thread.
-
-    Single-threaded, BBDT and OpenCV's default (Spaghetti) both label 2x2 blocks in raster
-    order and number the components by their first block: the same labels and statistics
-    (checked on every mask of the tuning bags), and BBDT's statistics pass costs a third
-    of the default's (0.05 vs 0.16 ms on a 192x132 mask, OpenCV 5.0).  Their parallel
-    versions (more threads) number some components differently, so there the default is
-    kept.
-    """
-    if cv2.getNumThreads() != 1:
-        return cv2.connectedComponentsWithStats(mask, connectivity=8)
-    return cv2.connectedComponentsWithStatsWithAlgorithm(mask, 8, cv2.CV_32S, cv2.CCL_BBDT)
 
 
 def _paste(dst: np.ndarray, src: np.ndarray, oy: int, ox: int) -> None:

@@ -14,7 +14,6 @@ from typing import Callable, Optional, Sequence
 
 import numpy as np
 
-from workzone_ros.core.detect.common import _median
 from workzone_ros.core.detect.edges import (
     _PROFILE_SIG,
     EDGE_MIN_CONTRAST,
@@ -350,7 +349,7 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
     if info is not None:
         # the last round's stretches (np.nanmedian's value: the median of the measured
         # ones; at least one is, or the round returned)
-        info['blur'] = float(_median(blur[~np.isnan(blur)]))
+        info['blur'] = float(np.median(blur[~np.isnan(blur)]))
     return cx, cy, a, b
 
 
@@ -363,7 +362,7 @@ def _stroke_stretches(blur: np.ndarray, seen: np.ndarray, spare: int, steps: int
     if spare <= 0 or np.count_nonzero(seen) <= 4:
         return drop
     level = np.searchsorted(_PROFILE_SIG, np.where(seen, blur, 0.0) - 1e-6)
-    cut = _median(level[seen]) + steps             # (np.median's value, float64)
+    cut = np.median(level[seen]) + steps             # (np.median's value, float64)
     for j in np.argsort(-np.where(seen, level, -1), kind='stable'):
         if spare <= 0 or level[j] < cut:
             break

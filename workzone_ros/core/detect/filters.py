@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core.color_model import apply_gains
-from workzone_ros.core.detect.common import _lookup, _median
+from workzone_ros.core.detect.common import _lookup
 from workzone_ros.core.detect.diamond import fit_diamond
 from workzone_ros.core.profiles import (
     banded_rows,
@@ -68,7 +68,7 @@ class FilterMixin:
                     needs_outline = True      # a face behind a guardrail: its edges may tell
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
-        v_ref = float(_median(vch[pix > 0]))
+        v_ref = float(np.median(vch[pix > 0]))
         if cfg.max_surround_like < 1.0 and not relaxed:
             # a sign is an object on its own: beyond its border the background is not the
             # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
@@ -151,7 +151,7 @@ class FilterMixin:
         face = orange[by - r0:by + bh - r0]
         if not face.any():
             return False
-        y_ref = float(_median(luma[by - r0:by + bh - r0][face]))
+        y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
         white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
         # a band is the object's own: bounded by its silhouette; white that runs on past
         # the blob's sides on both flanks is the background (an overcast sky, snow, a

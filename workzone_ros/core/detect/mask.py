@@ -15,7 +15,7 @@ import numpy as np
 
 from workzone_ros.core.color_model import HSV_RANGES, apply_gains
 from workzone_ros.core.detect.candidates import Candidate
-from workzone_ros.core.detect.common import _components, _lookup
+from workzone_ros.core.detect.common import _lookup
 from workzone_ros.core.kernels import flat_take, label_at_first_pixel
 
 __all__ = ['MaskMixin']
@@ -35,7 +35,8 @@ def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound
     out = np.zeros(weak.shape, np.uint8)
     if not (clip.any() if near is None else (clip & (near == 0)).any()):
         return out
-    n, lab, st, _ = _components((clip | (strong > 0)).astype(np.uint8))
+    joined = (clip | (strong > 0)).astype(np.uint8)
+    n, lab, st, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
     keep = np.zeros(n, bool)
     keep[np.unique(lab[strong > 0])] = True
     keep[0] = False

@@ -18,7 +18,6 @@ from workzone_ros.core.color_model import apply_gains
 from workzone_ros.core.detect.candidates import Candidate
 from workzone_ros.core.detect.common import (
     _P_SCALE,
-    _components,
     _mode,
     _paste,
 )
@@ -205,7 +204,7 @@ class MeasureMixin:
         if cfg.clip_grow > 0:
             near |= _clipped_growth(raw, weak, strong, cfg.clip_grow, near)
         face = cv2.morphologyEx(near, cv2.MORPH_CLOSE, kern)
-        n, lab, st, _ = _components(face)
+        n, lab, st, _ = cv2.connectedComponentsWithStats(face, connectivity=8)
         if n <= 1:
             return None
         j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))

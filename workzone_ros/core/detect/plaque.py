@@ -11,7 +11,6 @@ import numpy as np
 
 from workzone_ros.core.color_model import apply_gains
 from workzone_ros.core.detect.candidates import Candidate
-from workzone_ros.core.detect.common import _median
 from workzone_ros.core.signs import CATALOGUE
 
 __all__ = ['PlaqueMixin']
@@ -72,7 +71,7 @@ class PlaqueMixin:
             strip = apply_gains(strip, self._gains)
         strip = cv2.cvtColor(strip, cv2.COLOR_BGR2HSV)
         sat = strip[..., 1] if raw_s is None else np.minimum(strip[..., 1], raw_s)
-        v_ref = float(_median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
+        v_ref = float(np.median(orange_hsv[:, 2])) if orange_hsv.size else 200.0
         white = (sat <= cfg.white_s_max) & (strip[..., 2] >= cfg.white_v_rel * v_ref)
         # black legend rows inside the white part: judge rows on a short running window
         frac = white.mean(axis=1)
@@ -132,7 +131,7 @@ class PlaqueMixin:
         # a sign's white part carries a black legend and border; sky and walls do not
         # (dark relative to the white part itself: under overcast light the legend is grey)
         part = strip[:run]
-        v_white = float(_median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
+        v_white = float(np.median(part[..., 2][white[:run]])) if white[:run].any() else v_ref
         dark = part[..., 2] < cfg.dark_rel * v_white
         if dark.mean() < cfg.ext_min_dark:
             return
@@ -179,7 +178,7 @@ class PlaqueMixin:
         while r1 < len(frac) and r1 - r0 < k + 2 and frac[r1] >= 0.45:
             r1 += 1
         # (row r0 is at least 45 % white: the level has pixels to be taken from)
-        level = float(_median(value[r0:r1][white[r0:r1]]))
+        level = float(np.median(value[r0:r1][white[r0:r1]]))
         white = white & (value >= self.config.white_own_rel * level)
         return white, white.mean(axis=1)
 
@@ -200,7 +199,7 @@ class PlaqueMixin:
         rows = np.arange(len(n))
         med_b = 0.5 * (srt[rows, np.maximum(n - 1, 0) // 2] + srt[rows, n // 2])
         return ((n >= 3) & (med_b <= cfg.ext_gap_s)) | ((n < 3) & (
-            _median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref))
+            np.median(strip[..., 2], axis=1) < cfg.dark_rel * v_ref))
 
     def _bottom_border(self, white: np.ndarray, value: np.ndarray, orange_h: float,
                        width: float = 0.0) -> int:

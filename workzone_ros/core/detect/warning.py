@@ -13,7 +13,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from workzone_ros.core.color_model import _quantile
-from workzone_ros.core.detect.common import _median, _padded
+from workzone_ros.core.detect.common import _padded
 from workzone_ros.core.detect.diamond import (
     diamond_pixel_box,
     fit_diamond,
@@ -288,8 +288,8 @@ class WarningMixin:
             return None
         sat, val = hsv[..., 1], hsv[..., 2]
         # the face's own orange: as saturated and not dark (a legend stroke is neither)
-        face_like = (sat >= cfg.hold_sat * float(_median(sat[inside]))) & (
-            val >= cfg.dark_rel * float(_median(val[inside])))
+        face_like = (sat >= cfg.hold_sat * float(np.median(sat[inside]))) & (
+            val >= cfg.dark_rel * float(np.median(val[inside])))
         # the blob's pixels beyond the outline: a background blended in or merged with the
         # sign is not the face's orange; a fit inside a larger face leaves that face out
         beyond = (face_px > 0) & (dist >= 0.5)
@@ -385,7 +385,7 @@ class WarningMixin:
         middle = dx / a + dy / b < 0.6
         if not (ring.any() and back.any() and middle.any()):
             return False
-        bg = float(_median(chroma[back]))
+        bg = float(np.median(chroma[back]))
         # (np.percentile(..., 75)'s value, without its generic machinery)
         face = float(_quantile(chroma[middle], 0.75))
         if face <= bg:

@@ -547,6 +547,196 @@ def _rings_closer(lvl: np.ndarray, params: ClusterParams, spacing: float) -> np.
     return out
 
 
+class _Rejector:
+    """Which clusters are still accepted, the first filter that rejected each, and counts."""
+
+    def __init__(self, n: int, rejected: dict) -> None:
+        self.ok = np.ones(n, bool)
+        self.why = np.full(n, -1, np.int64)
+        self.rejected = rejected
+
+    def __call__(self, mask: np.ndarray, reason: str) -> None:
+        hit = self.ok & mask
+        self.rejected[reason] = int(hit.sum())
+        self.why[hit] = REJECT_REASONS.index(reason)
+        self.ok = self.ok & ~mask
+
+
+@dataclass
+class _ClusterGeometry:
+    """Per-cluster measurements of one scan's clusters (n rows), level frame."""
+
+    lvl: np.ndarray
+    hgt: np.ndarray
+    labels: np.ndarray
+    n: int
+    lo: np.ndarray
+    hi: np.ndarray
+    mi: np.ndarray
+    counts: np.ndarray
+    cov: np.ndarray
+    order: np.ndarray
+    start: np.ndarray
+    top: np.ndarray
+    bottom: np.ndarray
+    ext: np.ndarray
+    center: np.ndarray
+    rng: np.ndarray
+    los: np.ndarray
+    row_key: np.ndarray
+    n_rows: np.ndarray
+    el_hi: np.ndarray
+    beam_m: np.ndarray
+    width: np.ndarray
+
+
+def _cluster_geometry(points: np.ndarray, pf: Prefiltered, labels: np.ndarray, n: int,
+                      mount: Mount) -> _ClusterGeometry:
+    """Bounding boxes, heights, rows and line of sight of the ``n`` clusters in ``labels``."""
+    lvl, hgt = pf.level, pf.height
+    lo, hi, mean, mi, counts, cov, order, start = cluster_stats(lvl, pf.intensity, labels, n)
+    top = np.maximum.reduceat(hgt[order], start)
+    bottom = np.minimum.reduceat(hgt[order], start)
+    ext = hi - lo
+    center = 0.5 * (lo + hi)
+    rng = np.hypot(center[:, 0], center[:, 1])
+    los = mean - np.array([0.0, 0.0, mount.height])           # sensor -> cluster
+    dist = np.linalg.norm(los, axis=1)
+    rings = points['ring'] if 'ring' in (points.dtype.names or ()) else None
+    row_key, n_rows, spacing, el_hi = rows(pf.xyz, labels, n,
+                                           None if rings is None else rings[pf.index])
+    # One beam spacing at the cluster's range: how far the face may extend beyond its
+    # outermost rows unseen (0 on a single row: unknown).
+    beam_m = np.nan_to_num(spacing * dist)
+    width = np.hypot(ext[:, 0], ext[:, 1])
+    return _ClusterGeometry(lvl, hgt, labels, n, lo, hi, mi, counts, cov, order, start, top,
+                            bottom, ext, center, rng, los, row_key, n_rows, el_hi, beam_m,
+                            width)
+
+
+def _reject_by_shape(g: _ClusterGeometry, params: ClusterParams,
+                     reject: _Rejector) -> np.ndarray:
+    """Check-to-add on size, height, shape and flatness; returns the incidence angles, deg
+    (NaN where not measured)."""
+    counts, ext, width = g.counts, g.ext, g.width
+    # Check-to-add (Cahail et al. s1.3): point count, bounding box within sign sizes.
+    reject(counts < params.min_points, 'few_points')
+    reject((width > params.max_width) | (ext[:, 2] > params.max_height), 'too_large')
+    reject(np.maximum(width, ext[:, 2]) < params.min_size, 'too_small')
+    # Height on the cluster: its top must reach sign height (drums, cones, plates do not).
+    # The face's top lies between the highest row and the next, on average half a beam
+    # spacing above the highest row (at 85 m on a 64-beam sensor, 0.3 m).
+    reject(g.top + 0.5 * g.beam_m < params.min_top_height, 'too_low')
+    # A pole: tall and narrow over 3+ rings (two rings of a sparse sensor across a diamond's
+    # tip are one beam spacing apart, not a measured height).
+    reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width)
+           & (g.n_rows >= 3), 'too_thin')
+    # A thin vertical plate facing the sensor (Cahail et al. s1.5 future work): PCA, ascending.
+    evals, evecs = np.linalg.eigh(g.cov)
+    evals = np.maximum(evals, 0.0)
+    testable = (counts >= params.flat_min_points) & \
+        (np.sqrt(evals[:, 1]) >= params.flat_min_spread)
+    thick = np.sqrt(evals[:, 0])
+    reject(testable & (thick > params.flat_thickness + params.flat_thickness_k * g.rng),
+           'not_flat')
+    normal = evecs[:, :, 0]
+    reject(testable & (np.abs(normal[:, 2]) > params.max_normal_z), 'not_vertical')
+    los = g.los
+    cos_i = np.abs((normal * los).sum(axis=1)) / np.maximum(np.linalg.norm(los, axis=1), 1e-9)
+    incidence = np.where(testable, np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))), np.nan)
+    reject(testable & (incidence > params.max_incidence), 'not_facing')
+    return incidence
+
+
+def _reject_hollow(g: _ClusterGeometry, params: ClusterParams, reject: _Rejector) -> None:
+    """Reject accepted clusters with a gap within a row wider than a sign face has."""
+    if params.hollow_frac < 1.0 and reject.ok.any():
+        hollow = np.zeros(g.n, bool)
+        for c in np.flatnonzero(reject.ok):
+            sel = g.order[g.start[c]:g.start[c] + g.counts[c]]
+            hollow[c] = widest_row_gap(g.lvl[sel], g.row_key[sel]) > max(
+                params.hollow_gap + params.hollow_gap_k * g.rng[c],
+                params.hollow_frac * g.width[c])
+        reject(hollow, 'hollow')
+
+
+def _reject_reflectors_below(g: _ClusterGeometry, pf: Prefiltered, params: ClusterParams,
+                             reject: _Rejector) -> None:
+    """Reflectors underneath (plates, tail reflectors, bumper tape): bright returns below the
+    cluster's footprint that are not part of it (under the band, or other clusters)."""
+    if params.max_bright_below >= 0 and reject.ok.any():
+        lo, hi = g.lo, g.hi
+        idx = np.flatnonzero(reject.ok)
+        m = params.below_margin
+        pool = np.vstack([g.lvl, pf.below_level])
+        pool_h = np.concatenate([g.hgt, pf.below_height])
+        plab = np.concatenate([g.labels, np.full(pf.below_level.shape[0], -1)])
+        inside = ((pool[None, :, 0] >= lo[idx, 0, None] - m)
+                  & (pool[None, :, 0] <= hi[idx, 0, None] + m)
+                  & (pool[None, :, 1] >= lo[idx, 1, None] - m)
+                  & (pool[None, :, 1] <= hi[idx, 1, None] + m)
+                  & (pool_h[None, :] <= g.bottom[idx, None] - params.below_gap)
+                  & (pool_h[None, :] >= params.below_clearance)
+                  & (plab[None, :] != idx[:, None]))
+        bad = np.zeros(g.n, bool)
+        bad[idx] = inside.sum(axis=1) > params.max_bright_below
+        reject(bad, 'reflectors_below')
+
+
+def _reject_dull(points: np.ndarray, g: _ClusterGeometry, pf: Prefiltered,
+                 params: ClusterParams, scale: float, reject: _Rejector) -> np.ndarray:
+    """Retroreflective, not just bright: far brighter than the dull returns around it.
+    Returns the contrast ratio per cluster (NaN where not measured)."""
+    ratio = np.full(g.n, np.nan)
+    if params.min_contrast > 0 and reject.ok.any():
+        order, start, counts = g.order, g.start, g.counts
+        idx = np.flatnonzero(reject.ok)
+        sx = pf.xyz[order]
+        llo = np.minimum.reduceat(sx, start, axis=0)[idx]
+        lhi = np.maximum.reduceat(sx, start, axis=0)[idx]
+        sraw = pf.intensity[order] / scale
+        med = np.array([np.median(sraw[start[c]:start[c] + counts[c]]) for c in idx])
+        ratio[idx] = contrast(points, params.min_intensity / scale, llo, lhi,
+                              _CONTRAST_MARGIN + _CONTRAST_MARGIN_K * g.rng[idx], med)
+        reject(np.nan_to_num(ratio, nan=np.inf) < params.min_contrast,
+               'not_retroreflective')
+    return ratio
+
+
+def _half_sizes(g: _ClusterGeometry, keep: np.ndarray, sensor_spacing: float,
+                top_el: float) -> np.ndarray:
+    """(len(keep), 3) measured half width, half height and box offset above the bounding-box
+    centre of the kept clusters (see :attr:`Candidates.half_size`)."""
+    center, ext, beam_m, n_rows = g.center, g.ext, g.beam_m, g.n_rows
+    half = np.zeros((keep.size, 3))
+    # A face reaching the sensor's top ring may go on above it, unseen (a sign close by,
+    # above a 64-beam sensor's +2 deg): the box grows upwards to the largest face.
+    edge = max(0.5 * np.nan_to_num(sensor_spacing), math.radians(0.1))
+    cut = g.el_hi >= top_el - edge if np.isfinite(top_el) else np.zeros(g.n, bool)
+    for j, c in enumerate(keep):
+        if n_rows[c] >= 2:
+            az = math.atan2(center[c, 1], center[c, 0])
+            across = g.lvl[g.order[g.start[c]:g.start[c] + g.counts[c]], :2] @ np.array(
+                [-math.sin(az), math.cos(az)])
+            hw, hh = 0.5 * np.ptp(across) + beam_m[c], 0.5 * ext[c, 2] + beam_m[c]
+            up = max(_LARGEST_FACE - ext[c, 2], beam_m[c]) if cut[c] else 0.0
+            if cut[c]:
+                hw = max(hw, 0.5 * _LARGEST_FACE)
+            half[j] = (hw, hh + 0.5 * up, 0.5 * up)
+    return half
+
+
+def _candidates(g: _ClusterGeometry, keep: np.ndarray, center_lidar: np.ndarray,
+                half: np.ndarray) -> Candidates:
+    """The kept clusters as :class:`Candidates` (ids are cluster indices)."""
+    ext, counts, n_rows = g.ext, g.counts, g.n_rows
+    return Candidates(
+        center=center_lidar[keep], radius=0.5 * np.linalg.norm(ext[keep], axis=1),
+        intensity=g.mi[keep], count=counts[keep].astype(np.int64), extent=ext[keep],
+        ids=keep.astype(np.int64), confirmed=np.ones(keep.size, bool),
+        cluster=keep.astype(np.int64), half_size=half, rows=n_rows[keep])
+
+
 def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *,
                   intensity_scale: Optional[float] = None,
                   ground_prior: Optional[GroundPlane] = None,
@@ -585,126 +775,23 @@ def cluster_cloud(points: np.ndarray, params: ClusterParams = ClusterParams(), *
     if pf.xyz.shape[0] == 0:
         return ClusterResult(Candidates.empty(), pf.xyz, pf.intensity, pf.index,
                              np.zeros(0, np.int64), 0, rejected, **extra)
-    lvl, hgt = pf.level, pf.height
-    labels = region_grow(_rings_closer(lvl, params, sensor_spacing), params.cluster_d0,
+    labels = region_grow(_rings_closer(pf.level, params, sensor_spacing), params.cluster_d0,
                          params.cluster_k, params.voxel)
     n = int(labels.max()) + 1
-    lo, hi, mean, mi, counts, cov, order, start = cluster_stats(lvl, pf.intensity, labels, n)
-    top = np.maximum.reduceat(hgt[order], start)
-    bottom = np.minimum.reduceat(hgt[order], start)
-    ext = hi - lo
-    center = 0.5 * (lo + hi)
-    rng = np.hypot(center[:, 0], center[:, 1])
-    los = mean - np.array([0.0, 0.0, mount.height])           # sensor -> cluster
-    dist = np.linalg.norm(los, axis=1)
-    rings = points['ring'] if 'ring' in (points.dtype.names or ()) else None
-    row_key, n_rows, spacing, el_hi = rows(pf.xyz, labels, n,
-                                           None if rings is None else rings[pf.index])
-    # One beam spacing at the cluster's range: how far the face may extend beyond its
-    # outermost rows unseen (0 on a single row: unknown).
-    beam_m = np.nan_to_num(spacing * dist)
-    width = np.hypot(ext[:, 0], ext[:, 1])
-    ok = np.ones(n, bool)
-    why = np.full(n, -1, np.int64)
-
-    def reject(mask: np.ndarray, reason: str) -> None:
-        nonlocal ok
-        hit = ok & mask
-        rejected[reason] = int(hit.sum())
-        why[hit] = REJECT_REASONS.index(reason)
-        ok = ok & ~mask
-
-    # Check-to-add (Cahail et al. s1.3): point count, bounding box within sign sizes.
-    reject(counts < params.min_points, 'few_points')
-    reject((width > params.max_width) | (ext[:, 2] > params.max_height), 'too_large')
-    reject(np.maximum(width, ext[:, 2]) < params.min_size, 'too_small')
-    # Height on the cluster: its top must reach sign height (drums, cones, plates do not).
-    # The face's top lies between the highest row and the next, on average half a beam
-    # spacing above the highest row (at 85 m on a 64-beam sensor, 0.3 m).
-    reject(top + 0.5 * beam_m < params.min_top_height, 'too_low')
-    # A pole: tall and narrow over 3+ rings (two rings of a sparse sensor across a diamond's
-    # tip are one beam spacing apart, not a measured height).
-    reject((ext[:, 2] > params.thin_height) & (ext[:, 2] > params.max_aspect * width)
-           & (n_rows >= 3), 'too_thin')
-    # A thin vertical plate facing the sensor (Cahail et al. s1.5 future work): PCA, ascending.
-    evals, evecs = np.linalg.eigh(cov)
-    evals = np.maximum(evals, 0.0)
-    testable = (counts >= params.flat_min_points) & \
-        (np.sqrt(evals[:, 1]) >= params.flat_min_spread)
-    thick = np.sqrt(evals[:, 0])
-    reject(testable & (thick > params.flat_thickness + params.flat_thickness_k * rng),
-           'not_flat')
-    normal = evecs[:, :, 0]
-    reject(testable & (np.abs(normal[:, 2]) > params.max_normal_z), 'not_vertical')
-    cos_i = np.abs((normal * los).sum(axis=1)) / np.maximum(np.linalg.norm(los, axis=1), 1e-9)
-    incidence = np.where(testable, np.degrees(np.arccos(np.clip(cos_i, 0.0, 1.0))), np.nan)
-    reject(testable & (incidence > params.max_incidence), 'not_facing')
-    if params.hollow_frac < 1.0 and ok.any():
-        hollow = np.zeros(n, bool)
-        for c in np.flatnonzero(ok):
-            sel = order[start[c]:start[c] + counts[c]]
-            hollow[c] = widest_row_gap(lvl[sel], row_key[sel]) > max(
-                params.hollow_gap + params.hollow_gap_k * rng[c], params.hollow_frac * width[c])
-        reject(hollow, 'hollow')
-    # Reflectors underneath (plates, tail reflectors, bumper tape): bright returns below the
-    # cluster's footprint that are not part of it (under the band, or other clusters).
-    if params.max_bright_below >= 0 and ok.any():
-        idx = np.flatnonzero(ok)
-        m = params.below_margin
-        pool = np.vstack([lvl, pf.below_level])
-        pool_h = np.concatenate([hgt, pf.below_height])
-        plab = np.concatenate([labels, np.full(pf.below_level.shape[0], -1)])
-        inside = ((pool[None, :, 0] >= lo[idx, 0, None] - m)
-                  & (pool[None, :, 0] <= hi[idx, 0, None] + m)
-                  & (pool[None, :, 1] >= lo[idx, 1, None] - m)
-                  & (pool[None, :, 1] <= hi[idx, 1, None] + m)
-                  & (pool_h[None, :] <= bottom[idx, None] - params.below_gap)
-                  & (pool_h[None, :] >= params.below_clearance)
-                  & (plab[None, :] != idx[:, None]))
-        bad = np.zeros(n, bool)
-        bad[idx] = inside.sum(axis=1) > params.max_bright_below
-        reject(bad, 'reflectors_below')
-    # Retroreflective, not just bright: far brighter than the dull returns around it.
-    ratio = np.full(n, np.nan)
-    if params.min_contrast > 0 and ok.any():
-        idx = np.flatnonzero(ok)
-        sx = pf.xyz[order]
-        llo = np.minimum.reduceat(sx, start, axis=0)[idx]
-        lhi = np.maximum.reduceat(sx, start, axis=0)[idx]
-        sraw = pf.intensity[order] / scale
-        med = np.array([np.median(sraw[start[c]:start[c] + counts[c]]) for c in idx])
-        ratio[idx] = contrast(points, params.min_intensity / scale, llo, lhi,
-                                  _CONTRAST_MARGIN + _CONTRAST_MARGIN_K * rng[idx], med)
-        reject(np.nan_to_num(ratio, nan=np.inf) < params.min_contrast,
-               'not_retroreflective')
-    keep = np.flatnonzero(ok)
-    half = np.zeros((keep.size, 3))
-    # A face reaching the sensor's top ring may go on above it, unseen (a sign close by,
-    # above a 64-beam sensor's +2 deg): the box grows upwards to the largest face.
-    edge = max(0.5 * np.nan_to_num(sensor_spacing), math.radians(0.1))
-    cut = el_hi >= top_el - edge if np.isfinite(top_el) else np.zeros(n, bool)
-    for j, c in enumerate(keep):
-        if n_rows[c] >= 2:
-            az = math.atan2(center[c, 1], center[c, 0])
-            across = lvl[order[start[c]:start[c] + counts[c]], :2] @ np.array(
-                [-math.sin(az), math.cos(az)])
-            hw, hh = 0.5 * np.ptp(across) + beam_m[c], 0.5 * ext[c, 2] + beam_m[c]
-            up = max(_LARGEST_FACE - ext[c, 2], beam_m[c]) if cut[c] else 0.0
-            if cut[c]:
-                hw = max(hw, 0.5 * _LARGEST_FACE)
-            half[j] = (hw, hh + 0.5 * up, 0.5 * up)
-    center_lidar = mount.to_lidar(center)
-    cands = Candidates(
-        center=center_lidar[keep], radius=0.5 * np.linalg.norm(ext[keep], axis=1),
-        intensity=mi[keep], count=counts[keep].astype(np.int64), extent=ext[keep],
-        ids=keep.astype(np.int64), confirmed=np.ones(keep.size, bool),
-        cluster=keep.astype(np.int64), half_size=half, rows=n_rows[keep])
-    table = {'center': center_lidar, 'count': counts, 'rows': n_rows, 'top': top,
-             'width': width, 'height': ext[:, 2], 'intensity': mi, 'contrast': ratio,
+    g = _cluster_geometry(points, pf, labels, n, mount)
+    reject = _Rejector(n, rejected)
+    incidence = _reject_by_shape(g, params, reject)
+    _reject_hollow(g, params, reject)
+    _reject_reflectors_below(g, pf, params, reject)
+    ratio = _reject_dull(points, g, pf, params, scale, reject)
+    keep = np.flatnonzero(reject.ok)
+    center_lidar = mount.to_lidar(g.center)
+    cands = _candidates(g, keep, center_lidar, _half_sizes(g, keep, sensor_spacing, top_el))
+    table = {'center': center_lidar, 'count': g.counts, 'rows': g.n_rows, 'top': g.top,
+             'width': g.width, 'height': g.ext[:, 2], 'intensity': g.mi, 'contrast': ratio,
              'incidence': incidence}
-    return ClusterResult(cands, pf.xyz, pf.intensity, pf.index, labels, n, rejected, why,
-                         clusters=table, **extra)
-
+    return ClusterResult(cands, pf.xyz, pf.intensity, pf.index, labels, n, rejected,
+                         reject.why, clusters=table, **extra)
 
 def candidates_to_array(cands: Candidates, only_confirmed: bool = True) -> np.ndarray:
     """Pack candidates into :data:`SIZED_CANDIDATE_DTYPE` rows for a PointCloud2."""

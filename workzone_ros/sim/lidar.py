@@ -73,6 +73,7 @@ objects at once, and only the rays in that window are tested, vectorised.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -109,6 +110,182 @@ __all__ = ['LidarError', 'LidarModel', 'LIDAR_PRESETS', 'DEFAULT_PRESET', 'Scan'
 _KNOTS = 9
 
 
+@dataclass
+class _Spin:
+    """The sensor's motion over one revolution: knots and per-column poses, world frame."""
+
+    tk: np.ndarray          # (_KNOTS,) knot times
+    pos_k: np.ndarray       # (_KNOTS, 3) knot positions
+    ang_k: np.ndarray       # (_KNOTS, 3) knot yaw (unwrapped), pitch, roll
+    R_k: np.ndarray         # (_KNOTS, 3, 3) knot rotations
+    tc: np.ndarray          # (nc,) column firing times
+    pos_c: np.ndarray       # (nc, 3) column positions
+    D: np.ndarray           # (N, 3) world ray directions
+
+
+@dataclass
+class _Hits:
+    """Nearest hit per ray so far: distance, object (index into table.objs, -1 ground),
+    material, cosine of incidence and whether it is a sign's front face."""
+
+    t_best: np.ndarray
+    code: np.ndarray
+    mat: np.ndarray
+    cosi: np.ndarray
+    front: np.ndarray
+
+
+def _spin_poses(t0: float, spin: float, lidar_pose_at: Callable[[float], Pose],
+                rays) -> _Spin:
+    """Sensor pose per column, interpolated from knots, and the rays' world directions."""
+    nc, nb = rays.n_cols, rays.n_beams
+    tk = t0 + np.linspace(0.0, spin, _KNOTS)
+    poses = [lidar_pose_at(float(t)) for t in tk]
+    pos_k = np.array([np.asarray(p.position, float) for p in poses])
+    ang_k = np.array([[p.yaw, p.pitch, p.roll] for p in poses], dtype=float)
+    ang_k[:, 0] = np.unwrap(ang_k[:, 0])
+    tc = t0 + rays.col_frac * spin
+    pos_c = np.stack([np.interp(tc, tk, pos_k[:, i]) for i in range(3)], axis=1)
+    ang_c = [np.interp(tc, tk, ang_k[:, i]) for i in range(3)]
+    R_c = _rot_batch(*ang_c)                                   # (nc, 3, 3)
+    R_k = _rot_batch(ang_k[:, 0], ang_k[:, 1], ang_k[:, 2])
+    L = rays.local.reshape(nc, nb, 3)
+    D = np.matmul(L, R_c.transpose(0, 2, 1)).reshape(-1, 3)   # world directions (N, 3)
+    return _Spin(tk, pos_k, ang_k, R_k, tc, pos_c, D)
+
+
+def _ground_hits(sp: _Spin, nb: int) -> _Hits:
+    """Hits on the ground plane z = 0 (rays pointing down)."""
+    D = sp.D
+    N = D.shape[0]
+    oz = np.repeat(sp.pos_c[:, 2], nb)
+    dz = D[:, 2]
+    t_best = np.full(N, np.inf)
+    down = dz < -1e-9
+    t_best[down] = -oz[down] / dz[down]
+    code = np.full(N, -1, dtype=np.int32)                      # index into table.objs
+    mat = np.zeros(N, dtype=np.int16)
+    cosi = np.abs(dz)
+    front = np.zeros(N, dtype=bool)
+    return _Hits(t_best, code, mat, cosi, front)
+
+
+def _candidate_objects(table, model: LidarModel, sp: _Spin, t0: float,
+                       spin: float) -> np.ndarray:
+    """Indices into table.objs of the objects within reach of this revolution."""
+    n_obj = len(table.objs)
+    if n_obj:
+        pos_k = sp.pos_k
+        travel = float(np.linalg.norm(pos_k[-1] - pos_k[0]))
+        ctr = table.centre + table.vel * t0
+        reach = (model.max_range + table.radius + travel
+                 + np.linalg.norm(table.vel, axis=1) * spin + 1.0)
+        return np.flatnonzero(np.linalg.norm(ctr - pos_k[0], axis=1) < reach)
+    return np.zeros(0, dtype=int)
+
+
+def _hit_object(table, oi, O_b: np.ndarray, D_b: np.ndarray, T_b: np.ndarray):
+    """Intersect rays with object ``oi`` of the table: (t, material, cos, front) per ray."""
+    kind, ex = table.kinds[oi], table.extra[oi]
+    if kind == _SIGN:
+        return _hit_sign(ex, O_b, D_b, T_b)
+    if kind == _CYL:
+        return _hit_cylinder(ex, O_b, D_b, T_b)
+    if kind == _CONE:
+        return _hit_cone(ex, O_b, D_b, T_b)
+    if kind == _BOX:
+        return _hit_box(ex, O_b, D_b, T_b, table.vel[oi])
+    return _hit_quad(ex, O_b, D_b, T_b)
+
+
+def _cast_objects(table, model: LidarModel, rays, sp: _Spin, cand: np.ndarray,
+                  hits: _Hits) -> None:
+    """Objects: cull by azimuth / elevation window, then intersect, nearest first."""
+    nc, nb = rays.n_cols, rays.n_beams
+    t_best = hits.t_best
+    tilt = float(np.max(np.abs(sp.ang_k[:, 1]) + np.abs(sp.ang_k[:, 2])))
+    col_lo, col_hi, full, b_lo, b_hi, dmin = _windows(
+        table, cand, sp.tk, sp.pos_k, sp.R_k, tilt, rays)
+    all_cols = np.arange(nc)
+    for j in np.argsort(dmin, kind='stable'):      # near first: occluders prune the rest
+        if b_hi[j] <= b_lo[j] or dmin[j] > model.max_range:
+            continue
+        oi = cand[j]
+        cols = all_cols if full[j] else np.arange(col_lo[j], col_hi[j] + 1) % nc
+        idx = (cols[:, None] * nb + np.arange(b_lo[j], b_hi[j])[None, :]).ravel()
+        idx = idx[t_best[idx] > dmin[j]]            # rays already stopped nearer
+        if not idx.size:
+            continue
+        col_of = idx // nb
+        O_b, D_b = np.take(sp.pos_c, col_of, axis=0), np.take(sp.D, idx, axis=0)
+        T_b = sp.tc.take(col_of)
+        t, m, ci, fr = _hit_object(table, oi, O_b, D_b, T_b)
+        better = t < t_best[idx]
+        if not better.any():
+            continue
+        k = idx[better]
+        t_best[k] = t[better]
+        hits.code[k] = oi
+        hits.mat[k] = m[better]
+        hits.cosi[k] = ci[better]
+        hits.front[k] = fr[better]
+
+
+def _ground_material(scene: Scene, table, sp: _Spin, nb: int, keep: np.ndarray,
+                     t_k: np.ndarray, code_k: np.ndarray, mat_k: np.ndarray) -> None:
+    """Set the road / shoulder material of the kept ground returns in ``mat_k``."""
+    ground = code_k < 0
+    if ground.any():
+        pos_c, pos_k = sp.pos_c, sp.pos_k
+        gi = keep[ground]
+        col_g = gi // nb
+        D_g, t_g = np.take(sp.D, gi, axis=0), t_k[ground]
+        gx = pos_c[:, 0].take(col_g) + t_g * D_g[:, 0]
+        gy = pos_c[:, 1].take(col_g) + t_g * D_g[:, 1]
+        road = scene.road
+        s0 = float(road.s[np.argmin((road.x - pos_k[0, 0]) ** 2 + (road.y - pos_k[0, 1]) ** 2)])
+        mat_k[ground] = _ground_materials(scene, table, gx, gy, s0)
+
+
+def _returns(model: LidarModel, table, rng, t_k: np.ndarray, code_k: np.ndarray,
+             mat_k: np.ndarray, cos_k: np.ndarray, front_k: np.ndarray):
+    """Noisy ranges (float32), intensities (0-255, float32) and the sign-face returns."""
+    n = t_k.size
+    r = t_k.astype(np.float32)
+    if model.range_noise_m:
+        r += np.float32(model.range_noise_m) * rng.standard_normal(n, dtype=np.float32)
+    refl = _REFL32.take(mat_k)
+    cos_k = cos_k.astype(np.float32)
+    tk32 = t_k.astype(np.float32)
+    inten = refl * (0.2 + 0.8 * cos_k) * (255.0 / (1.0 + (tk32 * np.float32(1 / 80.0)) ** 2))
+    retro = np.flatnonzero(_RETRO.take(mat_k))
+    if retro.size:
+        frac = tk32[retro] * np.float32(1.0 / model.max_range)
+        inten[retro] = 255.0 * refl[retro] * (0.85 + 0.15 * cos_k[retro]) * (
+            1.0 - 0.25 * frac * frac)
+    faces = np.flatnonzero(front_k)
+    if faces.size:
+        inten[faces] *= table.face_gain.take(code_k[faces])
+    # 5 % multiplicative and 1.0 additive noise, drawn as one Gaussian.
+    inten += np.sqrt((0.05 * inten) ** 2 + 1.0) * rng.standard_normal(n, dtype=np.float32)
+    np.clip(inten, 0.0, 255.0, out=inten)
+    return r, inten, faces
+
+
+def _sign_hits(table, code_k: np.ndarray, faces: np.ndarray) -> dict[int, np.ndarray]:
+    """Sign object id -> sorted indices of its face returns."""
+    sign_hits: dict[int, np.ndarray] = {}
+    face_pts = faces
+    if face_pts.size:
+        codes = code_k[face_pts]
+        order = np.argsort(codes, kind='stable')
+        codes, face_pts = codes[order], face_pts[order]
+        splits = np.flatnonzero(np.diff(codes)) + 1
+        for grp_codes, grp in zip(np.split(codes, splits), np.split(face_pts, splits)):
+            sign_hits[int(table.objs[grp_codes[0]].object_id)] = np.sort(grp)
+    return sign_hits
+
+
 def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
               model: LidarModel = LidarModel(), seed: int = 0, scan_index: int = 0) -> Scan:
     """Ray-cast one revolution of the LiDAR against the scene.
@@ -132,134 +309,28 @@ def cast_scan(scene: Scene, t0: float, lidar_pose_at: Callable[[float], Pose],
     """
     rays = _ray_table(model)
     table = _table_for(scene)
-    nc, nb = rays.n_cols, rays.n_beams
+    nb = rays.n_beams
     spin = 1.0 / model.rate_hz
-
-    # Sensor pose per column, interpolated from knots.
-    tk = t0 + np.linspace(0.0, spin, _KNOTS)
-    poses = [lidar_pose_at(float(t)) for t in tk]
-    pos_k = np.array([np.asarray(p.position, float) for p in poses])
-    ang_k = np.array([[p.yaw, p.pitch, p.roll] for p in poses], dtype=float)
-    ang_k[:, 0] = np.unwrap(ang_k[:, 0])
-    tc = t0 + rays.col_frac * spin
-    pos_c = np.stack([np.interp(tc, tk, pos_k[:, i]) for i in range(3)], axis=1)
-    ang_c = [np.interp(tc, tk, ang_k[:, i]) for i in range(3)]
-    R_c = _rot_batch(*ang_c)                                   # (nc, 3, 3)
-    R_k = _rot_batch(ang_k[:, 0], ang_k[:, 1], ang_k[:, 2])
-    L = rays.local.reshape(nc, nb, 3)
-    D = np.matmul(L, R_c.transpose(0, 2, 1)).reshape(-1, 3)   # world directions (N, 3)
-    N = D.shape[0]
-
-    # Ground plane z = 0.
-    oz = np.repeat(pos_c[:, 2], nb)
-    dz = D[:, 2]
-    t_best = np.full(N, np.inf)
-    down = dz < -1e-9
-    t_best[down] = -oz[down] / dz[down]
-    code = np.full(N, -1, dtype=np.int32)                      # index into table.objs
-    mat = np.zeros(N, dtype=np.int16)
-    cosi = np.abs(dz)
-    front = np.zeros(N, dtype=bool)
-
-    # Objects: cull by range, then by azimuth / elevation window.
-    n_obj = len(table.objs)
-    if n_obj:
-        travel = float(np.linalg.norm(pos_k[-1] - pos_k[0]))
-        ctr = table.centre + table.vel * t0
-        reach = (model.max_range + table.radius + travel
-                 + np.linalg.norm(table.vel, axis=1) * spin + 1.0)
-        cand = np.flatnonzero(np.linalg.norm(ctr - pos_k[0], axis=1) < reach)
-    else:
-        cand = np.zeros(0, dtype=int)
+    sp = _spin_poses(t0, spin, lidar_pose_at, rays)
+    hits = _ground_hits(sp, nb)
+    cand = _candidate_objects(table, model, sp, t0, spin)
     if cand.size:
-        tilt = float(np.max(np.abs(ang_k[:, 1]) + np.abs(ang_k[:, 2])))
-        col_lo, col_hi, full, b_lo, b_hi, dmin = _windows(
-            table, cand, tk, pos_k, R_k, tilt, rays)
-        all_cols = np.arange(nc)
-        for j in np.argsort(dmin, kind='stable'):      # near first: occluders prune the rest
-            if b_hi[j] <= b_lo[j] or dmin[j] > model.max_range:
-                continue
-            oi = cand[j]
-            cols = all_cols if full[j] else np.arange(col_lo[j], col_hi[j] + 1) % nc
-            idx = (cols[:, None] * nb + np.arange(b_lo[j], b_hi[j])[None, :]).ravel()
-            idx = idx[t_best[idx] > dmin[j]]            # rays already stopped nearer
-            if not idx.size:
-                continue
-            col_of = idx // nb
-            O_b, D_b = np.take(pos_c, col_of, axis=0), np.take(D, idx, axis=0)
-            T_b = tc.take(col_of)
-            kind, ex = table.kinds[oi], table.extra[oi]
-            if kind == _SIGN:
-                t, m, ci, fr = _hit_sign(ex, O_b, D_b, T_b)
-            elif kind == _CYL:
-                t, m, ci, fr = _hit_cylinder(ex, O_b, D_b, T_b)
-            elif kind == _CONE:
-                t, m, ci, fr = _hit_cone(ex, O_b, D_b, T_b)
-            elif kind == _BOX:
-                t, m, ci, fr = _hit_box(ex, O_b, D_b, T_b, table.vel[oi])
-            else:
-                t, m, ci, fr = _hit_quad(ex, O_b, D_b, T_b)
-            better = t < t_best[idx]
-            if not better.any():
-                continue
-            k = idx[better]
-            t_best[k] = t[better]
-            code[k] = oi
-            mat[k] = m[better]
-            cosi[k] = ci[better]
-            front[k] = fr[better]
+        _cast_objects(table, model, rays, sp, cand, hits)
 
     # Returns in range, then random dropouts.
     rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, int(scan_index) & 0xFFFFFFFF])
+    t_best = hits.t_best
     valid = (t_best >= model.min_range) & (t_best <= model.max_range)
     keep = np.flatnonzero(valid)
     keep = keep[rng.random(keep.size) >= model.dropout]
-    t_k, code_k = t_best[keep], code[keep]
-    mat_k, cos_k = mat[keep], np.minimum(cosi[keep], 1.0)
-
-    ground = code_k < 0
-    if ground.any():
-        gi = keep[ground]
-        col_g = gi // nb
-        D_g, t_g = np.take(D, gi, axis=0), t_k[ground]
-        gx = pos_c[:, 0].take(col_g) + t_g * D_g[:, 0]
-        gy = pos_c[:, 1].take(col_g) + t_g * D_g[:, 1]
-        road = scene.road
-        s0 = float(road.s[np.argmin((road.x - pos_k[0, 0]) ** 2 + (road.y - pos_k[0, 1]) ** 2)])
-        mat_k[ground] = _ground_materials(scene, table, gx, gy, s0)
-
-    n = keep.size
-    r = t_k.astype(np.float32)
-    if model.range_noise_m:
-        r += np.float32(model.range_noise_m) * rng.standard_normal(n, dtype=np.float32)
-    refl = _REFL32.take(mat_k)
-    cos_k = cos_k.astype(np.float32)
-    tk32 = t_k.astype(np.float32)
-    inten = refl * (0.2 + 0.8 * cos_k) * (255.0 / (1.0 + (tk32 * np.float32(1 / 80.0)) ** 2))
-    retro = np.flatnonzero(_RETRO.take(mat_k))
-    if retro.size:
-        frac = tk32[retro] * np.float32(1.0 / model.max_range)
-        inten[retro] = 255.0 * refl[retro] * (0.85 + 0.15 * cos_k[retro]) * (
-            1.0 - 0.25 * frac * frac)
-    faces = np.flatnonzero(front[keep])
-    if faces.size:
-        inten[faces] *= table.face_gain.take(code_k[faces])
-    # 5 % multiplicative and 1.0 additive noise, drawn as one Gaussian.
-    inten += np.sqrt((0.05 * inten) ** 2 + 1.0) * rng.standard_normal(n, dtype=np.float32)
-    np.clip(inten, 0.0, 255.0, out=inten)
+    t_k, code_k = t_best[keep], hits.code[keep]
+    mat_k, cos_k = hits.mat[keep], np.minimum(hits.cosi[keep], 1.0)
+    _ground_material(scene, table, sp, nb, keep, t_k, code_k, mat_k)
+    r, inten, faces = _returns(model, table, rng, t_k, code_k, mat_k, cos_k, hits.front[keep])
 
     points = make_points(x=rays.lx.take(keep) * r, y=rays.ly.take(keep) * r,
                          z=rays.lz.take(keep) * r, intensity=inten, ring=rays.ring.take(keep))
     ids_table = table.ids
     object_ids = np.where(code_k >= 0, ids_table[np.maximum(code_k, 0)] if ids_table.size
                           else -1, -1).astype(np.int32)
-    sign_hits: dict[int, np.ndarray] = {}
-    face_pts = faces
-    if face_pts.size:
-        codes = code_k[face_pts]
-        order = np.argsort(codes, kind='stable')
-        codes, face_pts = codes[order], face_pts[order]
-        splits = np.flatnonzero(np.diff(codes)) + 1
-        for grp_codes, grp in zip(np.split(codes, splits), np.split(face_pts, splits)):
-            sign_hits[int(table.objs[grp_codes[0]].object_id)] = np.sort(grp)
-    return Scan(points, object_ids, sign_hits)
+    return Scan(points, object_ids, _sign_hits(table, code_k, faces))

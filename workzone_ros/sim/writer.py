@@ -460,6 +460,101 @@ def _progress_printer(stream=sys.stderr) -> Callable[[str], None]:
     return emit
 
 
+def _open_bag_writer(tmp: Path, opts: SynthOptions):
+    """A :class:`~workzone_ros.bagio.BagWriter` at ``tmp`` with the synth topics added."""
+    from workzone_ros.bagio import BagWriter
+
+    bag = BagWriter(tmp, storage=opts.storage)
+    image_key = 'compressed' if opts.compressed else 'image'
+    types = {'image': 'sensor_msgs/msg/Image',
+             'compressed': 'sensor_msgs/msg/CompressedImage',
+             'camera_info': 'sensor_msgs/msg/CameraInfo',
+             'points': 'sensor_msgs/msg/PointCloud2', 'odom': 'nav_msgs/msg/Odometry',
+             'tf_static': 'tf2_msgs/msg/TFMessage', 'gt_signs': 'std_msgs/msg/String',
+             'gt_lidar': 'std_msgs/msg/String', 'gt_workzone': 'std_msgs/msg/String'}
+    qos = {'tf_static': 'transient_local', 'gt_workzone': 'transient_local'}
+    for key in (image_key, 'camera_info', 'points', 'odom', 'tf_static', 'gt_signs',
+                'gt_lidar', 'gt_workzone'):
+        bag.add_topic(TOPICS[key], types[key], qos=qos.get(key, 'reliable'))
+    return bag
+
+
+class _OdomFlusher:
+    """Writes the odometry messages due up to a time, in order, each once."""
+
+    def __init__(self, world: _World, odom_t: np.ndarray,
+                 put: Callable[[int, str, bytes], None]) -> None:
+        self.world, self.odom_t, self.put = world, odom_t, put
+        self.oi = 0
+
+    def __call__(self, upto_ns: int) -> None:
+        world, odom_t = self.world, self.odom_t
+        while self.oi < len(odom_t) and _ns(odom_t[self.oi]) <= upto_ns:
+            t = float(odom_t[self.oi])
+            lin, ang = world.ego.twist(t)
+            o_ns = _ns(t)
+            self.put(o_ns, 'odom', world.msgs.odom(o_ns, world.ego.base_pose(t), lin, ang))
+            self.oi += 1
+
+
+def _write_results(spec: ScenarioSpec, opts: SynthOptions, tasks: list, world: _World,
+                   put: Callable[[int, str, bytes], None], flush_odom: _OdomFlusher,
+                   n_frames: int, n_scans: int, started: float,
+                   progress: Optional[Callable[[str], None]]) -> None:
+    """Write the rendered frames and scans in time order (odometry interleaved), reporting
+    progress about every 2 s."""
+    done_f = done_s = 0
+    last = started
+    for result in _results(spec, opts, tasks, world):
+        flush_odom(result[0][0])
+        for t_ns, key, data in result:
+            put(t_ns, key, data)
+        if result[0][1] == 'points':
+            done_s += 1
+        else:
+            done_f += 1
+        now = time.monotonic()
+        if progress is not None and now - last >= 2.0:
+            last = now
+            frac = (done_f + done_s) / max(len(tasks), 1)
+            el = now - started
+            eta = f'{el / frac - el:.0f} s' if frac >= 0.03 else '?'
+            progress(f'synth {spec.name}: frames {done_f}/{n_frames}, scans '
+                     f'{done_s}/{n_scans}, {el:.0f} s elapsed, ETA {eta}')
+
+
+def _schedule(duration: float, latency_ms: float):
+    """Camera frame times, LiDAR scan times, odometry times, the render tasks in write order
+    and the bag's end stamp (ns)."""
+    frames, scans = frame_times(duration), scan_times(duration, latency_ms)
+    odom_t = np.arange(int(math.ceil(duration * ODOM_HZ - 1e-9))) / ODOM_HZ
+    tasks = sorted([('frame', k, float(t)) for k, t in enumerate(frames)]
+                   + [('scan', j, float(t)) for j, t in enumerate(scans)],
+                   key=lambda x: (x[2], x[0] == 'scan'))
+    end_ns = _ns(max(duration, frames[-1] if len(frames) else 0.0))
+    return frames, scans, odom_t, tasks, end_ns
+
+
+def _write_all(bag, spec: ScenarioSpec, opts: SynthOptions, world: _World, tasks: list,
+               odom_t: np.ndarray, end_ns: int, n_frames: int, n_scans: int, started: float,
+               progress: Optional[Callable[[str], None]]) -> None:
+    """Write every message of the run: static transforms and work-zone ground truth, then
+    frames, scans and odometry in time order, then the closing ground truth."""
+    msgs, duration = world.msgs, spec.duration
+
+    def put(t_ns: int, key: str, data: bytes) -> None:
+        bag.write(TOPICS[key], t_ns, data)
+
+    t0_ns = _ns(0.0)
+    put(t0_ns, 'tf_static', msgs.tf_static(t0_ns))
+    put(t0_ns, 'gt_workzone', msgs.string(encode(_gt_workzone(world, duration, t0_ns))))
+    flush_odom = _OdomFlusher(world, odom_t, put)
+    _write_results(spec, opts, tasks, world, put, flush_odom, n_frames, n_scans, started,
+                   progress)
+    flush_odom(end_ns)
+    put(end_ns, 'gt_workzone', msgs.string(encode(_gt_workzone(world, duration, end_ns))))
+
+
 def write_bag(spec: ScenarioSpec, out: str | Path, opts: SynthOptions = SynthOptions(),
               overwrite: bool = False,
               progress: Optional[Callable[[str], None]] = _progress_printer()) -> BagSummary:
@@ -479,7 +574,7 @@ def write_bag(spec: ScenarioSpec, out: str | Path, opts: SynthOptions = SynthOpt
         SynthError: output exists, cannot be written, or bad options.
         ScenarioError: the scenario cannot be built.
     """
-    from workzone_ros.bagio import BagError, BagWriter
+    from workzone_ros.bagio import BagError
 
     started = time.monotonic()
     out = Path(out)
@@ -488,69 +583,15 @@ def write_bag(spec: ScenarioSpec, out: str | Path, opts: SynthOptions = SynthOpt
         raise SynthError(f'latency must be in [0, {1000 // LIDAR_HZ}) ms, got {opts.latency_ms}')
     spec = spec.with_overrides(opts.duration, opts.speed)
     world = _World(spec, opts)
-    duration = spec.duration
-    frames, scans = frame_times(duration), scan_times(duration, opts.latency_ms)
-    odom_t = np.arange(int(math.ceil(duration * ODOM_HZ - 1e-9))) / ODOM_HZ
-    tasks = sorted([('frame', k, float(t)) for k, t in enumerate(frames)]
-                   + [('scan', j, float(t)) for j, t in enumerate(scans)],
-                   key=lambda x: (x[2], x[0] == 'scan'))
-    end_ns = _ns(max(duration, frames[-1] if len(frames) else 0.0))
+    frames, scans, odom_t, tasks, end_ns = _schedule(spec.duration, opts.latency_ms)
 
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp_root = Path(tempfile.mkdtemp(prefix=f'.{out.name}.', dir=out.parent))
     tmp = tmp_root / out.name
-    msgs = world.msgs
     try:
-        bag = BagWriter(tmp, storage=opts.storage)
-        image_key = 'compressed' if opts.compressed else 'image'
-        types = {'image': 'sensor_msgs/msg/Image',
-                 'compressed': 'sensor_msgs/msg/CompressedImage',
-                 'camera_info': 'sensor_msgs/msg/CameraInfo',
-                 'points': 'sensor_msgs/msg/PointCloud2', 'odom': 'nav_msgs/msg/Odometry',
-                 'tf_static': 'tf2_msgs/msg/TFMessage', 'gt_signs': 'std_msgs/msg/String',
-                 'gt_lidar': 'std_msgs/msg/String', 'gt_workzone': 'std_msgs/msg/String'}
-        qos = {'tf_static': 'transient_local', 'gt_workzone': 'transient_local'}
-        for key in (image_key, 'camera_info', 'points', 'odom', 'tf_static', 'gt_signs',
-                    'gt_lidar', 'gt_workzone'):
-            bag.add_topic(TOPICS[key], types[key], qos=qos.get(key, 'reliable'))
-
-        def put(t_ns: int, key: str, data: bytes) -> None:
-            bag.write(TOPICS[key], t_ns, data)
-
-        t0_ns = _ns(0.0)
-        put(t0_ns, 'tf_static', msgs.tf_static(t0_ns))
-        put(t0_ns, 'gt_workzone', msgs.string(encode(_gt_workzone(world, duration, t0_ns))))
-        oi = 0
-
-        def flush_odom(upto_ns: int) -> None:
-            nonlocal oi
-            while oi < len(odom_t) and _ns(odom_t[oi]) <= upto_ns:
-                t = float(odom_t[oi])
-                lin, ang = world.ego.twist(t)
-                o_ns = _ns(t)
-                put(o_ns, 'odom', msgs.odom(o_ns, world.ego.base_pose(t), lin, ang))
-                oi += 1
-
-        done_f = done_s = 0
-        last = started
-        for result in _results(spec, opts, tasks, world):
-            flush_odom(result[0][0])
-            for t_ns, key, data in result:
-                put(t_ns, key, data)
-            if result[0][1] == 'points':
-                done_s += 1
-            else:
-                done_f += 1
-            now = time.monotonic()
-            if progress is not None and now - last >= 2.0:
-                last = now
-                frac = (done_f + done_s) / max(len(tasks), 1)
-                el = now - started
-                eta = f'{el / frac - el:.0f} s' if frac >= 0.03 else '?'
-                progress(f'synth {spec.name}: frames {done_f}/{len(frames)}, scans '
-                         f'{done_s}/{len(scans)}, {el:.0f} s elapsed, ETA {eta}')
-        flush_odom(end_ns)
-        put(end_ns, 'gt_workzone', msgs.string(encode(_gt_workzone(world, duration, end_ns))))
+        bag = _open_bag_writer(tmp, opts)
+        _write_all(bag, spec, opts, world, tasks, odom_t, end_ns, len(frames), len(scans),
+                   started, progress)
         counts = dict(bag.counts)
         bag.close()
         if out.exists():

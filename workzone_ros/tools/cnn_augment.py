@@ -63,20 +63,51 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
         min_side: never shrink the object's box below this (px): the node publishes
             smaller boxes as ``unknown`` and never classifies them.
     """
+    crop, box = _to_frame_scale(crop, box, scale)
+    if rng.random() < 0.4:          # a tilted post, camera roll, a sign seen at an angle
+        crop = _tilt(crop, rng)
+    win = _window(crop, box, rng)
+    img = _distance_resize(win, box, rng, min_side).astype(np.float32)
+    img = _colour_jitter(img, rng)
+    # occlusion from a border
+    if rng.random() < 0.25:
+        _occlude(img, rng, texture)
+    img = _optics(img, rng)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    if rng.random() < 0.7:
+        q = int(rng.integers(30, 96))
+        ok, enc = cv2.imencode('.jpg', out, [cv2.IMWRITE_JPEG_QUALITY, q])
+        if ok:
+            out = cv2.imdecode(enc, cv2.IMREAD_COLOR)
+    return out
+
+
+def _to_frame_scale(crop: np.ndarray, box, scale: float) -> tuple[np.ndarray, object]:
+    """:func:`augment`'s crop and box brought back to their size in the frame (``scale``:
+    frame pixels per crop pixel; unchanged from 0.95 up)."""
     if scale < 0.95:
         h, w = crop.shape[:2]
         nw, nh = max(4, int(round(w * scale))), max(4, int(round(h * scale)))
         crop = cv2.resize(crop, (nw, nh), interpolation=cv2.INTER_AREA)
         if box is not None:
             box = (box[0] * nw / w, box[1] * nh / h, box[2] * nw / w, box[3] * nh / h)
-    if rng.random() < 0.4:          # a tilted post, camera roll, a sign seen at an angle
-        H, W = crop.shape[:2]
-        M = cv2.getRotationMatrix2D((W / 2, H / 2), rng.uniform(-12, 12), 1.0)
-        M[0, :2] *= rng.uniform(0.75, 1.08)
-        M[0, 2] = W / 2 - M[0, 0] * W / 2 - M[0, 1] * H / 2
-        crop = cv2.warpAffine(crop, M, (W, H), flags=cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_REPLICATE)
-    win = _window(crop, box, rng)
+    return crop, box
+
+
+def _tilt(crop: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """:func:`augment`'s rotation (+-12 deg) and horizontal squeeze of the whole crop."""
+    H, W = crop.shape[:2]
+    M = cv2.getRotationMatrix2D((W / 2, H / 2), rng.uniform(-12, 12), 1.0)
+    M[0, :2] *= rng.uniform(0.75, 1.08)
+    M[0, 2] = W / 2 - M[0, 0] * W / 2 - M[0, 1] * H / 2
+    return cv2.warpAffine(crop, M, (W, H), flags=cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_REPLICATE)
+
+
+def _distance_resize(win: np.ndarray, box, rng: np.random.Generator,
+                     min_side: float) -> np.ndarray:
+    """:func:`augment`'s window at a random distance (the object's box at least
+    ``min_side`` px), or sometimes at 70-130 px."""
     h0, w0 = win.shape[:2]
     # as seen from farther away (never closer: that would invent detail), or, sometimes, a
     # close sign: the run-time path of big crops
@@ -85,8 +116,11 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
         s = min(1.0, max(s, min_side / max(1.0, min(box[2], box[3]))))
     if rng.random() < 0.08:
         s = rng.uniform(70, 130) / max(h0, w0)
-    img = _resize(win, max(3, int(round(w0 * s))), max(3, int(round(h0 * s))))
-    img = img.astype(np.float32)
+    return _resize(win, max(3, int(round(w0 * s))), max(3, int(round(h0 * s))))
+
+
+def _colour_jitter(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """:func:`augment`'s colour changes of ``img`` (float32; scaled in place)."""
     # colour: white balance, exposure, gamma, contrast, saturation, haze
     img *= np.exp(rng.normal(0, 0.10, 3)).astype(np.float32)
     img *= float(math.exp(rng.uniform(-0.55, 0.4)))
@@ -104,29 +138,37 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
         haze = rng.uniform(120, 230) * np.exp(rng.normal(0, 0.05, 3))
         a = rng.uniform(0.1, 0.4)
         img = img * (1 - a) + haze.astype(np.float32) * a
-    # occlusion from a border
-    if rng.random() < 0.25:
-        h, w = img.shape[:2]
-        side = int(rng.integers(4))
-        depth = rng.uniform(0.1, 0.35)
-        if texture is not None and rng.random() < 0.5:
-            fill = _resize(texture, w, h).astype(np.float32)
-        else:
-            fill = np.empty_like(img)
-            fill[:] = rng.uniform(0, 255, 3)
-            fill += rng.normal(0, rng.uniform(2, 25), fill.shape)
-        if side == 0:
-            d = max(1, int(round(depth * w)))
-            img[:, :d] = fill[:, :d]
-        elif side == 1:
-            d = max(1, int(round(depth * w)))
-            img[:, w - d:] = fill[:, w - d:]
-        elif side == 2:
-            d = max(1, int(round(depth * h)))
-            img[h - d:] = fill[h - d:]
-        else:
-            d = max(1, int(round(depth * h)))
-            img[:d] = fill[:d]
+    return img
+
+
+def _occlude(img: np.ndarray, rng: np.random.Generator, texture: Optional[np.ndarray]) -> None:
+    """:func:`augment`'s occluder (``texture`` or noisy flat colour) over 10-35 % of
+    ``img`` from a random side, in place."""
+    h, w = img.shape[:2]
+    side = int(rng.integers(4))
+    depth = rng.uniform(0.1, 0.35)
+    if texture is not None and rng.random() < 0.5:
+        fill = _resize(texture, w, h).astype(np.float32)
+    else:
+        fill = np.empty_like(img)
+        fill[:] = rng.uniform(0, 255, 3)
+        fill += rng.normal(0, rng.uniform(2, 25), fill.shape)
+    if side == 0:
+        d = max(1, int(round(depth * w)))
+        img[:, :d] = fill[:, :d]
+    elif side == 1:
+        d = max(1, int(round(depth * w)))
+        img[:, w - d:] = fill[:, w - d:]
+    elif side == 2:
+        d = max(1, int(round(depth * h)))
+        img[h - d:] = fill[h - d:]
+    else:
+        d = max(1, int(round(depth * h)))
+        img[:d] = fill[:d]
+
+
+def _optics(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """:func:`augment`'s optics and sensor: a blur (sometimes) and noise."""
     # optics and sensor
     r = rng.random()
     if r < 0.45:
@@ -140,13 +182,7 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
             kern = kern.T
         img = cv2.filter2D(img, -1, kern)
     img += rng.normal(0, rng.uniform(0, 7), img.shape).astype(np.float32)
-    out = np.clip(img, 0, 255).astype(np.uint8)
-    if rng.random() < 0.7:
-        q = int(rng.integers(30, 96))
-        ok, enc = cv2.imencode('.jpg', out, [cv2.IMWRITE_JPEG_QUALITY, q])
-        if ok:
-            out = cv2.imdecode(enc, cv2.IMREAD_COLOR)
-    return out
+    return img
 
 
 def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator

@@ -74,8 +74,6 @@ class MeasureMixin:
         x0, y0, x1, y1 = face.window
         bx0, by0, bw, bh = face.box
         raw, hsv, like, t, m = face.raw, face.hsv, face.like, face.t, face.margin
-        vch = hsv[..., 2]
-        blur_t = face.blur_t
         pix, area, hull, hull_fill = face.pix, face.area, face.hull, face.hull_fill
         solidity, aspect = face.solidity, bw / bh
         # a LiDAR-supported blob needs less colour evidence: looser shape filters, no legend
@@ -84,47 +82,72 @@ class MeasureMixin:
         if (hull_fill < relax * cfg.min_hull_fill or solidity < relax * cfg.min_solidity
                 or max(aspect, 1 / aspect) > cfg.max_aspect / relax):
             return None
-        checked = self._sign_checks(bgr, pix, hull, like, vch, t, relaxed, (x0, y0),
+        checked = self._sign_checks(bgr, pix, hull, like, hsv[..., 2], t, relaxed, (x0, y0),
                                     (bx0, by0, bw, bh))
         if checked is None:
             return None
         needs_outline, pix_fit, hmask, v_ref, dark = checked
-        cut, row_fit = None, None
-        if cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect:
-            # rows beyond a fitted diamond's corners are not the face (a portable stand's
-            # orange flags above the top corner): shape, kind and box go without them
-            trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim, pix_fit)
-            if trimmed is not None:
-                row_fit = None
-                # the cut-off part must not come back as the border's blur rings
-                cut = (pix > 0) & (trimmed == 0)
-                like = np.where(cut, np.float32(0), like)
-                pix = trimmed
-                hull = cv2.convexHull(cv2.findNonZero(pix))
-                bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
-                hmask = np.zeros_like(pix)
-                cv2.fillConvexPoly(hmask, hull, 1)
-                hull_fill = max(float(cv2.contourArea(hull)), 1.0) / (bw * bh)
-                aspect = bw / bh
+        row_fit, trimmed = self._diamond_trim(pix, like, pix_fit, aspect)
+        if trimmed is not None:
+            pix, like, hmask, (bx0, by0, bw, bh), hull_fill = trimmed
+            aspect = bw / bh
         # diamonds are about square; a wide blob is a rectangle (or the orange top of one)
         kind = ('warning' if hull_fill < cfg.diamond_hull_fill
                 and max(aspect, 1 / aspect) < cfg.ext_min_aspect else 'regulatory')
         if needs_outline and kind != 'warning':
             return None
         conf = _mode(like[pix > 0])
-        face_px = pix
-        grow, feats = self._border_growth(hmask, dark, like, min(bw, bh), blur_t)
+        grow, feats = self._border_growth(hmask, dark, like, min(bw, bh), face.blur_t)
         if self.debug is not None:
             self.debug[-1].update(hull_box=(x0 + bx0, y0 + by0, bw, bh), vref=v_ref,
                                   relaxed=relaxed, **feats)
         cand = Candidate(x0 + bx0, y0 + by0, bw, bh, 'orange', conf, kind, area, hull_fill)
+        if not self._place_box(bgr, hsv, cand, kind, pix, row_fit, (x0, y0, x1, y1),
+                               (bx0, by0, bw, bh), needs_outline, grow, feats):
+            return None
+        return self._regulatory_box(bgr, raw, pix, hsv, v_ref, cand, kind, aspect, relaxed,
+                                    (x0, y0, x1, y1), (bx0, by0, bw, bh), m)
+
+    def _diamond_trim(self, pix: np.ndarray, like: np.ndarray, pix_fit: Optional[tuple],
+                      aspect: float) -> tuple[Optional[tuple], Optional[tuple]]:
+        """:meth:`_measure_orange`'s face without the rows beyond a fitted diamond's corners:
+        ``(row_fit, trimmed)``, ``trimmed`` None (and ``row_fit`` the diamond's row fit of
+        ``pix``) when no rows are cut, else ``(pix, like, hmask, box, hull_fill)`` of the
+        trimmed face (``box``: its hull's ``(bx0, by0, bw, bh)``) and ``row_fit`` None;
+        ``(None, None)`` when ``diamond_trim`` is off or the blob (``aspect``) is too wide."""
+        cfg = self.config
+        if not (cfg.diamond_trim >= 0 and aspect < cfg.ext_min_aspect):
+            return None, None
+        # rows beyond a fitted diamond's corners are not the face (a portable stand's
+        # orange flags above the top corner): shape, kind and box go without them
+        trimmed, row_fit = self._trim_to_diamond(pix, cfg.diamond_trim, pix_fit)
+        if trimmed is None:
+            return row_fit, None
+        # the cut-off part must not come back as the border's blur rings
+        cut = (pix > 0) & (trimmed == 0)
+        like = np.where(cut, np.float32(0), like)
+        hull = cv2.convexHull(cv2.findNonZero(trimmed))
+        bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
+        hmask = np.zeros_like(trimmed)
+        cv2.fillConvexPoly(hmask, hull, 1)
+        hull_fill = max(float(cv2.contourArea(hull)), 1.0) / (bw * bh)
+        return None, (trimmed, like, hmask, (bx0, by0, bw, bh), hull_fill)
+
+    def _place_box(self, bgr: np.ndarray, hsv: np.ndarray, cand: Candidate, kind: str,
+                   face_px: np.ndarray, row_fit: Optional[tuple], window: tuple, blob: tuple,
+                   needs_outline: bool, grow: float, feats: dict) -> bool:
+        """:meth:`_measure_orange`'s box of ``cand`` (in place): a warning diamond's outline
+        (:meth:`_warning_outline`), else the hull ``blob`` grown by ``grow`` and the blur
+        rings, then scaled by ``border_scale``.  False when the blob needs an outline and
+        has no diamond edges (a patch of a sign-coloured surface)."""
+        cfg = self.config
+        bw, bh = blob[2], blob[3]
         outer = sub = None
         refine = cfg.diamond_refine and cfg.border_frac > 0 and cfg.diamond_scale > 0
         blurred = None
         if kind == 'warning' and cfg.diamond_scale > 0:
             outer, sub, blurred = self._warning_outline(
-                bgr, hsv, face_px, row_fit, (x0, y0, x1, y1), (bx0, by0, bw, bh),
-                needs_outline, grow, refine)
+                bgr, hsv, face_px, row_fit, window, blob, needs_outline, grow, refine)
         if outer is not None:
             cand.x, cand.y, cand.w, cand.h = outer
             cand.refined = kind == 'warning' and (sub is not None or blurred is not None)
@@ -140,19 +163,29 @@ class MeasureMixin:
             cand.w, cand.h = bw + 2 * gx, bh + 2 * gy
         if needs_outline and not (outer is not None and sub is not None):
             # no legend and no diamond edges: a patch of a sign-coloured surface
-            return None
+            return False
         sx, sy = cfg.border_scale
         if sx != 1.0 or sy != 1.0:
             cand.x -= 0.5 * (sx - 1.0) * cand.w
             cand.y -= 0.5 * (sy - 1.0) * cand.h
             cand.w, cand.h = sx * cand.w, sy * cand.h
+        return True
+
+    def _regulatory_box(self, bgr: np.ndarray, raw: np.ndarray, pix: np.ndarray,
+                        hsv: np.ndarray, v_ref: float, cand: Candidate, kind: str,
+                        aspect: float, relaxed: bool, window: tuple, blob: tuple, m: int
+                        ) -> Optional[Candidate]:
+        """:meth:`_measure_orange`'s last step for a ``kind == 'regulatory'`` blob: the
+        two-colour extension (:meth:`_extend`) and the rectangle box (:meth:`_rectangle_box`);
+        ``cand``, or None when its rectangle fit failed and ``rect_needs_edges`` asks for
+        one (an unextended, not LiDAR-supported ``regulatory`` candidate)."""
+        cfg = self.config
         entry = self.debug[-1] if self.debug is not None else None
         if cfg.extension and kind == 'regulatory' and aspect >= cfg.ext_min_aspect:
             self._extend(bgr, cand, hsv[pix > 0])
         rect_failed = False
         if kind == 'regulatory' and cfg.rect_refine and cfg.border_frac > 0:
-            if self._rectangle_box(bgr, raw, pix, v_ref, cand, entry, (x0, y0, x1, y1),
-                                   (bx0, by0, bw, bh), m):
+            if self._rectangle_box(bgr, raw, pix, v_ref, cand, entry, window, blob, m):
                 return cand
             rect_failed = True
         if cfg.rect_needs_edges and rect_failed and cand.kind == 'regulatory' \

@@ -126,6 +126,25 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     # the face's edge is then within the search either way
     inset = 0.5 * (border + margin)
     x, y, w = x + inset, y + inset, w - 2 * inset
+    got = _rect_stretch_offsets(img, (x, y, w, h), top_at, prof, min_contrast, free_top)
+    if got is None or not _mend_lost_sides(img, got, prof, min_contrast, (x, y, w, h), bottom,
+                                           inset, inward):
+        return None
+    edges = _rect_edges(got[2], got[3], x, y, w, inset, max_change)     # side, shown
+    return None if edges is None else (
+        *edges, _rect_bottom(img, x, w, bottom, inset, prof, min_contrast))
+
+
+def _rect_stretch_offsets(img: np.ndarray, rect: tuple, top_at: tuple, prof: tuple,
+                          min_contrast: float, free_top: bool
+                          ) -> Optional[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`refine_rectangle`'s first measurement: the edge offsets of the inset box
+    ``rect = (x, y, w, h)``'s stretches.  Returns ``(segs, nvecs, side, shown)``: the
+    stretches, their inward normals, the two stretch pairs' left, right and top offsets
+    (``(2, 3)``, NaN where a stretch shows no step or is not measured) and which stretches
+    lie in ``img``; None when none does, the measurement fails, or a top stretch in ``img``
+    shows no step (but ``free_top``)."""
+    x, y, w, h = rect
     # per stretch pair: left, right (20-45 % and 55-80 % of the height), top (``top_at``)
     sides, side_n = _side_stretches(x, w, y, h)
     tops = np.array([((x + g0 * w, y), (x + g1 * w, y)) for g0, g1 in top_at], float)
@@ -147,27 +166,51 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     shown = inside.reshape(2, 3)
     if not (free_top or (np.isfinite(side[:, 2]) | ~shown[:, 2]).all()):
         return None
+    return segs, nvecs, side, shown
+
+
+def _mend_lost_sides(img: np.ndarray, stretches: tuple, prof: tuple, min_contrast: float,
+                     rect: tuple, bottom: Optional[float], inset: float,
+                     inward: Sequence[float]) -> bool:
+    """:func:`refine_rectangle`'s sides without a step, measured again: ``stretches`` is
+    :func:`_rect_stretch_offsets`' ``(segs, nvecs, side, shown)`` (``side`` updated in
+    place), ``rect`` the inset box; on the white part below (:func:`_white_sides`, when
+    ``bottom`` is given), else on the stretches moved out, then in by each of ``inward``
+    (:func:`_shifted_offsets`).  False when such a side cannot be measured (or ``bottom`` is
+    None)."""
+    segs, nvecs, side, shown = stretches
     lost = shown[:, :2] & ~np.isfinite(side[:, :2])
-    if lost.any():
-        # a side of the orange part shows no step (a small plaque's legend runs up to
-        # it, a dim one's line merges with a dark background): that side of the white
-        # part below it, when there is one
-        if bottom is None:
-            return None         # (not known to be a rectangle: a diamond merged with a sky)
-        white = _white_sides(img, x, w, y + h, float(bottom) - inset, prof, min_contrast)
-        for k in (0, 1):
-            if not lost[:, k].any():
-                continue
-            if white is not None and np.isfinite(white[:, k]).all():
-                side[:, k] = white[:, k]
-                continue
-            # or the edge lies beyond the search (a hull short of a pale face's side):
-            # the side's stretches moved out by a search's width or two
-            got = _shifted_offsets(img, segs[[k, 3 + k]], nvecs[[k, 3 + k]], prof,
-                                   min_contrast, (1.5, 3.0) + tuple(-v for v in inward))
-            if got is None:
-                return None
-            side[:, k] = got
+    if not lost.any():
+        return True
+    x, y, w, h = rect
+    # a side of the orange part shows no step (a small plaque's legend runs up to
+    # it, a dim one's line merges with a dark background): that side of the white
+    # part below it, when there is one
+    if bottom is None:
+        return False            # (not known to be a rectangle: a diamond merged with a sky)
+    white = _white_sides(img, x, w, y + h, float(bottom) - inset, prof, min_contrast)
+    for k in (0, 1):
+        if not lost[:, k].any():
+            continue
+        if white is not None and np.isfinite(white[:, k]).all():
+            side[:, k] = white[:, k]
+            continue
+        # or the edge lies beyond the search (a hull short of a pale face's side):
+        # the side's stretches moved out by a search's width or two
+        got = _shifted_offsets(img, segs[[k, 3 + k]], nvecs[[k, 3 + k]], prof,
+                               min_contrast, (1.5, 3.0) + tuple(-v for v in inward))
+        if got is None:
+            return False
+        side[:, k] = got
+    return True
+
+
+def _rect_edges(side: np.ndarray, shown: np.ndarray, x: float, y: float, w: float,
+                inset: float, max_change: float
+                ) -> Optional[tuple[Optional[float], Optional[float], Optional[float]]]:
+    """:func:`refine_rectangle`'s ``(left, right, top)`` from the stretches' offsets ``side``
+    (of the inset box ``x``, ``y``, ``w``); None when neither side is measured or the width
+    moves by more than ``max_change``."""
     # a side off the image is the box's own (the caller clips it to the image)
     left = x + float(side[:, 0].mean()) if shown[:, 0].all() else None
     right = x + w - float(side[:, 1].mean()) if shown[:, 1].all() else None
@@ -178,15 +221,23 @@ def refine_rectangle(value: np.ndarray, box: Sequence[float], size: float,
     if left is not None and right is not None and not abs(
             (right - left) / (w + 2 * inset) - 1) <= max_change:
         return None
-    low = None
-    if bottom is not None:
-        yb = float(bottom) - inset
-        ob = _edge_offsets(img, np.array([((x + 0.2 * w, yb), (x + 0.45 * w, yb)),
-                                          ((x + 0.55 * w, yb), (x + 0.8 * w, yb))]),
-                           np.array([(0.0, -1.0), (0.0, -1.0)]), prof, min_contrast)
-        if ob is not None:
-            low = yb - 0.5 * (ob[0] + ob[1])
-    return left, right, top, low
+    return left, right, top
+
+
+def _rect_bottom(img: np.ndarray, x: float, w: float, bottom: Optional[float], inset: float,
+                 prof: tuple, min_contrast: float) -> Optional[float]:
+    """:func:`refine_rectangle`'s bottom edge near row ``bottom`` (the inset box's ``x``,
+    ``w``), on two stretches (20-45 % and 55-80 % of the width); None when ``bottom`` is
+    None or either stretch shows no step."""
+    if bottom is None:
+        return None
+    yb = float(bottom) - inset
+    ob = _edge_offsets(img, np.array([((x + 0.2 * w, yb), (x + 0.45 * w, yb)),
+                                      ((x + 0.55 * w, yb), (x + 0.8 * w, yb))]),
+                       np.array([(0.0, -1.0), (0.0, -1.0)]), prof, min_contrast)
+    if ob is None:
+        return None
+    return yb - 0.5 * (ob[0] + ob[1])
 
 
 def _white_columns(bgr: np.ndarray, left: float, right: float, r0: int, r1: int, c0: int,

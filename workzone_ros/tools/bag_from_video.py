@@ -117,6 +117,104 @@ def _frames(cap, every: int) -> Iterator[tuple[int, np.ndarray]]:
         yield k, img
 
 
+def _check_request(video: Path, out: Path, opts: VideoBagOptions, overwrite: bool) -> None:
+    """Raise :class:`VideoBagError` for a missing video, an existing output or bad options."""
+    if not video.is_file():
+        raise VideoBagError(f'{video} not found')
+    if out.exists() and not overwrite:
+        raise VideoBagError(f'{out} exists (use --overwrite)')
+    if opts.every < 1 or (opts.max_frames is not None and opts.max_frames < 1):
+        raise VideoBagError('--every and --max-frames must be >= 1')
+    if not 1 <= opts.jpeg_quality <= 100:
+        raise VideoBagError(f'JPEG quality must be in [1, 100], got {opts.jpeg_quality}')
+
+
+def _open_frames(cap, video: Path, opts: VideoBagOptions
+                 ) -> tuple[float, int, tuple[int, np.ndarray], Iterator[tuple[int, np.ndarray]]]:
+    """The frame rate, the frame count the container states (0: unknown), the first frame
+    and the frames after it.
+
+    Raises:
+        VideoBagError: an unreadable video, no usable frame rate, no decodable frame.
+    """
+    import cv2
+    if not cap.isOpened():
+        raise VideoBagError(f'cannot read {video}: not a video OpenCV can decode')
+    fps = opts.fps or float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+    if not (math.isfinite(fps) and 0.1 <= fps <= 1000.0):
+        raise VideoBagError(f'{video} states no usable frame rate ({fps}); give --fps')
+    total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    frames = _frames(cap, opts.every)
+    first = next(frames, None)
+    if first is None:
+        raise VideoBagError(f'{video} has no frames OpenCV can decode')
+    return fps, total, first, frames
+
+
+def _expected_frames(total: int, opts: VideoBagOptions) -> int:
+    """The frames the bag will get, from the container's count ``total`` (0: unknown)."""
+    want = -(-total // opts.every) if total > 0 else 0      # the container's count
+    if opts.max_frames:
+        want = min(want, opts.max_frames) if want else opts.max_frames
+    return want
+
+
+def _frame_message(msgs, img: np.ndarray, k: int, t_ns: int, opts: VideoBagOptions) -> bytes:
+    """The serialised image message of frame ``k`` (raw bgr8, or JPEG re-encoded)."""
+    import cv2
+    if opts.raw:
+        return msgs.image(t_ns, img, frame=opts.frame_id)
+    ok, buf = cv2.imencode('.jpg', img, [cv2.IMWRITE_JPEG_QUALITY, int(opts.jpeg_quality)])
+    if not ok:
+        raise VideoBagError(f'JPEG encoding of frame {k} failed')
+    return msgs.compressed(t_ns, buf.tobytes(), frame=opts.frame_id)
+
+
+def _write_frames(bag, frames: Iterator[tuple[int, np.ndarray]], cam, fps: float,
+                  opts: VideoBagOptions, status: Optional[Callable[[int], None]]) -> int:
+    """Write the image and CameraInfo messages of ``frames``; returns the frames written."""
+    import cv2
+
+    from workzone_ros.sim.writer import EPOCH_NS, SensorMessages
+    start_ns = EPOCH_NS if opts.start_ns is None else int(opts.start_ns)
+    msgs = SensorMessages()
+    topic = IMAGE_TOPIC if opts.raw else COMPRESSED_TOPIC
+    bag.add_topic(topic, 'sensor_msgs/msg/Image' if opts.raw
+                  else 'sensor_msgs/msg/CompressedImage')
+    bag.add_topic(INFO_TOPIC, 'sensor_msgs/msg/CameraInfo')
+    n = 0
+    for k, img in frames:
+        if (img.shape[1], img.shape[0]) != (cam.width, cam.height):
+            img = cv2.resize(img, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
+        t_ns = start_ns + int(round(k * 1e9 / fps))
+        bag.write(topic, t_ns, _frame_message(msgs, img, k, t_ns, opts))
+        bag.write(INFO_TOPIC, t_ns, msgs.camera_info(t_ns, cam, frame=opts.frame_id))
+        n += 1
+        if status is not None:
+            status(n)
+        if opts.max_frames and n >= opts.max_frames:
+            break
+    return n
+
+
+def _progress_lines(video: Path, want: int, started: float,
+                    progress: Optional[Callable[[str], None]]
+                    ) -> Optional[Callable[[int], None]]:
+    """A per-frame callback calling ``progress`` with a status line about every 2 s."""
+    if progress is None:
+        return None
+    last = started
+
+    def status(n: int) -> None:
+        nonlocal last
+        now = time.monotonic()
+        if now - last >= 2.0:
+            last = now
+            progress(f'bag-from-video {video.name}: {n}/{want or "?"} frames, '
+                     f'{now - started:.0f} s elapsed')
+    return status
+
+
 def convert(video: str | Path, out: str | Path, opts: VideoBagOptions = VideoBagOptions(),
             overwrite: bool = False,
             progress: Optional[Callable[[str], None]] = None) -> dict:
@@ -142,70 +240,24 @@ def convert(video: str | Path, out: str | Path, opts: VideoBagOptions = VideoBag
     import cv2
 
     from workzone_ros.bagio import BagError, BagWriter
-    from workzone_ros.sim.writer import EPOCH_NS, SensorMessages
 
     started = time.monotonic()
     video, out = Path(video), Path(out)
-    if not video.is_file():
-        raise VideoBagError(f'{video} not found')
-    if out.exists() and not overwrite:
-        raise VideoBagError(f'{out} exists (use --overwrite)')
-    if opts.every < 1 or (opts.max_frames is not None and opts.max_frames < 1):
-        raise VideoBagError('--every and --max-frames must be >= 1')
-    if not 1 <= opts.jpeg_quality <= 100:
-        raise VideoBagError(f'JPEG quality must be in [1, 100], got {opts.jpeg_quality}')
+    _check_request(video, out, opts, overwrite)
     cap = cv2.VideoCapture(str(video))
     try:
-        if not cap.isOpened():
-            raise VideoBagError(f'cannot read {video}: not a video OpenCV can decode')
-        fps = opts.fps or float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-        if not (math.isfinite(fps) and 0.1 <= fps <= 1000.0):
-            raise VideoBagError(f'{video} states no usable frame rate ({fps}); give --fps')
-        total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        frames = _frames(cap, opts.every)
-        first = next(frames, None)
-        if first is None:
-            raise VideoBagError(f'{video} has no frames OpenCV can decode')
+        fps, total, first, frames = _open_frames(cap, video, opts)
         src_h, src_w = first[1].shape[:2]
         width, height = opts.resize or (src_w, src_h)
         cam = camera_model(width, height, opts.hfov_deg, (src_w, src_h))
-        start_ns = EPOCH_NS if opts.start_ns is None else int(opts.start_ns)
-        want = -(-total // opts.every) if total > 0 else 0      # the container's count
-        if opts.max_frames:
-            want = min(want, opts.max_frames) if want else opts.max_frames
-        msgs = SensorMessages()
+        want = _expected_frames(total, opts)
         try:
             bag = BagWriter(out, overwrite=overwrite)
         except BagError as exc:
             raise VideoBagError(str(exc)) from None
-        topic = IMAGE_TOPIC if opts.raw else COMPRESSED_TOPIC
-        n, last = 0, started
         try:
-            bag.add_topic(topic, 'sensor_msgs/msg/Image' if opts.raw
-                          else 'sensor_msgs/msg/CompressedImage')
-            bag.add_topic(INFO_TOPIC, 'sensor_msgs/msg/CameraInfo')
-            for k, img in _chain(first, frames):
-                if (img.shape[1], img.shape[0]) != (width, height):
-                    img = cv2.resize(img, (width, height), interpolation=cv2.INTER_AREA)
-                t_ns = start_ns + int(round(k * 1e9 / fps))
-                if opts.raw:
-                    data = msgs.image(t_ns, img, frame=opts.frame_id)
-                else:
-                    ok, buf = cv2.imencode('.jpg', img,
-                                           [cv2.IMWRITE_JPEG_QUALITY, int(opts.jpeg_quality)])
-                    if not ok:
-                        raise VideoBagError(f'JPEG encoding of frame {k} failed')
-                    data = msgs.compressed(t_ns, buf.tobytes(), frame=opts.frame_id)
-                bag.write(topic, t_ns, data)
-                bag.write(INFO_TOPIC, t_ns, msgs.camera_info(t_ns, cam, frame=opts.frame_id))
-                n += 1
-                now = time.monotonic()
-                if progress is not None and now - last >= 2.0:
-                    last = now
-                    progress(f'bag-from-video {video.name}: {n}/{want or "?"} frames, '
-                             f'{now - started:.0f} s elapsed')
-                if opts.max_frames and n >= opts.max_frames:
-                    break
+            n = _write_frames(bag, _chain(first, frames), cam, fps, opts,
+                              _progress_lines(video, want, started, progress))
             bag.close()
         except (BagError, VideoBagError) as exc:
             bag.abort()

@@ -514,73 +514,103 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: Optional[list[str]] = None) -> int:
-    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
-    args = _parser().parse_args(argv)
-    prog = 'workzone-ros train cnn'
+def _have_torch(prog: str) -> bool:
+    """True when PyTorch and onnx import; else one line on stderr."""
     try:
         import onnx  # noqa: F401
         import torch  # noqa: F401
     except ImportError as exc:
         print(f'{prog}: needs PyTorch and onnx ({exc.name} is missing): pip install -e '
               '.[cnn]', file=sys.stderr)
-        return 2
-    try:
-        renders, real = load_samples(args)
-        everything = Sample(tc.CropSet()).extend(renders).extend(real)
-        classes = tc.class_list(args.classes, everything.data.labels)
-        test = None
-        if args.holdout_split is not None:
-            from workzone_ros.tools import eval_classifier as ec
-            if not len(renders.data):
-                raise tc.DataError('--holdout-split splits the rendered crops: give --synth')
-            if not 0 <= args.holdout_split < args.splits:
-                raise tc.DataError(f'--holdout-split must be in 0..{args.splits - 1}')
-            lab = tc.map_labels(renders.data.labels, classes)
-            tr, te = ec.grouped_splits(lab, renders.data.groups, args.splits,
-                                       args.split_seed)[args.holdout_split]
-            test = renders.data.subset(te)
-            renders = renders.subset(tr)
-        # rendered signs too small for the node to classify (its min_size) are left out:
-        # at 8-11 px a sign is an orange blob, and a blob is what a network must not learn
-        # to call a sign
-        # (unless that leaves a class without crops: then it keeps its small ones)
-        mapped = tc.map_labels(renders.data.labels, classes)
-        small = [i for i, (lab, side) in enumerate(zip(mapped, renders.data.side))
-                 if lab != 'background' and side < args.min_sign_side]
-        left = collections.Counter(mapped)
-        left.subtract(mapped[i] for i in small)
-        small = [i for i in small if left[mapped[i]] > 0]
-        dropped = len(small)
-        renders = renders.subset(sorted(set(range(len(renders.data))) - set(small)))
-        train_set = Sample(tc.CropSet()).extend(renders).extend(real)
-        labels = tc.map_labels(train_set.data.labels, classes)
-        missing = [c for c in classes if c not in set(labels)]
-        if missing:
-            raise tc.DataError(f'no crops of class(es) {", ".join(missing)}; add renders '
-                               '(--synth) or folders for them, or use --classes workzone')
-    except tc.DataError as exc:
-        print(f'{prog}: {exc}', file=sys.stderr)
-        return 2
-    cfg = TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
-                      samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
-                      real_share=args.real_share, composite=args.composite,
-                      min_sign_side=args.min_sign_side,
-                      background_share=args.background_share,
-                      max_minutes=args.max_minutes, seed=args.seed)
-    _say(f'training a CNN (width {cfg.width}, {cfg.input_size} px, '
-         f'{macs(cfg.width, cfg.input_size, len(classes)) / 1e6:.2f} M MAC per crop) on '
-         f'{len(train_set.data)} crops ({len(real.data)} real), {len(classes)} classes: '
-         + ', '.join(f'{k} {v}' for k, v in sorted(train_set.data.counts().items())))
-    net, run = train(train_set, labels, classes, cfg)
+        return False
+    return True
+
+
+def _split_holdout(args: argparse.Namespace, renders: Sample, classes: list[str]
+                   ) -> tuple[Sample, Optional[tc.CropSet]]:
+    """``--holdout-split``: the training part of the renders and the held-out test part."""
+    if args.holdout_split is None:
+        return renders, None
+    from workzone_ros.tools import eval_classifier as ec
+    if not len(renders.data):
+        raise tc.DataError('--holdout-split splits the rendered crops: give --synth')
+    if not 0 <= args.holdout_split < args.splits:
+        raise tc.DataError(f'--holdout-split must be in 0..{args.splits - 1}')
+    lab = tc.map_labels(renders.data.labels, classes)
+    tr, te = ec.grouped_splits(lab, renders.data.groups, args.splits,
+                               args.split_seed)[args.holdout_split]
+    test = renders.data.subset(te)
+    return renders.subset(tr), test
+
+
+def _drop_small_renders(args: argparse.Namespace, renders: Sample, classes: list[str]
+                        ) -> tuple[Sample, int]:
+    """The renders without signs below ``--min-sign-side``, and how many were dropped."""
+    # rendered signs too small for the node to classify (its min_size) are left out:
+    # at 8-11 px a sign is an orange blob, and a blob is what a network must not learn
+    # to call a sign
+    # (unless that leaves a class without crops: then it keeps its small ones)
+    mapped = tc.map_labels(renders.data.labels, classes)
+    small = [i for i, (lab, side) in enumerate(zip(mapped, renders.data.side))
+             if lab != 'background' and side < args.min_sign_side]
+    left = collections.Counter(mapped)
+    left.subtract(mapped[i] for i in small)
+    small = [i for i in small if left[mapped[i]] > 0]
+    return renders.subset(sorted(set(range(len(renders.data))) - set(small))), len(small)
+
+
+@dataclass
+class _TrainingData:
+    """The crops of a run: training set, its labels and classes, and the held-out renders."""
+
+    renders: Sample
+    real: Sample
+    train_set: Sample
+    labels: list[str]
+    classes: list[str]
+    test: Optional[tc.CropSet]
+    dropped: int
+
+
+def _training_data(args: argparse.Namespace) -> _TrainingData:
+    """Load, split and filter the crops; raises :class:`tc.DataError` on bad input."""
+    renders, real = load_samples(args)
+    everything = Sample(tc.CropSet()).extend(renders).extend(real)
+    classes = tc.class_list(args.classes, everything.data.labels)
+    renders, test = _split_holdout(args, renders, classes)
+    renders, dropped = _drop_small_renders(args, renders, classes)
+    train_set = Sample(tc.CropSet()).extend(renders).extend(real)
+    labels = tc.map_labels(train_set.data.labels, classes)
+    missing = [c for c in classes if c not in set(labels)]
+    if missing:
+        raise tc.DataError(f'no crops of class(es) {", ".join(missing)}; add renders '
+                           '(--synth) or folders for them, or use --classes workzone')
+    return _TrainingData(renders, real, train_set, labels, classes, test, dropped)
+
+
+def _train_config(args: argparse.Namespace) -> TrainConfig:
+    """The :class:`TrainConfig` of the command-line options."""
+    return TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
+                       samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
+                       real_share=args.real_share, composite=args.composite,
+                       min_sign_side=args.min_sign_side,
+                       background_share=args.background_share,
+                       max_minutes=args.max_minutes, seed=args.seed)
+
+
+def _model_metadata(args: argparse.Namespace, cfg: TrainConfig, net, run: dict,
+                    data: _TrainingData) -> dict:
+    """The metadata stored with the trained model."""
     import torch
-    src = tc.describe_sources(args, train_set.data)
+    classes, labels = data.classes, data.labels
+    src = tc.describe_sources(args, data.train_set.data)
     src['only_clips'] = args.real_clips
-    src['render_signs_below_min_side_left_out'] = dropped
+    src['render_signs_below_min_side_left_out'] = data.dropped
     if args.holdout_split is not None:
         src['holdout'] = {'split': args.holdout_split, 'of': args.splits,
-                          'seed': args.split_seed, 'trained_render_crops': len(renders.data),
-                          'held_out_render_crops': len(test)}
+                          'seed': args.split_seed,
+                          'trained_render_crops': len(data.renders.data),
+                          'held_out_render_crops': len(data.test)}
     md = {'input_size': cfg.input_size, 'normalise': 'per_crop', 'channels': 'bgr',
           'margin': RUN_MARGIN, 'square_crops': True, 'temperature': 1.0,
           'method': 'cnn', 'features': 'cnn',
@@ -607,34 +637,62 @@ def main(argv: Optional[list[str]] = None) -> int:
           'date': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds')}
     if args.background_bias:
         md['background_bias'] = args.background_bias
+    return md
+
+
+def _held_out_clips(args: argparse.Namespace, model, classes: list[str]) -> dict:
+    """Figures of the model on the ``--exclude-clip`` clips of the ``--data`` folders."""
+    clips = {}
+    for d in args.data:
+        for clip in args.exclude_clip:
+            try:
+                part = tc.load_folder(d, only_clips=[clip])
+            except tc.DataError:
+                continue
+            res = report(model, part)
+            boxes, _ = folder_boxes(Path(d), (), [clip], [c.shape for c in part.crops])
+            recut = tc.CropSet(*[list(getattr(part, f)) for f in tc._FIELDS])
+            recut.crops = [runtime_crop(c, b) for c, b in zip(part.crops, boxes)]
+            res['runtime_framing'] = report(model, recut)
+            res['wrong'] = [f'{t} -> {p}' for t, p in zip(
+                tc.map_labels(part.labels, classes),
+                [q.class_key for q in model.classify(part.crops)]) if t != p][:20]
+            clips[clip] = res
+            _say(_line(f'held-out clip {clip}', res))
+            _say(_line(f'held-out clip {clip}, run-time framing', res['runtime_framing']))
+    return clips
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
+    args = _parser().parse_args(argv)
+    prog = 'workzone-ros train cnn'
+    if not _have_torch(prog):
+        return 2
+    try:
+        data = _training_data(args)
+    except tc.DataError as exc:
+        print(f'{prog}: {exc}', file=sys.stderr)
+        return 2
+    cfg = _train_config(args)
+    classes, train_set = data.classes, data.train_set
+    _say(f'training a CNN (width {cfg.width}, {cfg.input_size} px, '
+         f'{macs(cfg.width, cfg.input_size, len(classes)) / 1e6:.2f} M MAC per crop) on '
+         f'{len(train_set.data)} crops ({len(data.real.data)} real), {len(classes)} classes: '
+         + ', '.join(f'{k} {v}' for k, v in sorted(train_set.data.counts().items())))
+    net, run = train(train_set, data.labels, classes, cfg)
+    md = _model_metadata(args, cfg, net, run, data)
     model = cnn.CnnSignClassifier(export(net, cfg.input_size), classes, md)
     probe = train_set.data.crops[:64]
     model.metadata['onnx_check_max_abs_logit_diff'] = round(_check_export(net, model, probe), 6)
     cnn.save_model(model, args.output)
     out = {'model': args.output, 'metadata': model.metadata}
-    if test is not None:
-        out['holdout'] = report(model, test)
-        out['holdout']['background_bias'] = bias_table(model, test)
+    if data.test is not None:
+        out['holdout'] = report(model, data.test)
+        out['holdout']['background_bias'] = bias_table(model, data.test)
         _say(_line(f'held-out renders (split {args.holdout_split})', out['holdout']))
     if args.data and args.exclude_clip:
-        out['held_out_clips'] = {}
-        for d in args.data:
-            for clip in args.exclude_clip:
-                try:
-                    part = tc.load_folder(d, only_clips=[clip])
-                except tc.DataError:
-                    continue
-                res = report(model, part)
-                boxes, _ = folder_boxes(Path(d), (), [clip], [c.shape for c in part.crops])
-                recut = tc.CropSet(*[list(getattr(part, f)) for f in tc._FIELDS])
-                recut.crops = [runtime_crop(c, b) for c, b in zip(part.crops, boxes)]
-                res['runtime_framing'] = report(model, recut)
-                res['wrong'] = [f'{t} -> {p}' for t, p in zip(
-                    tc.map_labels(part.labels, classes),
-                    [q.class_key for q in model.classify(part.crops)]) if t != p][:20]
-                out['held_out_clips'][clip] = res
-                _say(_line(f'held-out clip {clip}', res))
-                _say(_line(f'held-out clip {clip}, run-time framing', res['runtime_framing']))
+        out['held_out_clips'] = _held_out_clips(args, model, classes)
     text = json.dumps(out, indent=2, default=json_default)
     if args.json:
         Path(args.json).write_text(text)

@@ -52,6 +52,7 @@ import json
 import sys
 import time
 import zlib
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
@@ -214,10 +215,8 @@ def pixel_metrics(lut: np.ndarray, v_min: int, pairs, threshold: float = 0.5,
             'background_false_positive_rate': fp / max(fp + tn, 1)}
 
 
-def main(argv: Optional[list[str]] = None) -> int:
-    """Train and write the colour model; returns the exit status."""
-    p = argparse.ArgumentParser(prog='workzone-ros train color', description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+def _add_input_arguments(p: argparse.ArgumentParser) -> None:
+    """Data, output, boosting size and the camera the training frames come from."""
     p.add_argument('data', nargs='+', help='folder(s) with images/ and masks/')
     p.add_argument('-o', '--output', default=str(DEFAULT_OUT), help='model file (.npz)')
     p.add_argument('--estimators', type=int, default=60, help='weak learners H (default 60)')
@@ -234,6 +233,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--horizon-row', type=float, default=0.5,
                    help='true horizon row of the geometry renders, fraction of the height '
                         '(our level camera: 0.5)')
+
+
+def _add_counting_arguments(p: argparse.ArgumentParser) -> None:
+    """Which pixels are counted, augmentation and the mounting-geometry limits."""
     p.add_argument('--v-min', type=int, default=35, help='value gate (default 35)')
     p.add_argument('--ignore-s', type=int, default=0,
                    help='leave sign-face pixels with S below this out of training (default 0)')
@@ -257,6 +260,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--geometry-quantile', type=float, default=0.9,
                    help='soft mounting limit: this quantile of the sign bottoms (+ margin); '
                         'blobs lower than it must look like a clear sign face')
+
+
+def _add_colour_arguments(p: argparse.ArgumentParser) -> None:
+    """White balance and saturation normalisation before the table."""
     p.add_argument('--gray-world', action=argparse.BooleanOptionalAction, default=True,
                    help='grey-world balance every frame before the table (the detector then '
                         'does the same; default on)')
@@ -272,6 +279,10 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='saturation norm: target of the 90th percentile (default 120)')
     p.add_argument('--sat-max-gain', type=float, default=4.0,
                    help='saturation norm: largest gain (default 4)')
+
+
+def _add_prior_arguments(p: argparse.ArgumentParser) -> None:
+    """The location prior and its camera jitter."""
     p.add_argument('--prior-saturate', type=float, default=0.1,
                    help='prior heat = box density / (this x its maximum), clipped to 1')
     p.add_argument('--prior-roi-level', type=float, default=0.02,
@@ -283,6 +294,10 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='prior: sideways uncertainty, fraction of the image width')
     p.add_argument('--camera-zoom', type=float, default=0.25,
                    help='prior: focal length uncertainty (scale 1/(1+z) .. 1+z)')
+
+
+def _add_run_arguments(p: argparse.ArgumentParser) -> None:
+    """Metrics, the bin-count cache and the RGB-threshold LP."""
     p.add_argument('--metrics', action=argparse.BooleanOptionalAction, default=True,
                    help='score the table on the training images (default on)')
     p.add_argument('--counts', metavar='NPZ',
@@ -296,88 +311,110 @@ def main(argv: Optional[list[str]] = None) -> int:
                         '(default 1)')
     p.add_argument('--lp-max', type=int, default=6,
                    help='most RGB thresholds the LP may choose (default 6)')
-    args = p.parse_args(argv)
 
-    try:
-        pairs = load_pairs(args.data)
-    except FileNotFoundError as exc:
-        print(f'workzone-ros train color: {exc}', file=sys.stderr)
-        return 2
-    if not pairs:
-        print('workzone-ros train color: no image/mask pairs found', file=sys.stderr)
-        return 2
-    train = [pp for pp in pairs if not _is_val(pp[0], args.val_frac)]
-    val = [pp for pp in pairs if _is_val(pp[0], args.val_frac)]
-    t0 = time.perf_counter()
+
+def _parser() -> argparse.ArgumentParser:
+    """The ``workzone-ros train color`` argument parser."""
+    p = argparse.ArgumentParser(prog='workzone-ros train color', description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    _add_input_arguments(p)
+    _add_counting_arguments(p)
+    _add_colour_arguments(p)
+    _add_prior_arguments(p)
+    _add_run_arguments(p)
+    return p
+
+
+@dataclass
+class _Counts:
+    """Bin counts of the training pixels, and the sign boxes of the training masks."""
+
+    pos: np.ndarray
+    neg: np.ndarray
+    rgb_pos: np.ndarray
+    rgb_neg: np.ndarray
+    boxes: list = field(default_factory=list)
+    size: Optional[tuple[int, int]] = None
+
+
+def _training_pixels(args: argparse.Namespace, hsv: np.ndarray, face: np.ndarray,
+                     ignored: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The positive mask and the pixels used for training (``(mask, use)``)."""
+    if args.orange_only:
+        mask, use = orange_mask(hsv, face)
+    else:
+        mask, use = face, np.ones_like(face)
+    use &= ~ignored
+    if args.ignore_s > 0:
+        use &= ~mask | (hsv[..., 1] >= args.ignore_s)
+    if args.erode > 0:
+        k = np.ones((2 * args.erode + 1, 2 * args.erode + 1), np.uint8)
+        m8 = face.astype(np.uint8)
+        use &= ~((cv2.dilate(m8, k) > 0) & (cv2.erode(m8, k) == 0))
+    return mask, use
+
+
+def _count_pair(args: argparse.Namespace, ip: Path, mp: Path, rng: np.random.Generator,
+                sat_norm: Optional[cm.SatNorm], counts: _Counts) -> None:
+    """Add one image/mask pair (and its augmented copies) to ``counts``."""
+    img0, face, ignored = _read(ip, mp)
+    counts.size = (img0.shape[1], img0.shape[0])
+    n, _, stats, _ = cv2.connectedComponentsWithStats(face.astype(np.uint8))
+    counts.boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n)
+                     if stats[i, 4] >= 20]
+    for a in range(1 + args.augment):
+        img = img0 if a == 0 else augment(img0, rng)
+        if a > 0 and rng.random() < args.bg_hue:
+            img = rotate_background_hue(img, face, rng)
+        hsv = table_hsv(img, args.gray_world, sat_norm, args.v_min, args.white_balance)
+        if args.gray_world and args.rgb_lp and a == 0:
+            img = cm.apply_gains(img, cm.WHITE_BALANCE[args.white_balance](img))
+        mask, use = _training_pixels(args, hsv, face, ignored)
+        # positives: orange face pixels; negatives: background; the rest is ignored
+        pp_, _ = cm.histogram_from_pixels(hsv, mask & use, args.v_min)
+        nn_, _ = cm.histogram_from_pixels(hsv, ~face & use, args.v_min)
+        counts.pos += pp_
+        counts.neg += nn_
+        if args.rgb_lp and a == 0:
+            a_, _ = dt.rgb_histograms(img, mask & use)
+            b_, _ = dt.rgb_histograms(img, ~face & use)
+            counts.rgb_pos += a_
+            counts.rgb_neg += b_
+
+
+def _count_pixels(args: argparse.Namespace, train: list[tuple[Path, Path]],
+                  sat_norm: Optional[cm.SatNorm]) -> _Counts:
+    """Count the training pixels, or read the counts from the ``--counts`` cache."""
     pos = np.zeros((cm.H_BINS, cm.S_BINS))
-    neg = np.zeros_like(pos)
     rgb_pos = np.zeros((256 // 8) ** 3)
-    rgb_neg = np.zeros_like(rgb_pos)
-    boxes, size = [], None
+    counts = _Counts(pos, np.zeros_like(pos), rgb_pos, np.zeros_like(rgb_pos))
     rng = np.random.default_rng(args.seed)
-    sat_norm = cm.SatNorm(ref=args.sat_ref, max_gain=args.sat_max_gain) if args.sat_norm \
-        else None
-    cached = None
-    if args.counts and Path(args.counts).exists() and not args.rgb_lp:
+    cached = bool(args.counts and Path(args.counts).exists() and not args.rgb_lp)
+    if cached:
         with np.load(args.counts, allow_pickle=False) as z:
-            cached = {k: z[k] for k in z.files}
-        pos, neg = cached['pos'], cached['neg']
-        boxes = [tuple(int(v) for v in b) for b in cached['boxes']]
-        size = tuple(int(v) for v in cached['size'])
-    for ip, mp in (train if cached is None else []):
-        img0, face, ignored = _read(ip, mp)
-        size = (img0.shape[1], img0.shape[0])
-        n, _, stats, _ = cv2.connectedComponentsWithStats(face.astype(np.uint8))
-        boxes += [tuple(int(v) for v in stats[i, :4]) for i in range(1, n)
-                  if stats[i, 4] >= 20]
-        for a in range(1 + args.augment):
-            img = img0 if a == 0 else augment(img0, rng)
-            if a > 0 and rng.random() < args.bg_hue:
-                img = rotate_background_hue(img, face, rng)
-            hsv = table_hsv(img, args.gray_world, sat_norm, args.v_min, args.white_balance)
-            if args.gray_world and args.rgb_lp and a == 0:
-                img = cm.apply_gains(img, cm.WHITE_BALANCE[args.white_balance](img))
-            if args.orange_only:
-                mask, use = orange_mask(hsv, face)
-            else:
-                mask, use = face, np.ones_like(face)
-            use &= ~ignored
-            if args.ignore_s > 0:
-                use &= ~mask | (hsv[..., 1] >= args.ignore_s)
-            if args.erode > 0:
-                k = np.ones((2 * args.erode + 1, 2 * args.erode + 1), np.uint8)
-                m8 = face.astype(np.uint8)
-                use &= ~((cv2.dilate(m8, k) > 0) & (cv2.erode(m8, k) == 0))
-            # positives: orange face pixels; negatives: background; the rest is ignored
-            pp_, _ = cm.histogram_from_pixels(hsv, mask & use, args.v_min)
-            nn_, _ = cm.histogram_from_pixels(hsv, ~face & use, args.v_min)
-            pos += pp_
-            neg += nn_
-            if args.rgb_lp and a == 0:
-                a_, _ = dt.rgb_histograms(img, mask & use)
-                b_, _ = dt.rgb_histograms(img, ~face & use)
-                rgb_pos += a_
-                rgb_neg += b_
-    if args.counts and cached is None and size is not None:
+            cache = {k: z[k] for k in z.files}
+        counts.pos, counts.neg = cache['pos'], cache['neg']
+        counts.boxes = [tuple(int(v) for v in b) for b in cache['boxes']]
+        counts.size = tuple(int(v) for v in cache['size'])
+    else:
+        for ip, mp in train:
+            _count_pair(args, ip, mp, rng, sat_norm, counts)
+    if args.counts and not cached and counts.size is not None:
         # the bin counts depend on the data and the counting options only (not on the
         # boosting options): keep them to refit with another --pos-weight / H
-        np.savez_compressed(args.counts, pos=pos, neg=neg,
-                            boxes=np.array(boxes, np.int64).reshape(-1, 4),
-                            size=np.array(size, np.int64))
-    t_count = time.perf_counter() - t0
-    extras: dict = {}
-    clf = cm.fit_boosted(pos, neg, args.estimators, args.pos_weight)
-    lut = cm.boosted_lut(clf)
-    n_est = int(len(clf.estimators_))
-    t_fit = time.perf_counter() - t0 - t_count
-    jitter = (args.camera_pitch, args.camera_yaw, args.camera_zoom)
-    prior = cm.fit_prior(boxes, size or (640, 480), saturate=args.prior_saturate,
-                         roi_level=args.prior_roi_level,
-                         camera_jitter=jitter if any(jitter) else None)
+        np.savez_compressed(args.counts, pos=counts.pos, neg=counts.neg,
+                            boxes=np.array(counts.boxes, np.int64).reshape(-1, 4),
+                            size=np.array(counts.size, np.int64))
+    return counts
+
+
+def _metadata(args: argparse.Namespace, n_train: int, n_val: int, counts: _Counts,
+              n_est: int, sat_norm: Optional[cm.SatNorm], jitter: tuple) -> dict:
+    """The model metadata of the training run (without geometry, LP and metrics)."""
     meta = {
         'trained_on': [str(Path(d).resolve()) for d in args.data],
-        'train_images': len(train), 'val_images': len(val),
-        'sign_boxes': len(boxes), 'estimators': n_est, 'boost': 'discrete',
+        'train_images': n_train, 'val_images': n_val,
+        'sign_boxes': len(counts.boxes), 'estimators': n_est, 'boost': 'discrete',
         'requested_estimators': args.estimators, 'v_min': args.v_min,
         'ignore_s': args.ignore_s, 'erode': args.erode, 'pos_weight': args.pos_weight,
         'orange_only': bool(args.orange_only), 'gray_world': bool(args.gray_world),
@@ -385,16 +422,22 @@ def main(argv: Optional[list[str]] = None) -> int:
         'sat_norm': sat_norm.to_dict() if sat_norm is not None else None,
         'augment': args.augment, 'augment_ranges': AUGMENT, 'bg_hue': args.bg_hue,
         'camera_jitter': list(jitter), 'seed': args.seed,
-        'positive_pixels': int(pos.sum()), 'negative_pixels': int(neg.sum()),
+        'positive_pixels': int(counts.pos.sum()), 'negative_pixels': int(counts.neg.sum()),
         'created': time.strftime('%Y-%m-%dT%H:%M:%S'),
     }
-    if size is not None:
+    if counts.size is not None:
         # the camera the prior and the mounting geometry belong to
-        meta['camera'] = {'width': int(size[0]), 'height': int(size[1])}
+        meta['camera'] = {'width': int(counts.size[0]), 'height': int(counts.size[1])}
         if args.camera:
             meta['camera'].update(zip(('fx', 'fy', 'cx', 'cy'), map(float, args.camera)))
+    return meta
+
+
+def _geometry_and_lp(args: argparse.Namespace, counts: _Counts, meta: dict) -> dict:
+    """The model extras (mounting geometry, RGB-LP thresholds); records them in ``meta``."""
+    extras: dict = {}
     # mounting geometry: sign bottoms relative to the horizon row, in sign heights
-    g_boxes, g_size = boxes, size
+    g_boxes, g_size = counts.boxes, counts.size
     if args.geometry_from:
         g_boxes, g_size = mask_boxes(load_pairs(args.geometry_from))
     row = args.horizon_row
@@ -410,12 +453,16 @@ def main(argv: Optional[list[str]] = None) -> int:
         meta['geometry_from'] = ([str(Path(d).resolve()) for d in args.geometry_from]
                                  if args.geometry_from else 'training folders')
     if args.rgb_lp:
-        lp = dt.fit_rgb_lp(rgb_pos, np.maximum(rgb_neg, 0), w=args.lp_w,
+        lp = dt.fit_rgb_lp(counts.rgb_pos, np.maximum(counts.rgb_neg, 0), w=args.lp_w,
                            max_thresholds=args.lp_max)
         extras['rgb_lp_thresholds'] = lp.thresholds
         meta['rgb_lp'] = lp.metadata
-    model = cm.default_model(lut, args.v_min, prior, meta)
-    model = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta, extras)
+    return extras
+
+
+def _table_metrics(args: argparse.Namespace, lut: np.ndarray, train: list, val: list,
+                   sat_norm: Optional[cm.SatNorm]) -> dict:
+    """Pixel metrics of the table on the training (``--metrics``) and validation images."""
     metrics = {}
     if args.metrics:
         metrics['train'] = pixel_metrics(lut, args.v_min, train, gray_world=args.gray_world,
@@ -424,7 +471,48 @@ def main(argv: Optional[list[str]] = None) -> int:
         metrics['validation'] = pixel_metrics(lut, args.v_min, val,
                                               gray_world=args.gray_world, sat_norm=sat_norm,
                                               white_balance=args.white_balance)
-    meta['metrics'] = metrics
+    return metrics
+
+
+def _load_training_pairs(data: list[str]) -> Optional[list[tuple[Path, Path]]]:
+    """The image/mask pairs of ``data``; None (after one line on stderr) when there are none."""
+    try:
+        pairs = load_pairs(data)
+    except FileNotFoundError as exc:
+        print(f'workzone-ros train color: {exc}', file=sys.stderr)
+        return None
+    if not pairs:
+        print('workzone-ros train color: no image/mask pairs found', file=sys.stderr)
+        return None
+    return pairs
+
+
+def main(argv: Optional[list[str]] = None) -> int:
+    """Train and write the colour model; returns the exit status."""
+    args = _parser().parse_args(argv)
+    pairs = _load_training_pairs(args.data)
+    if pairs is None:
+        return 2
+    train = [pp for pp in pairs if not _is_val(pp[0], args.val_frac)]
+    val = [pp for pp in pairs if _is_val(pp[0], args.val_frac)]
+    t0 = time.perf_counter()
+    sat_norm = cm.SatNorm(ref=args.sat_ref, max_gain=args.sat_max_gain) if args.sat_norm \
+        else None
+    counts = _count_pixels(args, train, sat_norm)
+    t_count = time.perf_counter() - t0
+    clf = cm.fit_boosted(counts.pos, counts.neg, args.estimators, args.pos_weight)
+    lut = cm.boosted_lut(clf)
+    n_est = int(len(clf.estimators_))
+    t_fit = time.perf_counter() - t0 - t_count
+    jitter = (args.camera_pitch, args.camera_yaw, args.camera_zoom)
+    prior = cm.fit_prior(counts.boxes, counts.size or (640, 480),
+                         saturate=args.prior_saturate, roi_level=args.prior_roi_level,
+                         camera_jitter=jitter if any(jitter) else None)
+    meta = _metadata(args, len(train), len(val), counts, n_est, sat_norm, jitter)
+    extras = _geometry_and_lp(args, counts, meta)
+    model = cm.default_model(lut, args.v_min, prior, meta)
+    model = cm.ColorModel(model.classes, model.luts, model.v_min, model.prior, meta, extras)
+    meta['metrics'] = _table_metrics(args, lut, train, val, sat_norm)
     cm.save_model(model, args.output)
     print(json.dumps({'output': args.output, 'bytes': Path(args.output).stat().st_size,
                       'seconds': {'count': round(t_count, 2), 'fit': round(t_fit, 2)},

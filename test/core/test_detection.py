@@ -1871,3 +1871,40 @@ def test_clipped_growth_only_through_clipped_pixels():
     weak[5:35, 0:60] = 1
     bgr[5:35, 0:60, 2], bgr[5:35, 0:60, 1] = 255, 120   # a clipped surface around the core
     assert not _clipped_growth(bgr, weak, strong, 0.5).any()
+
+
+
+def test_a_busy_frame_spends_a_bounded_number_of_chroma_fits(detector, monkeypatch):
+    """``max_blur_fits``: a frame of many signs whose border line does not measure costs at
+    most that many chroma fits, the largest blobs first; a frame under the budget is measured
+    as without one."""
+    from workzone_ros.core.detect import warning
+    fitted = []
+    real_fit = warning.fit_blurred_diamond
+
+    def counting(chroma, start, *args, **kwargs):
+        fitted.append(float(start[2]))
+        return real_fit(chroma, start, *args, **kwargs)
+
+    monkeypatch.setattr(warning, 'fit_blurred_diamond', counting)
+
+    def no_line(max_fits):
+        det = detector.with_config(max_blur_fits=max_fits)
+        det._refine = lambda *args, **kwargs: None     # no face-to-line step anywhere
+        return det
+
+    img, x = _background(3), 40
+    for r in (14, 30, 18, 26, 22, 16):
+        _diamond(img, x + r, 120, r)
+        x += 2 * r + 25
+    unbounded, bounded = no_line(50), no_line(2)
+    assert len(unbounded.detect(img)) == 6 and len(fitted) == 6
+    assert not unbounded.budget_spent
+    fitted.clear()
+    assert len(bounded.detect(img)) >= 2
+    assert len(fitted) == 2 and min(fitted) > 25.0          # the 30 and 26 px signs
+    assert bounded.budget_spent == {'blur_fit'}
+    one = _background(3)
+    _diamond(one, 200, 120, 26)
+    assert bounded.detect(one) == unbounded.detect(one) != []
+    assert not bounded.budget_spent

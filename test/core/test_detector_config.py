@@ -36,6 +36,8 @@ RANGES = {
     'hold_sat': (0.0, 1.5, False, False),
     'blur_fit_ratio': (0.5, 2.0, False, False),
     'blur_fit_max_sigma': (0.3, 10.0, True, False),
+    'max_blur_fits': (0, 50, False, False),
+    'max_grown': (0, 100, False, False),
     'blur_fit_bias': (-3.0, 3.0, False, False),
     'rim_chroma': (0.0, 1.0, False, False),
     'search_min_contrast': (0.0, 1.0, True, True),
@@ -53,7 +55,7 @@ RANGES = {
     'ext_overlong': (0.0, None, False, False),
     'ext_ratio_tol': (0.0, None, False, False),
 }
-INTEGER = {'diamond_stroke_steps'}
+INTEGER = {'diamond_stroke_steps', 'max_blur_fits', 'max_grown'}
 FIELDS = {f.name: f for f in dataclasses.fields(DetectorConfig)}
 
 

@@ -176,6 +176,9 @@ def test_image_waits_for_late_rois(ros, model_path):
         return [x for x in ds if x.header.stamp == t2]
     assert ros.spin_until(lambda: late(), timeout=5.0)
     assert late()[0].detections[0].sources == ['color']
+    # /diagnostics says how each held image's wait ended
+    figures = dict(node.extra_diagnostics())
+    assert figures['images held: matched'] == '1' and figures['images held: expired'] == '1'
 
 
 def test_no_rois_publisher_means_no_wait(ros, model_path):

@@ -49,7 +49,8 @@ _CORE = ('method', 'colors', 'threshold', 'scale', 'use_prior', 'open_px', 'clos
          'ext_min_aspect', 'roi_prior', 'roi_threshold', 'roi_margin', 'lidar_confidence',
          'lidar_only', 'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry',
          'roi_relax', 'lidar_only_threshold', 'camera_match', 'foreign_prior',
-         'diamond_refine', 'rect_refine', 'pixel_boxes', 'blur_fit', 'outline_evidence',
+         'diamond_refine', 'rect_refine', 'pixel_boxes', 'blur_fit', 'max_blur_fits',
+         'max_grown', 'outline_evidence',
          'rect_needs_edges', 'v_hysteresis', 'grow_level')
 _CORE_PARAMS = params_from_dataclass(DetectorConfig, only=_CORE)
 
@@ -257,12 +258,20 @@ class ColorDetectorNode(WorkzoneNode):
         if self._rules_apply(bgr):
             dets = self._detector.detect(bgr, rois or ())
             channelizers = len(self._detector.channelizers)
+            for kind in self._detector.budget_spent:
+                self._held_counts[f'frames over the {kind} budget'] += 1
         if self._proposer is not None:
             dets = dets + proposals_as_detections(self._proposer.propose(bgr), dets)
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
             header=head, detections=dets, channelizers=channelizers)))
         self._frames += 1
 
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """Images held for their ROIs by how the wait ended, and the frames whose budget
+        of costly measurements (``max_blur_fits``, ``max_grown``) ran out."""
+        return [(k if k.startswith('frames') else f'images held: {k}', str(v))
+                for k, v in sorted(self._held_counts.items())]
 
 
 NODE_CLASS = ColorDetectorNode

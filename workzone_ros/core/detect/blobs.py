@@ -44,7 +44,9 @@ class BlobMixin:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         out = []
         min_area_small = cfg.min_area_px / (s * s)
-        for i in range(1, n):
+        # the largest blobs first: they take the frame's budget of costly measurements
+        # (max_blur_fits, max_grown); the candidates keep the components' order
+        for i in sorted(range(1, n), key=lambda j: (-int(stats[j, 4]), j)):
             x, y, w, h, area = (int(v) for v in stats[i])
             if area < min_area_small:
                 continue
@@ -61,11 +63,21 @@ class BlobMixin:
                               area / float(w * h))
             if thin and (c is None or not c.extended):
                 continue            # kept only with its white part below it
-            if c is None and grow is not None:
+            if c is None and grow is not None and self._spend('grown'):
                 c = self._grown(i, labels, mask, grow, stats, bgr, off, s, thr_base, lboxes)
             if c is not None:
-                out.append(c)
-        return out
+                out.append((i, c))
+        return [c for _, c in sorted(out, key=lambda ic: ic[0])]
+
+    def _spend(self, kind: str) -> bool:
+        """Take one of the frame's ``kind`` measurements (``grown`` or ``blur_fit``) from
+        its budget (``max_grown``, ``max_blur_fits``); False when none is left."""
+        left = self._budget.get(kind, 0)
+        if left <= 0:
+            self.budget_spent.add(kind)
+            return False
+        self._budget[kind] = left - 1
+        return True
 
     def _measure(self, bgr: np.ndarray, comp: np.ndarray, box: tuple, color: str, s: int,
                  thr_base: np.ndarray, lboxes: list, blob_fill: float = 1.0

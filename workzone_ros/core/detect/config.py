@@ -171,6 +171,12 @@ class DetectorConfig:
                                 -3.0, 3.0, note='px')
     blur_fit_max_sigma: float = knob(4.0, 'largest blur of the chroma fit, px',
                                      0.3, 10.0, open_lo=True, note='px')
+    max_blur_fits: int = knob(2, 'chroma fits per frame at most (the largest blobs first): a '
+                              'busy frame of many orange surfaces costs a bounded time',
+                              0, 50, integer=True, note='per frame')
+    max_grown: int = knob(4, 'blobs grown into their neighbours per frame at most (the largest '
+                          'first): a busy frame costs a bounded time',
+                          0, 100, integer=True, note='per frame')
     rim_chroma: float = knob(0.35, 'reject an outline whose rim is this far from the '
                              "background's chroma to the face's (0: off)",
                              0.0, 1.0, note='0 = off')

@@ -67,6 +67,10 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         self.rgb_lp = rgb_lp
         #: places (16 px cells) of the last frame's blobs rejected as drums or cones
         self.channelizers: set = set()
+        #: the costly measurements whose per-frame budget ran out on the last frame
+        #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``)
+        self.budget_spent: set[str] = set()
+        self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown}
         if config.method == 'rgb_lp' and rgb_lp is None:
             raise ModelError("method 'rgb_lp' needs the RGB thresholds of Balali and "
                              'Golparvar-Fard (train them with workzone-ros train color '
@@ -182,6 +186,9 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         s, sw, sh, thr_base, p_full, roi, own = self._frame_setup(width, height)
         cfg = self.config
         self.channelizers = set()   # blobs rejected as banded drums / cones this frame
+        # this frame's costly measurements left; the kinds whose budget ran out
+        self._budget = {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown}
+        self.budget_spent = set()
         self._ref_row = None
         self._sharp_faces = set()
         if self._geometry is not None and cfg.use_geometry and own:

@@ -144,7 +144,8 @@ class WarningMixin:
                     break
                 cut_row = None
         blurred = None
-        if sub is None and refine and cfg.blur_fit and not needs_outline:
+        if sub is None and refine and cfg.blur_fit and not needs_outline \
+                and self._spend('blur_fit'):
             # no line to measure: the sign's blurred colour
             blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
                                      fd if fd is not None and fd[4] >= 0.5 else None)

@@ -1,13 +1,18 @@
 """``workzone-ros bench classifier``: sign classifier ms per crop, vs the raw-intensity baseline.
 
 On one core (process pinned, OpenCV and BLAS / OpenMP pools at one thread) the shipped model
-(``--model``, default ``config/models/sign_classifier.npz``) classifies crops cut from the
-frames of the tracker benchmark's synthetic sequence (orange diamonds of 24-180 px), timed
+(``--model``, default the shipped CNN ``config/models/sign_classifier_cnn.npz``; the SVM is
+``config/models/sign_classifier.npz``) classifies crops cut from the frames of the tracker
+benchmark's synthetic sequence (orange diamonds of 24-180 px), timed
 
 * one crop at a time (``classify([crop])``): p50 / p99 ms per crop;
 * in batches of ``--batch`` (20) crops (``classify(crops)``): p50 / p99 ms per batch and
   per crop;
-* ``classify_boxes`` on a frame with ``--batch`` boxes (cropping included).
+* ``classify_boxes`` on a frame with ``--batch`` boxes (cropping included);
+* the classifier node's debug image (``debug_image: true``): :func:`draw_debug` of the frame
+  with five signs and the phase banner, and its conversion to a ``sensor_msgs/Image``
+  (``debug_image_ms``; sending it costs what ``bench transport`` measures for an image,
+  and only when something subscribes).
 
 In the same run two models trained on the same rendered crops (two library scenarios,
 seed 0, rendered once into the crop cache) -- log-polar + PCA + SVM (the seed) and 100 x 100
@@ -82,6 +87,28 @@ def _measure(model, crops, images, boxes, batch: int, repeats: int, clock) -> di
             f'classify_boxes_{batch}_ms': _stats(boxed)}
 
 
+def _debug_image(images, boxes, repeats: int, clock) -> dict:
+    """ms per frame of the classifier node's debug image: the overlay and the message."""
+    from workzone_ros import interfaces as I
+    from workzone_ros.core.overlay import draw_debug
+    from workzone_ros.nodes.conversions import numpy_to_image
+    state = I.WorkzoneState(header=I.Header(stamp=I.Time(sec=0)), active=True,
+                            phase='approaching', likelihood=0.9)
+    frames = []
+    for img, bb in zip(images, boxes):
+        signs = [I.Sign(box=I.Box(*(float(v) for v in b)), class_key='road_work_ahead',
+                        code='W20-1', category='workzone', score=0.9, track_id=k)
+                 for k, b in enumerate(bb)]
+        frames.append((img, signs))
+
+    def one(img, signs):
+        numpy_to_image(draw_debug(img, signs, (), state), 'bgr8')
+
+    picks = [frames[k % len(frames)] for k in range(max(20, repeats // 5))]
+    return {'frame': f'{images[0].shape[1]}x{images[0].shape[0]}',
+            'signs': len(frames[0][1]), **_stats(_time(one, picks, clock))}
+
+
 def _baseline_pair(progress=print):
     """Log-polar and raw-intensity SVMs trained on the same rendered crops."""
     from workzone_ros.core import classifier as clf_mod
@@ -132,7 +159,8 @@ def run(args: argparse.Namespace) -> dict:
            'model': str(path), 'features': model.features, 'method': model.method,
            'classes': len(model.classes),
            'support_vectors': int(model.arrays.get('support_vectors', np.zeros((0,))).shape[0]),
-           'shipped': _measure(model, crops, images, boxes, args.batch, args.repeats, clock)}
+           'shipped': _measure(model, crops, images, boxes, args.batch, args.repeats, clock),
+           'debug_image_ms': _debug_image(images, boxes, args.repeats, clock)}
     if not args.no_baseline:
         pair, n = _baseline_pair()
         same = {k: _measure(m, crops, images, boxes, args.batch, args.repeats, clock)

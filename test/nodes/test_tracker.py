@@ -5,6 +5,7 @@ import dataclasses
 
 import cv2
 import numpy as np
+import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -17,6 +18,8 @@ from workzone_ros.interfaces import (
     Detection,
     Detections,
     Header,
+    Sign,
+    Signs,
     Time,
     Tracks,
     decode,
@@ -59,7 +62,9 @@ def _iou(b, g):
     return iw * ih / (b.w * b.h + g[2] * g[3] - iw * ih)
 
 
-def _run(ros, overrides, frames=12, detect=lambda i: i < 3, detections_first=False):
+def _run(ros, overrides, frames=12, detect=lambda i: i < 3, detections_first=False,
+         each=None):
+    """Frames through the node; ``each(node, peer, i, tracks)`` runs after frame i's tracks."""
     node = ros.add(TrackerNode(context=ros.context, parameter_overrides=overrides))
     peer = ros.add(rclpy.create_node('tracker_test_peer', context=ros.context))
     img_pub = peer.create_publisher(Image, '/camera/image_raw',
@@ -89,6 +94,8 @@ def _run(ros, overrides, frames=12, detect=lambda i: i < 3, detections_first=Fal
         for p in (pubs if detections_first else pubs[::-1]):
             p()
         assert ros.spin_until(lambda: t.to_ns() in got), f'no tracks for frame {i}'
+        if each is not None:
+            each(node, peer, i, got[t.to_ns()])
     return node, got, gts
 
 
@@ -166,3 +173,54 @@ def test_tracker_node_parameters_are_the_tracker_config(ros):
     assert reason('min_similarity', 0.6) is None and reason('max_lost_frames', 4) is None
     assert node._tracker.config.min_similarity == 0.6
     assert node._tracker.config.max_lost_frames == 4
+
+
+@pytest.mark.parametrize('answer', ['sign', 'unknown', 'background'])
+def test_tracker_node_runs_on_its_own_only_on_tracks_the_classifier_confirmed(ros, answer):
+    """One detection (frame 0), then none: the classifier's Signs for frame 0 on
+    ``/workzone/signs`` confirm the track (a work-zone sign with its id: published while it
+    runs on its own), say nothing on it (``unknown``, a box too small: one detection is not
+    enough) or reject it (no sign for its id: the classifier did not publish a background
+    answer; not published until a new detection)."""
+    def classify(node, peer, i, tracks):
+        if i:
+            return
+        pub = peer.create_publisher(String, '/workzone/signs', 10)
+        assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
+        [tr] = tracks.tracks
+        signs = {'sign': [Sign(box=tr.box, class_key='road_work_ahead', code='W20-1',
+                               category='workzone', score=0.9, track_id=tr.track_id)],
+                 'unknown': [Sign(box=tr.box, class_key='unknown', code='-',
+                                  category='unknown', score=0.0, track_id=tr.track_id)],
+                 'background': []}[answer]
+        pub.publish(String(data=encode(Signs(header=tracks.header, signs=signs))))
+        assert ros.spin_until(lambda: node._tracker._verdicts.active)
+        assert node.counts == {'confirmed': int(answer == 'sign'),
+                               'rejected': int(answer == 'background')}
+
+    node, got, gts = _run(ros, [], frames=5, detect=lambda i: i == 0, each=classify)
+    alone = {gts[ns][0]: [t.source for t in tr.tracks] for ns, tr in got.items()}
+    assert alone[0] == ['detection']
+    for i in range(1, 5):
+        assert alone[i] == (['tracking'] if answer == 'sign' else []), (i, alone)
+    assert node._tracker.active_ids == [1]
+
+
+def test_tracker_node_drops_malformed_signs_and_can_do_without_them(ros):
+    """A malformed Signs payload is dropped and counted, never a crash; ``signs_topic``
+    empty: no subscription (the previous rule)."""
+    node = ros.add(TrackerNode(context=ros.context))
+    peer = ros.add(rclpy.create_node('tracker_bad_signs_peer', context=ros.context))
+    pub = peer.create_publisher(String, '/workzone/signs', 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
+
+    def dropped():
+        return node.topic_stats()['/workzone/signs'].dropped
+
+    assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
+                                   dropped() >= 1)[1])
+    assert 'schema' in node.topic_stats()['/workzone/signs'].last_drop_reason
+    assert not node._tracker._verdicts.active
+    quiet = ros.add(TrackerNode(context=ros.context, namespace='quiet',
+                                parameter_overrides=[Parameter('signs_topic', value='')]))
+    assert quiet._signs_sub is None and '/quiet/workzone/signs' not in quiet.topic_stats()

@@ -6,6 +6,11 @@ of exactly the same stamp (the detector stamps its output with the image it ran 
 detections arrive first they wait (a few frames) for their image.  Frames are processed in
 stamp order; anything older than the last processed frame is dropped (latest-frame-wins), and
 a stamp that jumps backwards (a looping bag) resets the tracks.
+
+The classifier's ``Signs`` on ``signs_topic`` confirm or reject the tracks of the frame they
+answer (``needs_confirmation``, :mod:`workzone_ros.core.track.confirmation`): a track id this
+node published for that stamp with no sign of any category was rejected as background.
+An empty ``signs_topic``: no confirmation (the previous rule).
 """
 from __future__ import annotations
 
@@ -16,7 +21,8 @@ from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
 from workzone_ros.core.track import MultiTracker, TrackerConfig
-from workzone_ros.interfaces import Detections, Tracks
+from workzone_ros.core.track.confirmation import classifier_verdicts
+from workzone_ros.interfaces import Detections, Signs, Tracks
 from workzone_ros.nodes.base import InputError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.conversions import (
     compressed_to_numpy,
@@ -39,6 +45,8 @@ EVALUATION_ONLY = ('mode', 'method', 'association')
 #: minimum.
 _CORE_PARAMS = params_from_dataclass(TrackerConfig, skip=EVALUATION_ONLY,
                                      defaults={'min_approach_speed': 0.0})
+#: Frames whose published track ids are kept for the classifier's answer (its latency).
+_SENT_FRAMES = 30
 
 
 def config_from_params(params: Any) -> TrackerConfig:
@@ -59,6 +67,8 @@ class TrackerNode(WorkzoneNode):
               read_only=True),
         Param('detections_topic', '/workzone/detections', 'input Detections payloads'),
         Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads'),
+        Param('signs_topic', '/workzone/signs', "the classifier's Signs: its answers confirm or "
+              'reject tracks (needs_confirmation; empty: no confirmation)', read_only=True),
         Param('image_buffer', 10, 'images kept while waiting for their detections', min=1,
               max=100),
     ) + _CORE_PARAMS
@@ -73,11 +83,16 @@ class TrackerNode(WorkzoneNode):
         self._pending: collections.OrderedDict[int, Detections] = collections.OrderedDict()
         self._max = n
         self._last_ns: Optional[int] = None
+        self._sent: collections.OrderedDict[int, list[int]] = collections.OrderedDict()
+        self.counts = {'confirmed': 0, 'rejected': 0}
         self._tracks_pub = self.reliable_publisher(String, self.params.tracks_topic)
         self._image_sub = self.image_subscription(self.params.image_topic, self._on_image,
                                                   self.params.compressed)
         self._det_sub = self.reliable_subscription(String, self.params.detections_topic,
                                                    self._on_detections)
+        self._signs_sub = (self.reliable_subscription(String, self.params.signs_topic,
+                                                      self._on_signs)
+                           if self.params.signs_topic else None)
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Apply live parameter changes to the tracker (tracks are kept)."""
@@ -91,6 +106,7 @@ class TrackerNode(WorkzoneNode):
         self._tracker.reset()
         self._images.clear()
         self._pending.clear()
+        self._sent.clear()
         self._last_ns = None
 
     # --- callbacks ------------------------------------------------------------------------
@@ -121,6 +137,14 @@ class TrackerNode(WorkzoneNode):
             self.drop(self.params.detections_topic,
                       'no image with the stamp of these detections arrived')
 
+    def _on_signs(self, msg: String) -> None:
+        signs = string_to_payload(msg, Signs)
+        sent = self._sent.get(signs.header.stamp.to_ns(), ())
+        confirmed, rejected = classifier_verdicts(sent, signs.signs)
+        self._tracker.confirm(confirmed, rejected)
+        self.counts['confirmed'] += len(confirmed)
+        self.counts['rejected'] += len(rejected)
+
     # --- the step -------------------------------------------------------------------------
 
     def _process(self, frame: Any, dets: Detections) -> None:
@@ -137,7 +161,15 @@ class TrackerNode(WorkzoneNode):
             del self._images[old]
         for old in [k for k in self._pending if k <= ns]:
             del self._pending[old]
+        self._sent[ns] = [t.track_id for t in tracks]
+        while len(self._sent) > _SENT_FRAMES:
+            self._sent.popitem(last=False)
         self._tracks_pub.publish(payload_to_string(Tracks(header=dets.header, tracks=tracks)))
+
+
+    def extra_diagnostics(self) -> list[tuple[str, str]]:
+        """Tracks the classifier confirmed as signs and rejected as background."""
+        return [(f'tracks {k}', str(v)) for k, v in sorted(self.counts.items())]
 
 
 NODE_CLASS = TrackerNode

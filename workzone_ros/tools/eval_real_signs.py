@@ -11,6 +11,9 @@ with the hand-made labels (evaluation only, never trained on):
 * ``false_per_frame``: work-zone signs reported per frame in the frames outside every
   ``workzone_sign`` range of ``tools/data/real_clip_ranges.csv`` (target <= 0.05).
 
+The classifier's answers on each frame's tracks go back to the tracker before the next frame
+(``MultiTracker.confirm``), as the ``tracker`` node hears ``/workzone/signs``.
+
 Say which data trained the model: a model trained on a clip's crops is not measured on it.
 """
 from __future__ import annotations
@@ -92,6 +95,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     from workzone_ros.core.recognition import SignRecognizer
     from workzone_ros.core.sign_distance import focal_from_fov
     from workzone_ros.core.track import MultiTracker, TrackerConfig
+    from workzone_ros.core.track.confirmation import classifier_verdicts
     from workzone_ros.tools.eval_tracker import _ColorDetector
     labels = load_real_labels().get(path.name, {})
     ranges = sign_ranges().get(path.name, [])
@@ -112,6 +116,8 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         cands += len(dets)
         items = tracker.step(img, dets, stamp=k / fps) if track else dets
         signs, _ = recognizer.recognize(img, items, focal_from_fov(img.shape[1], hfov_deg))
+        if track:      # the answers go back to the tracker, as /workzone/signs to the node
+            tracker.confirm(*classifier_verdicts([t.track_id for t in items], signs))
         wz = [s for s in signs if s.category == 'workzone']
         label = labels.get(k)
         if label and label[1]:

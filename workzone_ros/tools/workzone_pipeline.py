@@ -4,7 +4,9 @@ The chain the nodes run, in process and in frame order, from ``workzone_ros.core
 
 * the colour detector (``core.detect.ColorDetector`` with the trained orange model,
   ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it);
-* the mean-shift tracker (``core.track.MultiTracker``, ``TrackerConfig()`` defaults);
+* the mean-shift tracker (``core.track.MultiTracker``, ``TrackerConfig()`` defaults), told
+  the classifier's answers on each frame's tracks before the next frame
+  (``MultiTracker.confirm``, as the ``tracker`` node hears ``/workzone/signs``);
 * the sign classifier (``core.classifier.load_model``, ``classify_boxes``) with the
   classifier node's rules: boxes under 12 px on a side or less than half inside the image
   are ``unknown`` (never guessed), ``background`` answers are not published, a work-zone
@@ -43,8 +45,8 @@ MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
 GENERAL_EVERY = 3       # classifier node: general_every
 # 2: frames carry the colour detector's channelizer count; 3: general signs; 4: general
-# signs every GENERAL_EVERY-th frame
-_CACHE_VERSION = 4
+# signs every GENERAL_EVERY-th frame; 5: the classifier's answers confirm tracks
+_CACHE_VERSION = 5
 
 
 def _classifier_path(opts) -> str:
@@ -166,7 +168,11 @@ class PipelineSource:
         t2 = time.perf_counter()
         self.timings['color_detector'].append((t1 - t0) * 1e3)
         self.timings['tracker'].append((t2 - t1) * 1e3)
-        return self.classify(image, tracks, focal), channel
+        signs = self.classify(image, tracks, focal)
+        # the classifier's answers go back to the tracker, as /workzone/signs to the node
+        from workzone_ros.core.track.confirmation import classifier_verdicts
+        self.tracker.confirm(*classifier_verdicts([t.track_id for t in tracks], signs))
+        return signs, channel
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""

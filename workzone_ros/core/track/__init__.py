@@ -2,7 +2,9 @@
 
 Modules: :mod:`.config` (parameters), :mod:`.meanshift` (histograms, mean-shift and
 CamShift localisation), :mod:`.appearance` (the target model and the sign-likeness gates),
-:mod:`.motion` (the approach cue), :mod:`.multi` (:class:`MultiTracker`, track life).
+:mod:`.motion` (the approach cue), :mod:`.multi` (:class:`MultiTracker`, track life),
+:mod:`.confirmation` (the classifier's answers decide which tracks run on their own),
+:mod:`.boxes` (box geometry).
 
 The target is a hue-saturation histogram of ``nh x ns = 20 x 20`` bins weighted by a kernel
 that multiplies the Epanechnikov profile by the detection's shape mask over normalized pixel

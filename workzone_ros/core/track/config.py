@@ -56,6 +56,15 @@ class TrackerConfig:
         min_hits_to_coast: detections a track needs before it may run on its own (ours 1:
             with the sign-likeness gate ``min_saturation_contrast`` a single detection is
             enough; 2 on the tuning bags left most dusk misses uncovered; seed rule 2).
+        needs_confirmation: with a classifier reporting back (:meth:`MultiTracker.confirm`,
+            the ``tracker`` node's ``signs_topic``), a track running on its own is published
+            only when the classifier's latest answer on it is a sign (workzone or general)
+            or it has at least two detections, and never while its latest answer is
+            ``background`` (until a new detection): one false detection on a drum no longer
+            becomes a long track, classified again on every frame (issue 34; the rules in
+            :mod:`~workzone_ros.core.track.confirmation`).  Frames with a detection are
+            published as before.  Without a classifier (no ``confirm`` call yet) and with
+            False: the previous rule.
         min_hits_to_fuse: detections a track needs before its tracked box may outvote a
             detection (``fuse``); before, every associated detection overwrites it.
         max_background_similarity: a target whose model resembles its surroundings more than
@@ -287,6 +296,10 @@ class TrackerConfig:
         45, 'frames without a detection before a track ends', min=0, max=10000)
     min_hits_to_coast: int = knob(
         1, 'detections before a track may run on its own', min=1, max=100)
+    needs_confirmation: bool = knob(
+        True, 'with a classifier reporting back: a track runs on its own only once the classifier '
+        'confirmed it as a sign or after two detections, never while it rejected it (false: the '
+        'previous rule)')
     min_hits_to_fuse: int = knob(
         2, 'detections before the tracked box may outvote a detection (fuse)', min=1, max=100)
     max_background_similarity: float = knob(

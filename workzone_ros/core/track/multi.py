@@ -12,12 +12,16 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional, Sequence
+from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
 from workzone_ros.core.track.appearance import TargetModel, build_target
+from workzone_ros.core.track.boxes import blend as _blend
+from workzone_ros.core.track.boxes import box_iou
+from workzone_ros.core.track.boxes import ioa as _ioa
 from workzone_ros.core.track.config import TrackerConfig, TrackingError
+from workzone_ros.core.track.confirmation import Confirmations
 from workzone_ros.core.track.meanshift import (
     SearchWindow,
     _luts,
@@ -41,37 +45,6 @@ __all__ = ['box_iou', 'MultiTracker']
 
 #: Clock of the per-track timing (``last_localise_s``); the bench may use CPU time instead.
 _clock = time.perf_counter
-
-
-def box_iou(a: Sequence[float], b: Sequence[float]) -> float:
-    """IoU of two ``(x, y, w, h)`` boxes (0 when either is empty)."""
-    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
-    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
-    if iw <= 0 or ih <= 0:
-        return 0.0
-    inter = iw * ih
-    union = a[2] * a[3] + b[2] * b[3] - inter
-    return inter / union if union > 0 else 0.0
-
-
-def _ioa(a: Sequence[float], b: Sequence[float]) -> float:
-    """Share of box ``b``'s area inside box ``a`` (0 when ``b`` is empty)."""
-    iw = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
-    ih = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
-    if iw <= 0 or ih <= 0 or b[2] <= 0 or b[3] <= 0:
-        return 0.0
-    return iw * ih / (b[2] * b[3])
-
-
-def _blend(a: Sequence[float], b: Sequence[float], wb: float) -> tuple[float, float, float,
-                                                                       float]:
-    """Weighted mean of two ``(x, y, w, h)`` boxes (corners averaged; ``wb`` is b's weight)."""
-    wa = 1.0 - wb
-    x0 = wa * a[0] + wb * b[0]
-    y0 = wa * a[1] + wb * b[1]
-    x1 = wa * (a[0] + a[2]) + wb * (b[0] + b[2])
-    y1 = wa * (a[1] + a[3]) + wb * (b[1] + b[3])
-    return (x0, y0, x1 - x0, y1 - y0)
 
 
 def _check_frame(frame) -> None:
@@ -145,6 +118,7 @@ class MultiTracker:
         self._next_id = 1
         # recall-first colour proposals: followed by overlap, published once repeated
         self._proposals = ProposalTracks(new_id=self._take_id)
+        self._verdicts = Confirmations()    # the classifier's (confirm), needs_confirmation
         self.frames = 0
         self._frame: Optional[np.ndarray] = None
         self._stamps: list[float] = []       # the last frames' stamps (s), for the frame rate
@@ -165,6 +139,7 @@ class MultiTracker:
         """Drop every track (e.g. when the bag loops or time jumps back)."""
         self._tracks.clear()
         self._proposals.reset()
+        self._verdicts.clear()
         self._stamps.clear()
         self._fps = None
 
@@ -173,6 +148,12 @@ class MultiTracker:
         """Ids of the live tracks."""
         return [t.track_id for t in self._tracks]
 
+    def confirm(self, signs: Iterable[int] = (), rejected: Iterable[int] = ()) -> None:
+        """The classifier's answers on tracks it classified: ids it found a sign on, ids it
+        rejected as background (:func:`~workzone_ros.core.track.confirmation.
+        classifier_verdicts`); with ``needs_confirmation`` they decide which tracks run on
+        their own (:mod:`~workzone_ros.core.track.confirmation`)."""
+        self._verdicts.note(signs, rejected, self.active_ids)
 
     def _localise(self, frame: np.ndarray, tr: _Track) -> None:
         cfg = self.config
@@ -208,7 +189,6 @@ class MultiTracker:
         tr.pred_rho = rho
         tr.pred_ring = ring or 0.0
 
-
     def step(self, frame: np.ndarray, detections: Sequence[Detection] = (),
              stamp: Optional[float] = None) -> list[Track]:
         """Process one frame and its detections; returns the tracks to publish.
@@ -216,12 +196,14 @@ class MultiTracker:
         Detections flagged ``proposal`` (the recall-first colour candidates) never start a
         mean-shift track: they get identities by box overlap
         (:class:`~workzone_ros.core.track.proposal_tracks.ProposalTracks`) and are published
-        only once repeated, unless a published track already covers them.
+        only once repeated, unless a published track already covers them.  A track running
+        on its own is published only under the classifier's rule (:meth:`confirm`).
 
         Args, returns and errors: as :meth:`_step_rules`.
         """
         rules = [d for d in detections if not getattr(d, 'proposal', False)]
-        out = self._step_rules(frame, rules, stamp)
+        out = self._verdicts.gate(self._step_rules(frame, rules, stamp),
+                                  self.config.needs_confirmation, self.active_ids)
         props = [d for d in detections if getattr(d, 'proposal', False)]
         if not props and not len(self._proposals):
             return out
@@ -466,7 +448,6 @@ class MultiTracker:
                 continue
             kept.append(tr)
         return kept
-
 
     def _duplicate(self, a: _Track, b: _Track, contain: bool) -> bool:
         """Tracks ``a`` and ``b`` follow one sign: their boxes overlap by more than

@@ -174,7 +174,8 @@ def _optics(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     if r < 0.45:
         sigma = rng.uniform(0.3, 1.0)
         img = cv2.GaussianBlur(img, (0, 0), sigma)
-    elif r < 0.42:
+    elif r < 0.60:
+        # a moving dashcam: a 3-5 px linear motion blur, horizontal or (30 %) vertical
         k = int(rng.integers(3, 6))
         kern = np.zeros((k, k), np.float32)
         kern[k // 2] = 1.0 / k

@@ -165,8 +165,10 @@ def test_cli_json_schema_and_report(gt_bag, tmp_path):
     s = data['summary']
     assert (s['bounds_recognised'], s['bounds'], s['changes_recognised'], s['changes']) == \
         (2, 2, 2, 2)
+    assert bag['stages'] is None and s['stages'] is None       # --signs gt: no stages
     readme = (tmp_path / 'rep' / 'README.md').read_text()
     assert 'Table IV' in readme and 'zone_timeline.png' in readme
+    assert 'Per-stage accuracy' in readme and 'n/a' in readme
     assert (tmp_path / 'rep' / 'zone_timeline.png').stat().st_size > 1000
     assert '[1/1] zone' in proc.stderr
 

@@ -70,11 +70,22 @@ Figures per bag (every one in ``--json``; ``null`` where it does not apply):
 * ``likelihood_inside`` / ``likelihood_outside``: mean likelihood over truth-active and
   truth-none frames; ``sign_confusion`` (truth class -> predicted class -> frames, IoU >=
   0.5; ``missed`` and ``no sign`` for the unmatched); ``unknown_classes`` and ``resets`` of
-  the fusion; ``wall_s``.
+  the fusion; ``wall_s``;
+* ``stages`` (``--signs pipeline``; null with ``--signs gt``): the accuracy of each stage of
+  the in-process pipeline on the frame's legible ground-truth work-zone signs
+  (:mod:`workzone_ros.tools.workzone_stages`): ``detection`` (Table I form: ``precision``,
+  ``recall`` at IoU >= 0.5 one to one, detections on an illegible or general sign
+  ``ignored``, ``false_per_frame``: detections on no GT sign, IoU < 0.3), ``tracking``
+  (``coverage`` of the legible sign frames by a track box, ``off_sign_per_frame``),
+  ``classification`` (Table III form on the matched track boxes:
+  ``accuracy``, ``macro_precision``, ``macro_recall``, per-class figures, ``confusion``,
+  ``background_as_workzone_per_frame``), ``lidar`` (a note: not run in process) and the raw
+  ``counts``.
 
 ``summary`` pools the bags: bounds and changes recognised, mean and max absolute timing
-errors, total flicker, frame-weighted phase accuracy.  ``--report DIR`` writes
-``DIR/README.md`` with the Table IV and each bag's seed-Fig.-3 timeline PNG
+errors, total flicker, frame-weighted phase accuracy, ``stages`` (the counts of every bag
+summed, the figures recomputed).  ``--report DIR`` writes ``DIR/README.md`` with the
+Table IV, each bag's seed-Fig.-3 timeline PNG and the per-stage table
 (``workzone_ros.tools.workzone_report``).  A missing or corrupt bag, or a bag without
 ground truth, is a one-line error (exit 2).
 """
@@ -132,7 +143,9 @@ def evaluate_bag(bag: str, opts: EvalOptions) -> dict:
     except (BagError, EvalError) as exc:
         return {'bag': bag, 'error': ' '.join(str(exc).split())}
     stages = counters.pop('_stage_ms')
+    from workzone_ros.tools.workzone_stages import stage_figures
     res = {'bag': bag, **score(frames, gtw, opts.tolerance_s, opts.legible_px), **counters,
+           'stages': stage_figures(frames) if opts.signs == 'pipeline' else None,
            'stage_ms': {k: stage_summary(v) for k, v in stages.items()},
            'wall_s': round(time.monotonic() - started, 2)}
     res['_stage_ms'] = stages           # raw times for the pooled figures and the histogram
@@ -183,6 +196,10 @@ def print_bag(r: dict, out=sys.stdout) -> None:
           + ', '.join(f'{k} {_fmt(v)}' for k, v in r['time_to_correct'].items()), file=out)
     for label, cell in table_iv_rows(r):
         print(f'   {label:<24s} {cell}', file=out)
+    if r.get('stages'):
+        from workzone_ros.tools.workzone_stages import stage_lines
+        for line in stage_lines(r['stages']):
+            print(f'   {line}', file=out)
 
 
 def print_summary(s: dict, out=sys.stdout) -> None:
@@ -195,6 +212,9 @@ def print_summary(s: dict, out=sys.stdout) -> None:
         print(f"   {key}: |error| mean {_fmt(s[key + '_abs_error_s_mean'])} s, max "
               f"{_fmt(s[key + '_abs_error_s_max'])} s, within 1 s: {s[key + '_within_1s']}",
               file=out)
+    from workzone_ros.tools.workzone_stages import stage_lines
+    for line in stage_lines(s.get('stages')):
+        print(f'   {line}', file=out)
     if s.get('stage_ms'):
         print('   processing per frame (ms, in process) p50/p99: ' + ', '.join(
             f"{k} {_fmt(v['p50'])}/{_fmt(v['p99'])}" for k, v in s['stage_ms'].items()),

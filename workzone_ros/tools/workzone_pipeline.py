@@ -22,6 +22,12 @@ the blobs it rejected as banded drums or cones, one per place), as the ``color_d
 node publishes it in ``Detections.channelizers``.  The modules are imported lazily:
 :func:`check_available` says in one line what is missing.
 
+After each frame ``last_stages`` holds what the stages gave (for
+:mod:`workzone_ros.tools.workzone_stages`): ``dets``, the colour detector's boxes, and
+``tracks``, the published track boxes, each with the classifier's answer for it (its class,
+``unknown`` when it was not classified, ``background`` when the answer was not published).
+Boxes are ``(x, y, w, h)``.
+
 :class:`CachedSource` (``--cache DIR``) stores a bag's Signs once per bag and model files
 (JSON lines of ``Signs`` payloads): reruns of the fusion then skip the perception and the
 images.
@@ -45,8 +51,9 @@ MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
 GENERAL_EVERY = 3       # classifier node: general_every
 # 2: frames carry the colour detector's channelizer count; 3: general signs; 4: general
-# signs every GENERAL_EVERY-th frame; 5: the classifier's answers confirm tracks
-_CACHE_VERSION = 5
+# signs every GENERAL_EVERY-th frame; 5: the classifier's answers confirm tracks;
+# 6: the stages' boxes (``last_stages``)
+_CACHE_VERSION = 6
 
 
 def _classifier_path(opts) -> str:
@@ -91,14 +98,17 @@ class CachedSource:
                                                  for p in (color, _classifier_path(opts))])
         self.path = Path(folder) / f'{bag_name}_{key}.jsonl'
         self.opts = opts
-        self.stored: dict[int, tuple[Signs, Optional[int]]] = {}
+        self.stored: dict[int, tuple[Signs, Optional[int], Optional[dict]]] = {}
         self.new: list[str] = []
         self.inner: Optional[PipelineSource] = None
+        #: the stages' boxes of the last frame (as :class:`PipelineSource`), stored or computed
+        self.last_stages: Optional[dict] = None
         if self.path.exists():
             for line in self.path.read_text().splitlines():
                 row = json.loads(line)
                 signs = decode(json.dumps(row['signs']), Signs)
-                self.stored[signs.header.stamp.to_ns()] = (signs, row['channelizers'])
+                self.stored[signs.header.stamp.to_ns()] = (signs, row['channelizers'],
+                                                           row.get('stages'))
         self.needs_images = not self.stored
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
@@ -106,13 +116,14 @@ class CachedSource:
         """The stored signs of this frame, else the pipeline's (remembered for flush)."""
         ns = gt.header.stamp.to_ns()
         if ns in self.stored:
-            signs, channel = self.stored[ns]
+            signs, channel, self.last_stages = self.stored[ns]
             return list(signs.signs), channel
         if self.inner is None:
             self.inner = PipelineSource(self.opts)
         out, channel = self.inner(gt, image, focal)
+        self.last_stages = getattr(self.inner, 'last_stages', None)
         self.new.append(json.dumps({'channelizers': channel, 'signs': json.loads(
-            encode(Signs(header=gt.header, signs=out)))}))
+            encode(Signs(header=gt.header, signs=out))), 'stages': self.last_stages}))
         return out, channel
 
     @property
@@ -155,6 +166,8 @@ class PipelineSource:
         #: general signs on every n-th frame, as the classifier node's ``general_every``
         self.general_every = int(getattr(opts, 'general_every', GENERAL_EVERY))
         self._frames = 0
+        #: the stages' boxes of the last frame (module docstring)
+        self.last_stages: Optional[dict] = None
 
     def __call__(self, gt: GtSigns, image, focal: Optional[float]
                  ) -> tuple[list[Sign], Optional[int]]:
@@ -172,6 +185,7 @@ class PipelineSource:
         # the classifier's answers go back to the tracker, as /workzone/signs to the node
         from workzone_ros.core.track.confirmation import classifier_verdicts
         self.tracker.confirm(*classifier_verdicts([t.track_id for t in tracks], signs))
+        self.last_stages = _stage_boxes(dets, tracks, signs)
         return signs, channel
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
@@ -187,3 +201,14 @@ class PipelineSource:
         signs = signs + general_signs(self.general.detect(frame), focal, (), signs)
         self.timings['general_signs'].append((time.perf_counter() - t1) * 1e3)
         return signs
+
+
+def _xywh(b) -> list[float]:
+    return [float(b.x), float(b.y), float(b.w), float(b.h)]
+
+
+def _stage_boxes(dets, tracks, signs: list[Sign]) -> dict:
+    """``last_stages`` of one frame (module docstring); JSON-ready for the cache."""
+    answer = {s.track_id: s.class_key for s in signs if s.track_id is not None}
+    return {'dets': [_xywh(d.box) for d in dets],
+            'tracks': [[_xywh(t.box), answer.get(t.track_id, 'background')] for t in tracks]}

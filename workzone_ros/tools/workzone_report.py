@@ -2,7 +2,9 @@
 
 ``DIR/README.md`` holds the command, the pooled figures, Table IV per bag (Seo et al.: event
 recognised o/x / sign images / precision / recall), the timing of each bag and, for
-``--signs pipeline``, the per-frame sign confusion matrix.  ``DIR/<bag>_timeline.png`` is
+``--signs pipeline``, the per-frame sign confusion matrix and the per-stage accuracy table
+(detection, tracking, classification; :mod:`workzone_ros.tools.workzone_stages`; "n/a" with
+``--signs gt``).  ``DIR/<bag>_timeline.png`` is
 Seo et al.'s Fig. 3 for one bag, drawn with OpenCV (no plotting library): frames on x, the
 work-zone classes on y, legible ground-truth signs as green circles and the signs given to
 the fusion as red crosses; under it the fusion's likelihood (orange) and two bands, truth
@@ -270,6 +272,8 @@ def write_report(folder: str, results: list[dict], summary: dict, opts,
         lines += [f'## {name}', ''] + _bag_lines(r) + ['', f'![timeline]({png})', '']
     if opts.signs == 'pipeline':
         lines += _confusion(results)
+    from workzone_ros.tools.workzone_stages import report_lines
+    lines += report_lines(results, s.get('stages'))
     from workzone_ros.tools.eval_workzone import pooled_stage_ms
     lines += _latency_lines(s, out, pooled_stage_ms([r for r in results if 'error' not in r]))
     path = out / 'README.md'

@@ -69,6 +69,11 @@ class Frame:
     lanes_closed: tuple = ()
     pred: list = field(default_factory=list)     # (class_key, (x, y, w, h), track_id)
     gt: list = field(default_factory=list)       # (sign_id, class_key, (x, y, w, h))
+    #: ``--signs pipeline``: the stages' boxes and this frame's truth for
+    #: :mod:`workzone_ros.tools.workzone_stages` (``dets``, ``tracks`` as the pipeline's
+    #: ``last_stages``; ``gt_wz``: (class_key, box) of the legible work-zone signs;
+    #: ``gt_other``: the boxes of the other GT signs, illegible or general); None otherwise
+    stages: Optional[dict] = None
 
 
 def legible(s, min_px: float) -> bool:
@@ -252,4 +257,10 @@ def _step(fusion: WorkzoneFusion, source, gt: GtSigns, image, focal, t: float,
               if s.category != 'unknown']
     f.gt = [(s.sign_id, s.class_key, _xywh(s.box)) for s in gt.signs
             if legible(s, opts.legible_px)]
+    boxes = getattr(source, 'last_stages', None)
+    if boxes is not None:
+        wz = [s.category == 'workzone' and legible(s, opts.legible_px) for s in gt.signs]
+        f.stages = {**boxes, 'gt_wz': [(s.class_key, _xywh(s.box))
+                                       for s, ok in zip(gt.signs, wz) if ok],
+                    'gt_other': [_xywh(s.box) for s, ok in zip(gt.signs, wz) if not ok]}
     return f

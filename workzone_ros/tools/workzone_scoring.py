@@ -1,7 +1,8 @@
 """The figures of ``workzone-ros evaluate workzone``: the ground-truth phase of every frame
 (:func:`truth_phases`), every figure of one bag (:func:`score`: zone bounds, driving-condition
 changes, Table IV sign precision / recall, sign confusion, flicker) and the figures pooled over
-bags (:func:`summarise`).  The definitions are in the docstring of
+bags (:func:`summarise`, with the pooled per-stage figures of
+:mod:`workzone_ros.tools.workzone_stages`).  The definitions are in the docstring of
 :mod:`workzone_ros.tools.eval_workzone`.
 """
 from __future__ import annotations
@@ -15,6 +16,7 @@ from workzone_ros.core.fusion import ACTIVE_PHASES
 from workzone_ros.interfaces import GtWorkzone
 from workzone_ros.tools.eval_tracker import _iou
 from workzone_ros.tools.workzone_run import Frame
+from workzone_ros.tools.workzone_stages import pool_stages
 
 __all__ = ['PHASES_ORDER', 'IOU', 'truth_phases', 'sign_confusion', 'score', 'stage_summary',
            'pooled_stage_ms', 'summarise']
@@ -268,6 +270,7 @@ def summarise(results: list[dict]) -> dict:
         'phase_accuracy': _r(sum(r['phase_accuracy'] * r['frames'] for r in ok)
                              / max(1, sum(r['frames'] for r in ok)), 4),
         'stage_ms': {k: stage_summary(v) for k, v in pooled_stage_ms(ok).items()},
+        'stages': pool_stages([r.get('stages') for r in ok]),
     }
     for key in ('zone_begin', 'zone_end'):
         e = errs(key)

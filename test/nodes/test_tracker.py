@@ -134,18 +134,20 @@ def test_tracker_node_has_no_evaluation_switches(ros):
     assert node.params.iou_gate == TrackerConfig().iou_gate
 
 
+def _malformed_is_dropped(ros, node, topic, peer_name):
+    """Publish a payload of another schema on ``topic`` until ``node`` counts it dropped,
+    with the reason."""
+    peer = ros.add(rclpy.create_node(peer_name, context=ros.context))
+    pub = peer.create_publisher(String, topic, 10)
+    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
+    assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
+                                   node.topic_stats()[topic].dropped >= 1)[1])
+    assert 'schema' in node.topic_stats()[topic].last_drop_reason
+
+
 def test_tracker_node_drops_malformed_detections(ros):
     node = ros.add(TrackerNode(context=ros.context))
-    peer = ros.add(rclpy.create_node('tracker_bad_peer', context=ros.context))
-    pub = peer.create_publisher(String, '/workzone/detections', 10)
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
-
-    def dropped():
-        return node.topic_stats()['/workzone/detections'].dropped
-
-    assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
-                                   dropped() >= 1)[1])
-    assert 'schema' in node.topic_stats()['/workzone/detections'].last_drop_reason
+    _malformed_is_dropped(ros, node, '/workzone/detections', 'tracker_bad_peer')
 
 
 def test_tracker_node_parameters_are_the_tracker_config(ros):
@@ -210,16 +212,7 @@ def test_tracker_node_drops_malformed_signs_and_can_do_without_them(ros):
     """A malformed Signs payload is dropped and counted, never a crash; ``signs_topic``
     empty: no subscription (the previous rule)."""
     node = ros.add(TrackerNode(context=ros.context))
-    peer = ros.add(rclpy.create_node('tracker_bad_signs_peer', context=ros.context))
-    pub = peer.create_publisher(String, '/workzone/signs', 10)
-    assert ros.spin_until(lambda: pub.get_subscription_count() > 0)
-
-    def dropped():
-        return node.topic_stats()['/workzone/signs'].dropped
-
-    assert ros.spin_until(lambda: (pub.publish(String(data='{"schema": "nope"}')),
-                                   dropped() >= 1)[1])
-    assert 'schema' in node.topic_stats()['/workzone/signs'].last_drop_reason
+    _malformed_is_dropped(ros, node, '/workzone/signs', 'tracker_bad_signs_peer')
     assert not node._tracker._verdicts.active
     quiet = ros.add(TrackerNode(context=ros.context, namespace='quiet',
                                 parameter_overrides=[Parameter('signs_topic', value='')]))

@@ -1,4 +1,4 @@
-"""The classifier's confirmation of tracks (``TrackerConfig.needs_confirmation``, issue 34).
+"""The classifier's confirmation of tracks (``TrackerConfig.needs_confirmation``).
 
 One false detection must not become a long track: with a classifier reporting back
 (``MultiTracker.confirm``), a track started by a single detection runs on its own only once

@@ -61,7 +61,7 @@ class TrackerConfig:
             only when the classifier's latest answer on it is a sign (workzone or general)
             or it has at least two detections, and never while its latest answer is
             ``background`` (until a new detection): one false detection on a drum no longer
-            becomes a long track, classified again on every frame (issue 34; the rules in
+            becomes a long track, classified again on every frame (the rules in
             :mod:`~workzone_ros.core.track.confirmation`).  Frames with a detection are
             published as before.  Without a classifier (no ``confirm`` call yet) and with
             False: the previous rule.

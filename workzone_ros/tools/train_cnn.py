@@ -30,7 +30,7 @@ network does not learn the renderer:
   surroundings (houses, brick, traffic) mean ``background``: with them blurred, a real
   UTILITY WORK AHEAD diamond it called background at 0.9 became a sign;
 * colour: white balance, exposure, gamma, contrast, saturation, hue (+-6 deg), haze,
-  sensor noise; JPEG quality 30-95 at the crop's size; Gaussian or motion blur;
+  sensor noise; JPEG quality 30-95 at the crop's size; Gaussian blur;
 * partial occlusion from a border (a pole, a car, foliage: a flat or textured band);
 * left-right flips of background crops and of the pictogram mirror pairs (W1-4, W4-2:
   the label swaps), never of a legend.

@@ -171,7 +171,7 @@ def _optics(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """:func:`augment`'s optics and sensor: a Gaussian blur (45 % of the crops) and noise.
 
     No motion blur: a 3-5 px linear motion blur on 15 % of the crops, trained without each
-    real clip on two seeds, named fewer real signs (docs/classifier.md)."""
+    real clip on three seeds, did not help on the real clips (docs/classifier.md)."""
     if rng.random() < 0.45:
         sigma = rng.uniform(0.3, 1.0)
         img = cv2.GaussianBlur(img, (0, 0), sigma)

@@ -22,6 +22,18 @@ false recognitions (counts, and percents of the signs; false detections as a per
 their images); we report the same per frame, in all and per class, and the mile numbers
 read (correct / wrong / unread) on visible mile markers.
 
+``--mile-hd WxH`` (e.g. ``1280x720``; default off): every rendered frame with a mile marker
+in view (ground truth) is rendered again at that instant with a WxH camera of the same
+horizontal field of view (:func:`hd_camera`), the detector runs on it and the mile markers
+are scored with a separate table (the same rules, ``--min-px`` in the HD frame's pixels):
+report key ``renders.mile_hd`` (frames, visible mile markers, detected, recognised, mile
+numbers read correct / wrong / unread, by distance).  A D10-1 is 0.25 m wide, so at
+1280x720 it mostly leaves the frame before it is 20 px wide: ``at_mile_min_px`` repeats the
+table with ``--mile-min-px`` (12, the detector's smallest candidate) as the visible rule.  The
+reader never guesses: a marker whose digits are too small is unread.  ``--mile-work-width
+N`` runs the detector on the HD frames with ``work_width`` N (default: the same detector,
+whose colour masks work at 640 px).
+
 Real clips (``--real``, default ../shared/realdata/us_workzone_video): general signs per
 frame on every clip, by class; whether the STOP sign in houston (frames 150-200) and the
 yellow warning diamond in minneapolis (290-371) are recognised (share of those frames with a
@@ -58,7 +70,7 @@ from workzone_ros.core import signs as catalogue
 from workzone_ros.core.general import GENERAL_CLASSES, GeneralConfig, GeneralSignDetector
 from workzone_ros.tools.outputs import seed_list
 
-__all__ = ['main', 'make_specs', 'Table', 'iou', 'REAL_TARGETS']
+__all__ = ['main', 'make_specs', 'Table', 'iou', 'REAL_TARGETS', 'frame_size', 'hd_camera']
 
 REALDATA = Path(__file__).resolve().parents[2].parent / 'shared' / 'realdata'
 #: Real clip -> (class, first frame, last frame) of the general sign in it (README, by eye).
@@ -227,18 +239,120 @@ def _pct(v: Sequence[float]) -> dict:
         a, 99)), 3), 'frames': int(a.size)} if a.size else {}
 
 
+def frame_size(text: str) -> tuple[int, int]:
+    """``'1280x720'`` -> (1280, 720); argparse type of ``--mile-hd``."""
+    parts = text.lower().strip().split('x')
+    try:
+        w, h = (int(v) for v in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected WxH, e.g. 1280x720, got {text!r}') from None
+    if not (160 <= w <= 7680 and 120 <= h <= 4320):
+        raise argparse.ArgumentTypeError(f'frame size {w}x{h} out of range '
+                                         '(160-7680 x 120-4320)')
+    return w, h
+
+
+def hd_camera(width: int, height: int):
+    """The simulator's camera at ``width`` x ``height``: the same horizontal field of view
+    (60 deg), square pixels, principal point at the same relative place and the same
+    distortion (normalised coordinates); a wider aspect narrows the vertical view."""
+    from workzone_ros.sim.world import DEFAULT_CAMERA as cam
+    f = width / cam.width
+    return replace(cam, width=int(width), height=int(height), fx=cam.fx * f, fy=cam.fy * f,
+                   cx=cam.cx * f, cy=cam.cy * height / cam.height)
+
+
+#: Distance bins (m) of the mile-marker table at HD.
+_MILE_BINS = (0.0, 25.0, 50.0, 75.0, 100.0, 150.0, float('inf'))
+
+
+class MileHD:
+    """Mile markers re-rendered at HD: a separate :class:`Table` and reads by distance, under
+    the ``--min-px`` rule and under ``--mile-min-px`` (a D10-1 is 0.25 m wide: at 1280x720
+    it mostly leaves the frame before it is 20 px wide)."""
+
+    def __init__(self, size: tuple[int, int], min_px: float, mile_min_px: float) -> None:
+        self.size = size
+        self.rules = {px: (Table(), defaultdict(lambda: defaultdict(int)))
+                      for px in dict.fromkeys((float(min_px), float(mile_min_px)))}
+        self.min_px = float(min_px)
+        self.times: list = []
+        self.wrong: list = []                   # wrong reads at --min-px
+
+    def add(self, dets: Sequence, hits: Sequence, truth: dict, min_visible: float) -> None:
+        """One HD frame (detections, every SignHit, sign id -> mile number)."""
+        for px, (table, bins) in self.rules.items():
+            for g, d in table.add(dets, hits, truth, px, min_visible):
+                if g.class_key != 'mile_marker':
+                    continue
+                lo = max(b for b in _MILE_BINS if b <= g.distance_m)
+                row = bins[f'{lo:g}-{_MILE_BINS[_MILE_BINS.index(lo) + 1]:g}']
+                row['visible'] += 1
+                if d is None or d.class_key != 'mile_marker':
+                    continue
+                row['recognised'] += 1
+                want = truth.get(g.sign_id)
+                row['read_correct' if d.mile == want else
+                    'unread' if d.mile is None else 'read_wrong'] += 1
+                if d.mile is not None and d.mile != want and px == self.min_px:
+                    self.wrong.append({'truth': want, 'read': d.mile,
+                                       'confidence': d.mile_confidence,
+                                       'distance_m': round(g.distance_m, 1),
+                                       'box': list(g.box)})
+
+    @staticmethod
+    def _rule(px: float, table: Table, bins: dict) -> dict:
+        s = table.summary()
+        row = s['per_class'].get('mile_marker', {})
+        return {'min_px': px, 'visible_mile_markers': row.get('total', 0),
+                'detected': row.get('detected', 0), 'recognised': row.get('recognised', 0),
+                'false_recognition': row.get('false_recognition', 0),
+                'confused_with': s['confusion'].get('mile_marker', {}),
+                'mile_numbers': {k: s['mile_numbers'].get(k, 0)
+                                 for k in ('read_correct', 'read_wrong', 'unread')},
+                'by_distance_m': {k: dict(bins[k]) for k in sorted(
+                    bins, key=lambda b: float(b.split('-')[0]))},
+                'all_general_signs': s['all']}
+
+    def summary(self) -> dict:
+        """frames, visible / detected / recognised mile markers and the numbers read (at
+        ``--min-px``; ``at_mile_min_px``: the same at ``--mile-min-px``)."""
+        out: dict[str, Any] = {'frame_size': list(self.size)}
+        for px, (table, bins) in self.rules.items():
+            out['frames'] = table.frames
+            if px == self.min_px:
+                out.update(self._rule(px, table, bins))
+            else:
+                out['at_mile_min_px'] = self._rule(px, table, bins)
+        out['wrong_reads'] = self.wrong
+        out['ms_per_frame'] = _pct(self.times)
+        return out
+
+
+def _mile_in_view(hits: Sequence) -> bool:
+    return any(h.class_key == 'mile_marker' and h.visible_fraction > 0 for h in hits)
+
+
 def evaluate_renders(specs, det: GeneralSignDetector, args, tiles: list) -> dict:
     """Cahail et al.'s table over rendered frames of ``specs``; timing at native size and 720p."""
     from workzone_ros.sim.camera import CameraRenderer
     from workzone_ros.sim.scenario import FPS, build_scene
     from workzone_ros.sim.world import DEFAULT_CAMERA
     table, by_weather = Table(), defaultdict(Table)
+    mile_size = getattr(args, 'mile_hd', None)
+    mile_hd = MileHD(mile_size, args.min_px, getattr(args, 'mile_min_px', None)
+                     or args.min_px) if mile_size else None
+    work = getattr(args, 'mile_work_width', None)
+    hd_det = GeneralSignDetector(replace(det.config, work_width=int(work)), classifier=(
+        det.classifier if det.config.verify == 'cnn' else None)) if mile_size and work else det
     times, times_hd, cpu, cpu_hd = [], [], [], []
     for spec, seed in specs:
         scene, ego, _ = build_scene(spec, seed)
         truth = {s.object_id: (s.speed_value if s.speed_value is not None else 123)
                  for s in scene.signs if s.class_key == 'mile_marker'}
         renderer = CameraRenderer(scene, DEFAULT_CAMERA, seed=seed)
+        hd_renderer = CameraRenderer(scene, hd_camera(*mile_size), seed=seed) \
+            if mile_hd else None
         for k in range(0, int(spec.duration * FPS), args.every):
             res = renderer.render(k / FPS, ego.base_pose(k / FPS), k)
             t0, c0 = time.perf_counter(), time.process_time()
@@ -251,6 +365,12 @@ def evaluate_renders(specs, det: GeneralSignDetector, args, tiles: list) -> dict
                 det.detect(hd)
                 times_hd.append(time.perf_counter() - t0)
                 cpu_hd.append(time.process_time() - c0)
+            if mile_hd is not None and hd_renderer is not None and _mile_in_view(res.signs):
+                hd_res = hd_renderer.render(k / FPS, ego.base_pose(k / FPS), k)
+                t0 = time.perf_counter()
+                hd_dets = hd_det.detect(hd_res.image)
+                mile_hd.times.append(time.perf_counter() - t0)
+                mile_hd.add(hd_dets, hd_res.signs, truth, args.min_visible)
             pairs = table.add(dets, res.signs, truth, args.min_px, args.min_visible)
             by_weather[spec.weather].add(dets, res.signs, truth, args.min_px,
                                          args.min_visible)
@@ -270,6 +390,9 @@ def evaluate_renders(specs, det: GeneralSignDetector, args, tiles: list) -> dict
     out['ms_per_frame'] = {'native': _pct(times), 'hd_1280x720': _pct(times_hd),
                            'native_cpu': _pct(cpu), 'hd_1280x720_cpu': _pct(cpu_hd)}
     out['frame_size'] = [DEFAULT_CAMERA.width, DEFAULT_CAMERA.height]
+    if mile_hd is not None:
+        out['mile_hd'] = mile_hd.summary()
+        out['mile_hd']['work_width'] = hd_det.config.work_width
     return out
 
 
@@ -334,6 +457,16 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--model', help='sign classifier for --verify cnn (default '
                                    'config/models/sign_classifier_cnn.npz)')
     p.add_argument('--hd-frames', type=int, default=150, help='frames timed at 1280x720')
+    p.add_argument('--mile-hd', type=frame_size, metavar='WxH',
+                   help='re-render frames with a mile marker in view at WxH (e.g. 1280x720, '
+                        'same horizontal field of view) and score the mile markers apart '
+                        '(report key renders.mile_hd); default off')
+    p.add_argument('--mile-min-px', type=float, default=12.0,
+                   help='with --mile-hd: also score the HD mile markers with this visible '
+                        'shorter side, px (report key renders.mile_hd.at_mile_min_px)')
+    p.add_argument('--mile-work-width', type=int,
+                   help="with --mile-hd: the detector's work_width on the HD frames "
+                        '(default: the same detector, work_width 640)')
     p.add_argument('--no-renders', action='store_true', help='skip the rendered frames')
     p.add_argument('--real', nargs='?', const=str(REALDATA / 'us_workzone_video'),
                    help='real clips folder (default ../shared/realdata/us_workzone_video)')

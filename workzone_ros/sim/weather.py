@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ['WEATHER_PRESETS', 'WEATHERS', 'FLUORESCENT_SAT', 'Weather', 'CameraEffects']
+__all__ = ['WEATHER_PRESETS', 'WEATHERS', 'FLUORESCENT_SAT', 'Weather', 'CameraEffects',
+           'jpeg_degrade']
 
 WEATHER_PRESETS = ('winter_overcast', 'spring_sunny', 'spring_rain', 'dusk')
 
@@ -211,9 +212,17 @@ class CameraEffects:
         bank = self._noise_bank(int(np.argmin(np.abs(self._noise_sigmas - sigma))))
         ox, oy = int(rng.integers(0, 32)), int(rng.integers(0, 32))
         img = cv2.add(img, bank[oy:oy + H, ox:ox + W], dtype=cv2.CV_8U)
-        if rng.random() < 0.3:
-            q = int(rng.integers(25, 70))
-            ok, buf = cv2.imencode('.jpg', img, [cv2.IMWRITE_JPEG_QUALITY, q])
-            if ok:
-                img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-        return img
+        return jpeg_degrade(img, rng, 0.3, 25, 70)
+
+
+def jpeg_degrade(img: np.ndarray, rng: np.random.Generator, share: float, q_lo: int,
+                 q_hi: int) -> np.ndarray:
+    """``img`` (uint8 BGR) through a JPEG round trip at a quality drawn from ``q_lo`` to
+    ``q_hi - 1``, with probability ``share`` (one ``rng.random()`` draw, then the quality);
+    unchanged otherwise or when encoding fails."""
+    if rng.random() < share:
+        q = int(rng.integers(q_lo, q_hi))
+        ok, buf = cv2.imencode('.jpg', img, [cv2.IMWRITE_JPEG_QUALITY, q])
+        if ok:
+            img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return img

@@ -14,6 +14,8 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from workzone_ros.sim.weather import jpeg_degrade
+
 __all__ = ['RUN_MARGIN', 'augment', 'composite', 'cutout']
 
 #: The margin and squaring of ``classify_boxes`` (the node's default margin).
@@ -73,13 +75,7 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
     if rng.random() < 0.25:
         _occlude(img, rng, texture)
     img = _optics(img, rng)
-    out = np.clip(img, 0, 255).astype(np.uint8)
-    if rng.random() < 0.7:
-        q = int(rng.integers(30, 96))
-        ok, enc = cv2.imencode('.jpg', out, [cv2.IMWRITE_JPEG_QUALITY, q])
-        if ok:
-            out = cv2.imdecode(enc, cv2.IMREAD_COLOR)
-    return out
+    return jpeg_degrade(np.clip(img, 0, 255).astype(np.uint8), rng, 0.7, 30, 96)
 
 
 def _to_frame_scale(crop: np.ndarray, box, scale: float) -> tuple[np.ndarray, object]:

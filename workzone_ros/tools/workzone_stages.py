@@ -35,7 +35,7 @@ from collections import Counter
 from typing import Optional, Sequence
 
 from workzone_ros.core import signs as catalogue
-from workzone_ros.tools.eval_tracker import _iou
+from workzone_ros.core.track.boxes import box_iou as _iou
 
 __all__ = ['IOU', 'FALSE_IOU', 'LIDAR_NOTE', 'match', 'frame_counts', 'stage_figures',
            'pool_stages', 'stage_lines', 'report_lines']

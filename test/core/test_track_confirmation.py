@@ -1,4 +1,5 @@
-"""The classifier's confirmation of tracks (``TrackerConfig.needs_confirmation``).
+"""The classifier's confirmation of tracks (``TrackerConfig.needs_confirmation``), and the
+end of a track whose box drifted to twice its size (``TrackerConfig.max_size_ratio``).
 
 One false detection must not become a long track: with a classifier reporting back
 (``MultiTracker.confirm``), a track started by a single detection runs on its own only once
@@ -18,7 +19,7 @@ from test_tracking import (
     path,
 )
 
-from workzone_ros.core.track import MultiTracker, TrackerConfig, box_iou
+from workzone_ros.core.track import MultiTracker, TrackerConfig, TrackingError, box_iou
 from workzone_ros.core.track.confirmation import classifier_verdicts
 from workzone_ros.interfaces import Box, Sign
 
@@ -131,3 +132,42 @@ def test_classifier_verdicts_read_the_signs_of_a_frame():
              sign(None, 'general', 'stop')]
     assert classifier_verdicts([1, 2, 3, 4, 0, None], signs) == ({1, 2}, {4})
     assert classifier_verdicts([], signs) == ({1, 2}, set())
+
+
+def _growing_run(**config) -> tuple[list[float], MultiTracker]:
+    """A diamond detected once (frame 0, confirmed by the classifier), then growing 3 % a
+    frame for 45 frames without a detection; the published widths relative to the detected
+    one, frame by frame (0: not published)."""
+    tracker = MultiTracker(TrackerConfig(**SLOW, **config))
+    bg = background(23)
+    widths = []
+    for i in range(46):
+        img = bg.copy()
+        gt = draw_diamond(img, 320, 240, 40 * 1.03 ** i)
+        out = tracker.step(img, [det(gt)] if i == 0 else [])
+        if i == 0:
+            tracker.confirm(signs=[1])
+            first = gt[2]
+        widths.append(out[0].box.w / first if out else 0.0)
+    return widths, tracker
+
+
+def test_a_track_of_one_detection_ends_when_its_box_has_doubled():
+    """A track of one detection has no measured perspective trend, so the growth guard
+    cannot judge its growth; the size cap does: the box is never published at twice its
+    detected size and the track ends there.  Without the cap the same track runs on its own
+    for all 45 frames (max_coast_frames) and ends over three times its detected size."""
+    widths, tracker = _growing_run()
+    alone = [w for w in widths[1:] if w > 0]
+    assert 20 <= len(alone) < 30 and max(alone) < 2.0, widths
+    assert widths[len(alone) + 1:] == [0.0] * (45 - len(alone))
+    assert tracker.active_ids == []
+
+    widths, tracker = _growing_run(max_size_ratio=0.0)
+    assert all(w > 0 for w in widths) and widths[-1] > 3.0, widths
+
+
+def test_max_size_ratio_is_off_or_above_one():
+    with pytest.raises(TrackingError, match='max_size_ratio'):
+        TrackerConfig(max_size_ratio=0.8)
+    assert TrackerConfig(max_size_ratio=0.0).max_size_ratio == 0.0

@@ -206,6 +206,11 @@ class TrackerConfig:
         max_growth_excess: drift guard: a track running on its own whose anchor grew more
             than this fraction beyond the growth its detections showed (perspective: the
             inverse size of a static sign falls linearly with time) ends (0 = off).
+        max_size_ratio: a track of one detection running on its own whose anchor reaches
+            this multiple of its detected size (width or height) has drifted and ends.  It
+            has no measured perspective trend, so the growth guard cannot judge it (a track
+            with a trend is judged by the growth guard: a sign followed for 37 frames at 2 %
+            a frame rightly doubles); 0 = off.
         growth_guard_needs_trend: the growth guard acts only once two detections measured
             the trend (the first measurement is taken as it is, not averaged with 0); a track
             started by one detection would otherwise count its real perspective growth as
@@ -386,6 +391,9 @@ class TrackerConfig:
     max_growth_excess: float = knob(
         0.3, "drift guard: growth beyond the detections' perspective trend that ends a coasting "
         'track (0 = off)', min=0.0, max=10.0)
+    max_size_ratio: float = knob(
+        2.0, 'drift guard: a coasting track of one detection whose box reaches this multiple of '
+        'its detected size ends (0 = off)', min=0.0, max=100.0)
     size_history: int = knob(
         8, 'fuse: detected sizes whose 1/size trend predicts the size the detection is compared '
         'with (0 = last size)', min=0, max=100)
@@ -450,6 +458,9 @@ class TrackerConfig:
                                 '> 0, camera_hfov_deg in [1, 179]')
         if self.motion_window < 2 or self.motion_min_frames < 2:
             raise TrackingError('motion_window and motion_min_frames must be at least 2')
+        if 0 < self.max_size_ratio <= 1:
+            raise TrackingError(f'max_size_ratio must be 0 (off) or above 1, got '
+                                f'{self.max_size_ratio}')
         if len(self.focus_of_expansion) != 2:
             raise TrackingError('focus_of_expansion must be (x, y) image fractions')
 
@@ -464,7 +475,8 @@ def seed_config(config: Optional['TrackerConfig'] = None) -> 'TrackerConfig':
     return replace(config or TrackerConfig(), scales=SCALES, background_weighting=False,
                    surround_weight=0.0,
                    use_velocity=False, association='overwrite', max_ring_similarity=1.0,
-                   max_growth_excess=0.0, max_coast_background_similarity=1.0,
+                   max_growth_excess=0.0, max_size_ratio=0.0,
+                   max_coast_background_similarity=1.0,
                    max_coast_white_fraction=1.0, min_saturation_contrast=-1.0,
                    min_chroma_contrast=0.0,
                    truncated_aspect=0.0, anchor_kind_ratio=0.0,

@@ -78,6 +78,7 @@ class _Track:
     growth: float = 0.0              # log anchor-size change per frame (EMA)
     inv_rate: float = 0.0            # fall of 1 / anchor width per frame, from detections
     ref_width: float = 0.0           # anchor width at the last detection-led update
+    ref_height: float = 0.0          # anchor height then
     since_ref: int = 0               # frames since then
     trend_known: bool = False        # inv_rate / growth measured between two detections
     fused_share: float = 1.0         # detection's weight in the last update
@@ -425,7 +426,8 @@ class MultiTracker:
                 continue
             tr = _Track(self._next_id, dm.target, dm.target.anchor, dm.box, dm.det.kind,
                         dm.det.color, dm.det.confidence,
-                        ref_width=max(dm.target.anchor[2], 1.0))
+                        ref_width=max(dm.target.anchor[2], 1.0),
+                        ref_height=max(dm.target.anchor[3], 1.0))
             self._record_size(tr, dm.target.anchor)
             self._record_motion(tr)
             if tracking and cfg.ring_margin >= 0:
@@ -600,11 +602,19 @@ class MultiTracker:
         """Drift guard: the tracked anchor grew past what perspective and the track's own
         detections allow.  A static sign's inverse image size falls linearly with time
         (size = f S / d, d falling at the ego speed); ``inv_rate`` is that slope measured
-        between detections."""
-        excess = self.config.max_growth_excess
-        if excess <= 0 or tr.ref_width <= 0 or tr.pred_anchor is None:
+        between detections.  A track without a measured trend (one detection) whose anchor
+        reached ``max_size_ratio`` times its detected size (either side) has drifted."""
+        if tr.ref_width <= 0 or tr.pred_anchor is None:
             return False
-        if not tr.trend_known and self.config.growth_guard_needs_trend:
+        if not tr.trend_known:
+            ratio = self.config.max_size_ratio
+            if ratio > 0 and (tr.pred_anchor[2] >= ratio * tr.ref_width
+                              or tr.pred_anchor[3] >= ratio * tr.ref_height):
+                return True
+            if self.config.growth_guard_needs_trend:
+                return False
+        excess = self.config.max_growth_excess
+        if excess <= 0:
             return False
         inv = 1.0 / tr.ref_width - tr.since_ref * tr.inv_rate
         expected = 1.0 / max(inv, 1e-3)
@@ -649,7 +659,7 @@ class MultiTracker:
             else:
                 tr.inv_rate = inv             # the first measured trend, not averaged with 0
             tr.trend_known = True
-        tr.ref_width = aw
+        tr.ref_width, tr.ref_height = aw, max(tr.anchor[3], 1.0)
         tr.since_ref = 0
 
     def _fuse(self, frame: np.ndarray, tr: _Track, dm: _DetModel, sim: float) -> None:

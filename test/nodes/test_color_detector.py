@@ -268,3 +268,23 @@ def test_a_camera_that_publishes_only_jpeg_works_without_configuration(ros, mode
     raw = numpy_to_image(_frame(), 'bgr8', make_header(stamp=interfaces.Time(sec=5, nanosec=0)))
     assert ros.spin_until(lambda: node._image_transport == 'raw',
                           each=lambda: (rpub.publish(raw), cpub.publish(msg)))
+
+
+@pytest.mark.parametrize('queue,stamps', [(1, [3]), (3, [1, 2, 3])])
+def test_frames_that_arrive_while_busy_are_queued_not_skipped(ros, model_path, queue, stamps):
+    """Three frames arrive while the detector is busy (the executor does not spin): with
+    ``image_queue`` 3 every one is detected in order, with 1 only the newest is."""
+    _node(ros, model_path, image_topic='q/image', rois_topic='', detections_topic='q/dets',
+          image_queue=queue)
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, 'q/image', 10)
+    got = []
+    peer.create_subscription(String, 'q/dets', got.append, 10)
+    assert ros.spin_until(lambda: img_pub.get_subscription_count() > 0)
+    for sec in (1, 2, 3):
+        h = make_header(stamp=interfaces.Time(sec=sec, nanosec=0), frame_id='camera')
+        img_pub.publish(numpy_to_image(_frame(), 'bgr8', h))
+    time.sleep(0.5)                     # delivered into the subscription's queue meanwhile
+    ros.spin_until(lambda: len(got) >= 3, timeout=3.0)
+    heads = [interfaces.decode(m.data, interfaces.Detections).header.stamp.sec for m in got]
+    assert heads == stamps

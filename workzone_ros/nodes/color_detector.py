@@ -64,6 +64,10 @@ class ColorDetectorNode(WorkzoneNode):
         Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
               'while no raw image arrives)',
               read_only=True),
+        Param('image_queue', 3, 'images queued while the detector is busy (sensor QoS keep '
+              'last): 1 = the newest frame wins and every frame that arrives during a slow '
+              'one is skipped; 3 absorbs a slow frame or a busy core and catches up, at the '
+              "cost of the queued frames' latency", min=1, max=30, read_only=True),
         Param('rois_topic', '/workzone/rois', 'LiDAR ROIs (Rois payload); empty = no LiDAR',
               read_only=True),
         Param('detections_topic', '/workzone/detections', 'output Detections payload',
@@ -129,7 +133,7 @@ class ColorDetectorNode(WorkzoneNode):
         self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
         self._pub = self.reliable_publisher(String, p.detections_topic)
         self._image_sub = self.image_subscription(p.image_topic, self._on_image, p.compressed,
-                                                  depth=1)
+                                                  depth=p.image_queue)
         self._rois_sub = None
         if p.rois_topic:
             self._rois_sub = self.reliable_subscription(String, p.rois_topic, self._on_rois,

@@ -169,7 +169,7 @@ class ReportCollector:
                     topic = key[:-len(' skipped while busy')]
                     total = int(value) + int(d.get(f'{topic} messages', 0) or 0)
                     lines.append(f'  {name}: {value} of {total} frames on {topic} skipped while '
-                                 'busy (it keeps the newest)')
+                                 'busy (its input queue was full)')
                 lat = [f"{k.rsplit(' ', 2)[1]} {v} ms" for k, v in d.items()
                        if k.startswith('stamp to state latency') and v]
                 if lat:

@@ -309,3 +309,37 @@ def test_table_lookups_are_numpys():
         k.hue_sat_take(table, np.full((2, 2), 200, np.uint8), np.zeros((2, 2), np.uint8))
     with pytest.raises(IndexError):
         k.flat_take(table.reshape(-1), np.full((2, 2), 60000, np.uint16))
+
+
+_FIRST_FRAME = """
+import cv2, numpy as np
+from workzone_ros.core import color_model as cm, detect as dt, kernels as k
+from workzone_ros.resources import config_path
+k.warm()
+kernels = {n: getattr(k, n) for n in dir(k) if hasattr(getattr(k, n), 'signatures')}
+before = {n: set(f.signatures) for n, f in kernels.items()}
+img = np.full((480, 640, 3), (110, 112, 108), np.uint8)
+pts = np.array([[420, 100], [470, 150], [420, 200], [370, 150]], np.int32)
+cv2.fillConvexPoly(img, pts, (0, 110, 245))
+cv2.polylines(img, [pts], True, (20, 20, 20), 3)
+cv2.putText(img, 'RW', (398, 160), cv2.FONT_HERSHEY_DUPLEX, 0.8, (20, 20, 20), 2)
+det = dt.ColorDetector(cm.load_model(config_path('models/color_orange.npz')),
+                       dt.DetectorConfig())
+assert det.detect(img), 'no detection'
+print(sorted(n for n, f in kernels.items() if set(f.signatures) - before[n]))
+"""
+
+
+def test_warm_compiles_every_kernel_the_detector_calls():
+    """After :func:`kernels.warm` (what a node runs before its first image) the detector's
+    first frame compiles nothing: every kernel is called with types warm() prepared (a new
+    type, e.g. a read-only array, loads or compiles a specialisation inside the first
+    image's callback, and the frames behind it wait).  In a fresh process: this one's
+    kernels have seen every type already."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, '-c', _FIRST_FRAME], capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == '[]'

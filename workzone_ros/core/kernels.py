@@ -634,7 +634,10 @@ def warm() -> None:
     waits for the compiler."""
     mask = np.zeros((12, 12), np.uint8)
     mask[2:10, 3:9] = 1
-    diamond_tent(mask, 5, np.linspace(0.7, 1.4, 6), 0.7, 1.4)
+    ratios = np.linspace(0.7, 1.4, 6)
+    diamond_tent(mask, 5, ratios, 0.7, 1.4)
+    ratios.flags.writeable = False                  # fit_diamond's ratios are a constant
+    diamond_tent(mask, 5, ratios, 0.7, 1.4)
     pts = np.array([(0.0, 5.0), (5.0, 0.0), (10.0, 5.0), (5.0, 10.0)] * 2)
     signs = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] * 2)
     rhombus_fit(pts, signs, 1.0, 2)

@@ -27,6 +27,26 @@ def test_augment_stays_in_camera_ranges():
     assert all(h <= 30 or h >= 170 for h in hues) and len(set(hues)) > 2
 
 
+def _n_colours(img):
+    return len(np.unique(img.reshape(-1, 3), axis=0))
+
+
+def test_augment_compresses_most_copies_as_jpeg(monkeypatch):
+    """The colour jitter maps each colour to one colour: a two-colour frame with a hard
+    edge stays two colours, unless the JPEG round trip rings and blocks at the edge.  About
+    the configured share of the copies show it; with share 0 none do."""
+    img = np.full((48, 64, 3), (120, 122, 125), np.uint8)          # grey asphalt
+    img[13:37, 21:45] = (0, 110, 245)                               # orange sign, off-block
+    share, q_lo, q_hi = tc.AUGMENT['jpeg']
+    assert 0.5 <= share <= 0.9 and 20 <= q_lo < q_hi <= 101
+    rng = np.random.default_rng(3)
+    n = 200
+    hit = sum(_n_colours(tc.augment(img, rng)) > 2 for _ in range(n))
+    assert abs(hit / n - share) < 0.1
+    monkeypatch.setitem(tc.AUGMENT, 'jpeg', (0.0, q_lo, q_hi))
+    assert all(_n_colours(tc.augment(img, rng)) <= 2 for _ in range(50))
+
+
 def test_background_hue_rotation_keeps_the_sign():
     img, face = _frame()
     rng = np.random.default_rng(1)
@@ -81,5 +101,7 @@ def test_train_with_geometry_from_fixed_camera_renders(tmp_path, capsys):
                        cv2.COLOR_BGR2HSV)[0]
     assert model.lut('orange')[hsv[0, 0], hsv[0, 1]] > 0.5
     assert model.lut('orange')[hsv[1, 0], hsv[1, 1]] < 0.5
+    # the augmentation ranges, JPEG included, are recorded with the model
+    assert model.metadata['augment_ranges']['jpeg'] == list(tc.AUGMENT['jpeg'])
     geo = model.extras['geometry']
     assert geo[0] == 0.5 and abs(geo[1] - (-1.0)) < 1e-6      # (40 - 60) / 20, not (90-60)/20

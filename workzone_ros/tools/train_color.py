@@ -9,11 +9,13 @@ value = work-zone sign face), then
 1. splits each face mask into its orange pixels (positives) and its black legend / border
    and white panels (ignored: neither sign colour nor background, ``--orange-only``);
 2. adds ``--augment`` colour-jittered copies of every image (white balance, exposure, tone
-   curve, saturation, hue, in the ranges of real cameras) so the model transfers to other
-   cameras and light; in a share of them (``--bg-hue``) the background's hue is rotated
-   by a random angle (the sign's is not): real roadsides hold warm grey asphalt, brick,
-   beige walls and dirt that our renders' palette lacks, so the table must not call a
-   colour orange just because no rendered background had it;
+   curve, saturation, hue, in the ranges of real cameras, then most of them through a JPEG
+   round trip: the blocking and chroma smearing of dashcam video and compressed image
+   topics) so the model transfers to other cameras and light; in a share of them
+   (``--bg-hue``) the background's hue is rotated by a random angle (the sign's is not):
+   real roadsides hold warm grey asphalt, brick, beige walls and dirt that our renders'
+   palette lacks, so the table must not call a colour orange just because no rendered
+   background had it;
 3. grey-world balances every frame (``--gray-world``) and normalises its saturation
    (``--sat-norm``: the frame's 90th saturation percentile is brought up to ``--sat-ref``,
    gain 1..``--sat-max-gain``; haze and dull light no longer make washed-out signs look
@@ -61,6 +63,7 @@ import numpy as np
 
 from workzone_ros.core import color_model as cm
 from workzone_ros.core import detect as dt
+from workzone_ros.sim.weather import jpeg_degrade
 
 __all__ = ['main', 'load_pairs', 'pixel_metrics']
 
@@ -132,15 +135,26 @@ def orange_mask(hsv: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return orange, ~(face & ~orange)
 
 
-#: Colour jitter ranges of :func:`augment` (plausible camera / light variation).
+#: Colour jitter ranges of :func:`augment` (plausible camera / light variation), and its
+#: JPEG round trip ``'jpeg': (share, q_lo, q_hi)``: the share of copies compressed and their
+#: quality, drawn from q_lo to q_hi - 1 (:func:`workzone_ros.sim.weather.jpeg_degrade`).
+#: Real frames reach the table compressed: dashcams record H.264 at a few Mbit/s and vehicle
+#: bags carry ``CompressedImage`` JPEG, typically quality 75-95; the blocking and the 4:2:0
+#: chroma smearing of low-bitrate video look like JPEG at quality 30-60 (orange bleeds into
+#: the background around a sign, the sign's edge turns duller).  Quality 30-95 covers both;
+#: 30 % of copies stay uncompressed (raw topics, high-bitrate cameras).  The same ranges as
+#: the CNN's crop augmentation (:mod:`workzone_ros.tools.cnn_augment`).
 AUGMENT = {'white_balance': (0.8, 1.25), 'exposure': (0.55, 1.6), 'gamma': (0.7, 1.4),
-           'saturation': (0.55, 1.8), 'hue': 4}
+           'saturation': (0.55, 1.8), 'hue': 4, 'jpeg': (0.7, 30, 96)}
 
 
 def augment(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Colour jitter as another camera would see the scene: white balance (per-channel
     gain), exposure (with clipping), tone curve (gamma), saturation (vivid phone processing
-    to washed-out) and a small hue shift; ranges in :data:`AUGMENT`."""
+    to washed-out) and a small hue shift, then, last, a JPEG round trip at a random quality
+    (compression artefacts: blocks, ringing, chroma smeared across edges) in a share of the
+    copies; ranges in :data:`AUGMENT`.  With a JPEG share of 0 no JPEG draw is made (the
+    random stream, and so the copies, are those of the colour jitter alone)."""
     a = AUGMENT
     f = img.astype(np.float32) / 255.0
     f *= rng.uniform(*a['white_balance'], 3).astype(np.float32)
@@ -151,7 +165,9 @@ def augment(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     hsv[..., 0] = h.astype(np.uint8)
     s = hsv[..., 1].astype(np.float32) * float(rng.uniform(*a['saturation']))
     hsv[..., 1] = np.clip(s, 0, 255).astype(np.uint8)
-    return cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+    out = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR)
+    share, q_lo, q_hi = a['jpeg']
+    return jpeg_degrade(out, rng, share, q_lo, q_hi) if share > 0 else out
 
 
 def rotate_background_hue(img: np.ndarray, face: np.ndarray, rng: np.random.Generator,
@@ -250,7 +266,8 @@ def _add_counting_arguments(p: argparse.ArgumentParser) -> None:
                         'legend / border and white panels are ignored (default on)')
     p.add_argument('--augment', type=int, default=2,
                    help='colour-jittered copies of each training image (hue, saturation, '
-                        'white balance, exposure; default 2)')
+                        'white balance, exposure, then a JPEG round trip in most; '
+                        'default 2)')
     p.add_argument('--bg-hue', type=float, default=0.5,
                    help='share of the augmented copies whose background hue is rotated '
                         '(default 0.5; half of those into the earth tones)')

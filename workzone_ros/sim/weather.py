@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ['WEATHER_PRESETS', 'WEATHERS', 'FLUORESCENT_SAT', 'Weather', 'CameraEffects',
-           'jpeg_degrade']
+__all__ = ['CAMERA_JPEG', 'WEATHER_PRESETS', 'WEATHERS', 'FLUORESCENT_SAT', 'Weather',
+           'CameraEffects', 'jpeg_degrade']
 
 WEATHER_PRESETS = ('winter_overcast', 'spring_sunny', 'spring_rain', 'dusk')
 
@@ -213,6 +213,14 @@ class CameraEffects:
         ox, oy = int(rng.integers(0, 32)), int(rng.integers(0, 32))
         img = cv2.add(img, bank[oy:oy + H, ox:ox + W], dtype=cv2.CV_8U)
         return jpeg_degrade(img, rng, 0.3, 25, 70)
+
+
+#: ``(share, q_lo, q_hi)`` of :func:`jpeg_degrade` for training augmentation that makes a
+#: frame look like another camera's: 70 % of the copies at quality 30-95.  Real frames reach
+#: the models compressed: dashcams record H.264 at a few Mbit/s (its blocking and 4:2:0
+#: chroma smearing look like JPEG at quality 30-60) and vehicle bags carry ``CompressedImage``
+#: JPEG, typically quality 75-95; 30 % stay uncompressed (raw topics, high-bitrate cameras).
+CAMERA_JPEG = (0.7, 30, 96)
 
 
 def jpeg_degrade(img: np.ndarray, rng: np.random.Generator, share: float, q_lo: int,

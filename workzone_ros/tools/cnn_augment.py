@@ -14,7 +14,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from workzone_ros.sim.weather import jpeg_degrade
+from workzone_ros.sim.weather import CAMERA_JPEG, jpeg_degrade
 
 __all__ = ['RUN_MARGIN', 'augment', 'composite', 'cutout']
 
@@ -75,7 +75,7 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
     if rng.random() < 0.25:
         _occlude(img, rng, texture)
     img = _optics(img, rng)
-    return jpeg_degrade(np.clip(img, 0, 255).astype(np.uint8), rng, 0.7, 30, 96)
+    return jpeg_degrade(np.clip(img, 0, 255).astype(np.uint8), rng, *CAMERA_JPEG)
 
 
 def _to_frame_scale(crop: np.ndarray, box, scale: float) -> tuple[np.ndarray, object]:

@@ -63,7 +63,7 @@ import numpy as np
 
 from workzone_ros.core import color_model as cm
 from workzone_ros.core import detect as dt
-from workzone_ros.sim.weather import jpeg_degrade
+from workzone_ros.sim.weather import CAMERA_JPEG, jpeg_degrade
 
 __all__ = ['main', 'load_pairs', 'pixel_metrics']
 
@@ -136,16 +136,10 @@ def orange_mask(hsv: np.ndarray, face: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 #: Colour jitter ranges of :func:`augment` (plausible camera / light variation), and its
-#: JPEG round trip ``'jpeg': (share, q_lo, q_hi)``: the share of copies compressed and their
-#: quality, drawn from q_lo to q_hi - 1 (:func:`workzone_ros.sim.weather.jpeg_degrade`).
-#: Real frames reach the table compressed: dashcams record H.264 at a few Mbit/s and vehicle
-#: bags carry ``CompressedImage`` JPEG, typically quality 75-95; the blocking and the 4:2:0
-#: chroma smearing of low-bitrate video look like JPEG at quality 30-60 (orange bleeds into
-#: the background around a sign, the sign's edge turns duller).  Quality 30-95 covers both;
-#: 30 % of copies stay uncompressed (raw topics, high-bitrate cameras).  The same ranges as
-#: the CNN's crop augmentation (:mod:`workzone_ros.tools.cnn_augment`).
+#: JPEG round trip ``'jpeg': (share, q_lo, q_hi)`` (:data:`workzone_ros.sim.weather.CAMERA_JPEG`,
+#: as the CNN's crop augmentation: real frames reach the table compressed).
 AUGMENT = {'white_balance': (0.8, 1.25), 'exposure': (0.55, 1.6), 'gamma': (0.7, 1.4),
-           'saturation': (0.55, 1.8), 'hue': 4, 'jpeg': (0.7, 30, 96)}
+           'saturation': (0.55, 1.8), 'hue': 4, 'jpeg': CAMERA_JPEG}
 
 
 def augment(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -65,6 +65,45 @@ def test_replay_count_order_timing_clock(tmp_path, ros_context, storage, rate):
     assert clocks[0] >= T0 and clocks[-1] == T0 + (N_CHATTER - 1) * PERIOD_NS
 
 
+def test_playback_waits_for_every_subscriber_it_is_told_of(tmp_path, ros_context):
+    """``wait_for`` as topic -> subscribers: a second node that subscribes a second after
+    the first still gets the whole bag (the launcher passes the graph's counts; with one
+    matched subscriber the player would start before the other node's was matched)."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile
+    from std_msgs.msg import String
+    bag = write_ros2_bag(tmp_path / 'in', 'mcap')
+    executor = SingleThreadedExecutor(context=ros_context)
+    got = {'early': [], 'late': []}
+    nodes = []
+
+    def subscribe(name):
+        node = rclpy.create_node(f'player_wait_{name}', context=ros_context)
+        node.create_subscription(String, '/chatter', lambda m: got[name].append(m.data),
+                                 QoSProfile(depth=100))
+        executor.add_node(node)
+        nodes.append(node)
+
+    subscribe('early')
+    player = BagPlayer(bag, rate=2.0, wait_for={'/chatter': 2}, wait_timeout=15.0)
+    thread = threading.Thread(target=player.run, daemon=True)
+    thread.start()
+    try:
+        spin_until(executor, lambda: False, timeout=1.0)
+        assert not got['early']                     # still waiting for the second node
+        subscribe('late')
+        assert spin_until(executor, lambda: not thread.is_alive()
+                          and len(got['late']) >= N_CHATTER, timeout=30.0)
+        assert got['early'] == got['late'] == [str(i) for i in range(N_CHATTER)]
+    finally:
+        player.stop()
+        thread.join(5.0)
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+
+
 def test_parse_remaps():
     assert parse_remaps(['/a:=/b', 'c:=d']) == {'/a': '/b', 'c': 'd'}
     with pytest.raises(ValueError):

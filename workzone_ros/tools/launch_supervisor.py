@@ -355,8 +355,10 @@ class Launcher:
 
     def _start_player(self) -> None:
         from workzone_ros.tools.player import BagPlayer
-        wait_for = [t for t in sorted(self.reader.topics)
-                    if self._node.count_subscribers(t) > 0]
+        # every subscription the graph has (the player's own publishers match them one by
+        # one: one matched is not all)
+        wait_for = {t: n for t in sorted(self.reader.topics)
+                    if (n := self._node.count_subscribers(t)) > 0}
         self._player = BagPlayer(self.reader, rate=self.args.rate, context=self._ctx,
                                  node_name='workzone_player', quiet=self.args.quiet_play,
                                  wait_for=wait_for, wait_timeout=5.0,

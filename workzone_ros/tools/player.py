@@ -149,7 +149,8 @@ class BagPlayer:
                  start: float = 0.0, loop: bool = False,
                  topics: Optional[Sequence[str]] = None,
                  remap: Optional[dict[str, str]] = None, clock_hz: float = 100.0,
-                 quiet: bool = True, delay: float = 0.0, wait_for: Sequence[str] = (),
+                 quiet: bool = True, delay: float = 0.0,
+                 wait_for: Union[Sequence[str], dict[str, int]] = (),
                  wait_timeout: float = 10.0, context: Any = None,
                  node_name: str = 'workzone_player',
                  progress_stream: Optional[TextIO] = None,
@@ -169,7 +170,9 @@ class BagPlayer:
             quiet: no progress output.
             delay: seconds to wait after creating the publishers, before the first message.
             wait_for: topics (published names, or ``'*'`` for all) that must have a matched
-                subscriber before playback starts; waits up to ``wait_timeout``.
+                subscriber before playback starts, or a dict of topic -> the subscribers
+                to match (all of the graph's: a node whose subscription is matched later
+                would miss the first messages); waits up to ``wait_timeout``.
             wait_timeout: the longest wait for ``wait_for`` (then plays anyway, with a note).
             context: an initialised rclpy Context to use; by default a private one is created
                 and shut down by :meth:`run`.
@@ -191,7 +194,8 @@ class BagPlayer:
         self.clock_hz = float(clock_hz)
         self.quiet = quiet
         self.delay = float(delay)
-        self.wait_for = list(wait_for)
+        self.wait_for = dict(wait_for) if isinstance(wait_for, dict) else {
+            t: 1 for t in wait_for}
         self.wait_timeout = float(wait_timeout)
         self.node_name = node_name
         self._context = context
@@ -268,14 +272,14 @@ class BagPlayer:
         if not wanted:
             return
         if '*' in wanted:
-            targets = [p for p, _ in pubs.values()]
+            targets = [(p, 1) for p, _ in pubs.values()]
         else:
-            targets = [p for p, out in pubs.values() if out in wanted]
+            targets = [(p, self.wait_for[out]) for p, out in pubs.values() if out in wanted]
             if clock is not None and '/clock' in wanted:
-                targets.append(clock)
+                targets.append((clock, self.wait_for['/clock']))
         deadline = time.monotonic() + self.wait_timeout
         while not self._stop.is_set():
-            waiting = [p for p in targets if p.get_subscription_count() == 0]
+            waiting = [p for p, n in targets if p.get_subscription_count() < n]
             if not waiting:
                 return
             if time.monotonic() > deadline:

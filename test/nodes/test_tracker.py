@@ -217,3 +217,41 @@ def test_tracker_node_drops_malformed_signs_and_can_do_without_them(ros):
     quiet = ros.add(TrackerNode(context=ros.context, namespace='quiet',
                                 parameter_overrides=[Parameter('signs_topic', value='')]))
     assert quiet._signs_sub is None and '/quiet/workzone/signs' not in quiet.topic_stats()
+
+
+def test_tracker_node_counts_detections_it_cannot_pair_with_an_image(ros):
+    """Detections that come more than ``image_buffer`` images late, or whose image never
+    came, are dropped with the reason (``/diagnostics``), not lost silently; the frames that
+    pair are tracked."""
+    node = ros.add(TrackerNode(context=ros.context, parameter_overrides=[
+        Parameter('image_buffer', value=2)]))
+    peer = ros.add(rclpy.create_node('tracker_late_peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, '/camera/image_raw',
+                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    det_pub = peer.create_publisher(String, '/workzone/detections', 10)
+    got = []
+    peer.create_subscription(String, '/workzone/tracks', got.append, 10)
+    assert ros.spin_until(lambda: img_pub.get_subscription_count() > 0
+                          and det_pub.get_subscription_count() > 0
+                          and node.count_subscribers('/workzone/tracks') > 0)
+    bg = _background()
+    stamps = [Time(sec=100, nanosec=i * 66_666_666) for i in range(6)]
+    dets = [Detections(header=Header(stamp=t, frame_id='camera')) for t in stamps]
+
+    def stats(topic):
+        return node.topic_stats()[topic]
+
+    for i in (0, 1, 2, 3):                  # four images; the ring keeps the last two
+        image = numpy_to_image(_frame(bg, i)[0], 'bgr8', stamp=time_to_stamp(stamps[i]))
+        img_pub.publish(image)
+        assert ros.spin_until(lambda: stats('/camera/image_raw').messages == i + 1)
+    det_pub.publish(String(data=encode(dets[0])))       # its image left the ring
+    assert ros.spin_until(lambda: stats('/workzone/detections').dropped == 1)
+    assert 'left the buffer' in stats('/workzone/detections').last_drop_reason
+    det_pub.publish(String(data=encode(dets[4])))       # its image never comes
+    det_pub.publish(String(data=encode(dets[5])))
+    img_pub.publish(numpy_to_image(_frame(bg, 5)[0], 'bgr8', stamp=time_to_stamp(stamps[5])))
+    assert ros.spin_until(lambda: len(got) == 1)
+    assert decode(got[0].data, Tracks).header.stamp == stamps[5]
+    assert stats('/workzone/detections').dropped == 2
+    assert 'no image' in stats('/workzone/detections').last_drop_reason

@@ -81,6 +81,8 @@ class TrackerNode(WorkzoneNode):
         n = self.params.image_buffer
         self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
         self._pending: collections.OrderedDict[int, Detections] = collections.OrderedDict()
+        # stamps of the last images that left the ring unprocessed (their detections late)
+        self._evicted: collections.OrderedDict[int, None] = collections.OrderedDict()
         self._max = n
         self._last_ns: Optional[int] = None
         self._sent: collections.OrderedDict[int, list[int]] = collections.OrderedDict()
@@ -106,6 +108,7 @@ class TrackerNode(WorkzoneNode):
         self._tracker.reset()
         self._images.clear()
         self._pending.clear()
+        self._evicted.clear()
         self._sent.clear()
         self._last_ns = None
 
@@ -122,7 +125,10 @@ class TrackerNode(WorkzoneNode):
             return
         self._images[ns] = frame
         while len(self._images) > self._max:
-            self._images.popitem(last=False)
+            old, _ = self._images.popitem(last=False)
+            self._evicted[old] = None
+            while len(self._evicted) > self._max:
+                self._evicted.popitem(last=False)
 
     def _on_detections(self, msg: String) -> None:
         dets = string_to_payload(msg, Detections)
@@ -131,6 +137,9 @@ class TrackerNode(WorkzoneNode):
         if image is not None:
             self._process(image, dets)
             return
+        if self._evicted.pop(ns, 0) is None:
+            raise InputError(f'its image had left the buffer (image_buffer {self._max} frames): '
+                             'the detections came that many frames late')
         self._pending[ns] = dets              # its image has not arrived yet
         while len(self._pending) > self._max:
             self._pending.popitem(last=False)
@@ -159,8 +168,11 @@ class TrackerNode(WorkzoneNode):
         self._last_ns = ns
         for old in [k for k in self._images if k <= ns]:
             del self._images[old]
-        for old in [k for k in self._pending if k <= ns]:
-            del self._pending[old]
+        for old in [k for k in self._pending if k < ns]:
+            del self._pending[old]         # its image never came (the image topic's gap)
+            self.drop(self.params.detections_topic,
+                      'no image with the stamp of these detections arrived')
+        self._pending.pop(ns, None)
         self._sent[ns] = [t.track_id for t in tracks]
         while len(self._sent) > _SENT_FRAMES:
             self._sent.popitem(last=False)

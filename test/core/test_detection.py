@@ -1908,3 +1908,30 @@ def test_a_busy_frame_spends_a_bounded_number_of_chroma_fits(detector, monkeypat
     _diamond(one, 200, 120, 26)
     assert bounded.detect(one) == unbounded.detect(one) != []
     assert not bounded.budget_spent
+
+
+def test_a_lean_frame_skips_the_second_attempts_and_the_next_frame_does_not(detector,
+                                                                           monkeypatch):
+    """``detect(..., lean=True)`` (a caller behind its camera): no chroma fit, no grown
+    blob and no moved refinement start on that frame, none of it counted as over a budget
+    (six signs whose line does not measure are boxed from their masks); the next frame, not
+    lean, is measured in full again."""
+    from workzone_ros.core.detect import warning
+    calls = []
+    for name in ('fit_blurred_diamond', 'refine_shifted'):
+        real = getattr(warning, name)
+        monkeypatch.setattr(warning, name, lambda *a, _real=real, _name=name, **k: (
+            calls.append(_name), _real(*a, **k))[1])
+    det = detector.with_config(max_blur_fits=50)
+    real_grown = det._grown
+    det._grown = lambda *a, **k: (calls.append('grown'), real_grown(*a, **k))[1]
+    det._refine = lambda *args, **kwargs: None          # no face-to-line step anywhere
+    img, x = _background(3), 40
+    for r in (14, 30, 18, 26, 22, 16):
+        _diamond(img, x + r, 120, r)
+        x += 2 * r + 25
+    lean = det.detect(img, lean=True)                   # boxed from their masks' diamonds
+    assert len(lean) == 6 and det.lean
+    assert calls == [] and not det.budget_spent
+    assert len(det.detect(img)) == 6 and not det.lean
+    assert calls.count('fit_blurred_diamond') == 6

@@ -14,7 +14,7 @@ from workzone_ros import interfaces
 from workzone_ros.core import color_model as cm
 from workzone_ros.interfaces import Box, Roi, Rois
 from workzone_ros.nodes.base import ConfigError
-from workzone_ros.nodes.color_detector import ColorDetectorNode
+from workzone_ros.nodes.color_detector import LEAN_KEY, ColorDetectorNode
 from workzone_ros.nodes.conversions import (
     CameraInfoData,
     make_header,
@@ -288,3 +288,35 @@ def test_frames_that_arrive_while_busy_are_queued_not_skipped(ros, model_path, q
     ros.spin_until(lambda: len(got) >= 3, timeout=3.0)
     heads = [interfaces.decode(m.data, interfaces.Detections).header.stamp.sec for m in got]
     assert heads == stamps
+
+
+@pytest.mark.parametrize('lean_behind,lean', [(1.0, 3), (0.0, 0)])
+def test_frames_that_waited_behind_the_camera_are_measured_lean(ros, model_path, lean_behind,
+                                                               lean):
+    """Frames detected as they come are measured in full; three that arrive while the
+    detector is busy wait several frame intervals in its queue and are measured lean
+    (``lean_behind`` 1), or in full all the same (0); ``/diagnostics`` counts them."""
+    node = _node(ros, model_path, image_topic='l/image', rois_topic='', detections_topic='l/dets',
+                 image_queue=5, lean_behind=lean_behind)
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    img_pub = peer.create_publisher(Image, 'l/image', 10)
+    got = []
+    peer.create_subscription(String, 'l/dets', got.append, 10)
+    assert ros.spin_until(lambda: img_pub.get_subscription_count() > 0)
+
+    def publish(sec):
+        h = make_header(stamp=interfaces.Time(sec=sec, nanosec=0), frame_id='camera')
+        img_pub.publish(numpy_to_image(_frame(), 'bgr8', h))
+
+    for sec in (1, 2, 3, 4):                # in time: each detected before the next comes
+        publish(sec)
+        assert ros.spin_until(lambda: len(got) == sec)
+        time.sleep(0.05)
+    assert node._lean_frames == 0
+    for sec in (5, 6, 7):                   # the detector busy: they wait in its queue
+        publish(sec)
+        time.sleep(0.05)
+    time.sleep(0.2)
+    assert ros.spin_until(lambda: len(got) == 7)
+    values = {kv.key: kv.value for kv in node.diagnostic_status().values}
+    assert values[LEAN_KEY] == str(lean) and values['frames detected'] == '7'

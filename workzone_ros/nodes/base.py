@@ -172,6 +172,9 @@ class WorkzoneNode(Node):
         self._stats_lock = threading.Lock()
         self._topic_stats: dict[str, TopicStats] = {}
         self._traceback_logged: set[str] = set()
+        #: of the message being handled: when the middleware received it (system clock ns,
+        #: 0 when not reported) and how long it then waited in its subscription's queue (s)
+        self.input_received_ns, self.input_wait_s = 0, 0.0
         self.config_warnings: list[str] = []
         self._param_table: dict[str, Param] = {}
         self._cli_args = list(kwargs.get('cli_args') or [])
@@ -470,9 +473,12 @@ class WorkzoneNode(Node):
         if count_gaps and stats.gaps is None:
             stats.gaps = FrameGaps()
 
-        def wrapped(msg: Any) -> None:
+        def wrapped(msg: Any, info: Any) -> None:
             arrival = time.monotonic()
             t0 = time.perf_counter()
+            received = int((info or {}).get('received_timestamp') or 0)
+            self.input_received_ns = received
+            self.input_wait_s = max(0.0, (time.time_ns() - received) * 1e-9) if received else 0.0
             header = getattr(msg, 'header', None)
             with self._stats_lock:
                 stats.messages += 1

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import collections
 import os
+import statistics
 import time
 from typing import Any, Optional
 
@@ -39,6 +40,8 @@ __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
 
 DEFAULT_MODEL = str(config_path('models/color_orange.npz'))
 PROPOSALS_MODEL = str(config_path('models/color_proposals.npz'))
+#: the ``/diagnostics`` key of the frames measured lean (the launcher's report shows it)
+LEAN_KEY = 'frames measured lean (behind the camera)'
 
 # Parameters that map one to one onto DetectorConfig fields: default, description and range
 # from the field's knob (workzone_ros/core/detect/config.py).  The other ~115 fields are
@@ -68,6 +71,11 @@ class ColorDetectorNode(WorkzoneNode):
               'last): 1 = the newest frame wins and every frame that arrives during a slow '
               'one is skipped; 3 absorbs a slow frame or a busy core and catches up, at the '
               "cost of the queued frames' latency", min=1, max=30, read_only=True),
+        Param('lean_behind', 1.0, 'an image that waited this many frame intervals or more in '
+              'the input queue (the detector has fallen behind its camera) is measured lean: '
+              'without the second attempts on blobs the first measurement did not box (chroma '
+              'fit, grown blob, moved starts), at about half the cost on busy frames, so the '
+              'queue drains instead of overflowing; 0 = never', min=0.0, max=30.0),
         Param('rois_topic', '/workzone/rois', 'LiDAR ROIs (Rois payload); empty = no LiDAR',
               read_only=True),
         Param('detections_topic', '/workzone/detections', 'output Detections payload',
@@ -129,6 +137,9 @@ class ColorDetectorNode(WorkzoneNode):
             collections.OrderedDict()
         self._frames = 0
         self._held_counts = collections.Counter()
+        # when the middleware received the last images (system clock ns): the frame interval
+        self._arrivals: collections.deque[int] = collections.deque(maxlen=11)
+        self._lean_frames = 0
         # images waiting for their ROIs: stamp ns -> (deadline monotonic s, image, header)
         self._pending: collections.OrderedDict[int, tuple] = collections.OrderedDict()
         self._pub = self.reliable_publisher(String, p.detections_topic)
@@ -184,9 +195,9 @@ class ColorDetectorNode(WorkzoneNode):
         """A looping bag: the ROIs of the old pass are forgotten, images held for theirs go
         on colour alone now (their ROIs will not come)."""
         self._rois.clear()
-        for _, image, header in list(self._pending.values()):
+        for _, *held in list(self._pending.values()):
             self._held_counts['time jump'] += 1
-            self._detect(image, header)
+            self._detect(*held)
         self._pending.clear()
 
     # -- callbacks --
@@ -212,12 +223,24 @@ class ColorDetectorNode(WorkzoneNode):
             self._rois.popitem(last=False)
         # the held image of this stamp, and older ones whose ROIs will not come now
         for t in [t for t in self._pending if t <= stamp]:
-            _, image, header = self._pending.pop(t)
+            _, *held = self._pending.pop(t)
             self._held_counts['matched' if t == stamp else 'superseded'] += 1
-            self._detect(image, header)
+            self._detect(*held)
 
     def _on_image(self, msg: Image) -> None:
-        self._hold_or_process(msg, msg.header)
+        self._hold_or_process(msg, msg.header, self._behind())
+
+    def _behind(self) -> bool:
+        """Whether the image being handled waited ``lean_behind`` frame intervals or more
+        in the input queue (the interval: the median gap between the last images' arrivals;
+        unknown, so False, before two images arrived)."""
+        if self.input_received_ns:
+            self._arrivals.append(self.input_received_ns)
+        if self.params.lean_behind <= 0 or len(self._arrivals) < 2:
+            return False
+        t = sorted(self._arrivals)
+        interval = statistics.median(b - a for a, b in zip(t, t[1:])) * 1e-9
+        return interval > 0 and self.input_wait_s >= self.params.lean_behind * interval
 
     def _waiting_for_rois(self) -> bool:
         """True when ROIs can come: a topic is set, a publisher exists, waiting is on."""
@@ -225,42 +248,43 @@ class ColorDetectorNode(WorkzoneNode):
         return bool(self._rois_sub is not None and p.rois_wait > 0
                     and self.count_publishers(p.rois_topic) > 0)
 
-    def _hold_or_process(self, msg: Any, header: Any) -> None:
+    def _hold_or_process(self, msg: Any, header: Any, lean: bool = False) -> None:
         stamp = conv.stamp_to_time(header.stamp).to_ns()
         if stamp in self._rois or not self._waiting_for_rois():
-            self._detect(msg, header)
+            self._detect(msg, header, lean)
             return
         old = self._pending.get(stamp)            # a repeated stamp keeps its first deadline
         deadline = old[0] if old else time.monotonic() + self.params.rois_wait
-        self._pending[stamp] = (deadline, msg, header)
+        self._pending[stamp] = (deadline, msg, header, lean)
         while len(self._pending) > self.params.rois_queue:
-            _, (_, image, hdr) = self._pending.popitem(last=False)
+            _, (_, *held) = self._pending.popitem(last=False)
             self._held_counts['queue overflow'] += 1
-            self._detect(image, hdr)
+            self._detect(*held)
 
     def _expire(self) -> None:
         """Timer: images whose ROIs did not come within ``rois_wait`` go on colour alone."""
         now = time.monotonic()
-        for t in [t for t, (deadline, _, _) in self._pending.items() if deadline <= now]:
-            _, image, header = self._pending.pop(t)
+        for t in [t for t, held in self._pending.items() if held[0] <= now]:
+            _, *held = self._pending.pop(t)
             self._held_counts['expired'] += 1
-            self._detect(image, header)
+            self._detect(*held)
 
-    def _detect(self, msg: Any, header: Any) -> None:
+    def _detect(self, msg: Any, header: Any, lean: bool = False) -> None:
         try:
             bgr = (conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
                    else conv.image_to_numpy(msg, 'bgr8'))
         except conv.ConversionError as exc:
             self.drop(self.image_topic_of(msg), str(exc))
             return
-        self._process(bgr, header)
+        self._process(bgr, header, lean)
 
-    def _process(self, bgr, header) -> None:
+    def _process(self, bgr, header, lean: bool = False) -> None:
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
         dets, channelizers = [], None      # None: not counted on this frame
         if self._rules_apply(bgr):
-            dets = self._detector.detect(bgr, rois or ())
+            dets = self._detector.detect(bgr, rois or (), lean)
+            self._lean_frames += lean
             channelizers = len(self._detector.channelizers)
             for kind in self._detector.budget_spent:
                 self._held_counts[f'frames over the {kind} budget'] += 1
@@ -272,10 +296,13 @@ class ColorDetectorNode(WorkzoneNode):
 
 
     def extra_diagnostics(self) -> list[tuple[str, str]]:
-        """Images held for their ROIs by how the wait ended, and the frames whose budget
-        of costly measurements (``max_blur_fits``, ``max_grown``) ran out."""
+        """Images held for their ROIs by how the wait ended, the frames whose budget of
+        costly measurements (``max_blur_fits``, ``max_grown``) ran out, and the frames
+        detected and of them measured lean (``lean_behind``)."""
         return [(k if k.startswith('frames') else f'images held: {k}', str(v))
-                for k, v in sorted(self._held_counts.items())]
+                for k, v in sorted(self._held_counts.items())] + [
+            ('frames detected', str(self._frames)),
+            (LEAN_KEY, str(self._lean_frames))]
 
 
 NODE_CLASS = ColorDetectorNode

@@ -43,6 +43,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
+from workzone_ros.tools.launch_report import LEAN_KEY
+
 __all__ = ['Recorder', 'GraphRun', 'main', 'rss_mb', 'SCENARIOS']
 
 SCENARIOS = ('loop', 'kill', 'cut', 'load', 'soak')
@@ -626,7 +628,8 @@ def gap_reported(diag: list, node: str, topic: str, t0: float) -> Optional[float
 
 
 def load_figures(diag: list) -> dict:
-    """Per node, from its last ``/diagnostics``: drops, skipped frames, processing p99."""
+    """Per node, from its last ``/diagnostics``: drops, skipped frames, processing p99 (and
+    the colour detector's frames measured lean)."""
     last: dict[str, dict] = {}
     for _, name, _, _, values in diag:
         last[name] = values
@@ -646,6 +649,8 @@ def load_figures(diag: list) -> dict:
             'skipped_while_busy': int(sum(num(f'{t} skipped while busy') for t in topics)),
             'processing_p99_ms': {t: float(v) for t, v in p99.items()},
         }
+        if values.get(LEAN_KEY):
+            out[name]['measured_lean'] = int(num(LEAN_KEY))
         if values.get('stamp to state latency p99 ms'):
             out[name]['stamp_to_state_p99_ms'] = float(values['stamp to state latency p99 ms'])
     return out

@@ -9,7 +9,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ['ReportCollector']
+__all__ = ['LEAN_KEY', 'ReportCollector']
 
 _REPORT_TYPES = {
     '/workzone/lidar/candidates': 'sensor_msgs/msg/PointCloud2',
@@ -21,6 +21,9 @@ _REPORT_TYPES = {
     '/workzone/active': 'std_msgs/msg/Bool',
     '/workzone/likelihood': 'std_msgs/msg/Float32',
 }
+#: the colour detector's ``/diagnostics`` key of its frames measured lean
+#: (``color_detector.LEAN_KEY``)
+LEAN_KEY = 'frames measured lean (behind the camera)'
 #: payload list field that makes a frame "non-empty" for the coarse recall
 _LIST_FIELD = {'/workzone/detections': 'detections', '/workzone/tracks': 'tracks',
                '/workzone/signs': 'signs', '/groundtruth/signs': 'signs'}
@@ -109,7 +112,8 @@ class ReportCollector:
                 drops = {}
                 for kv in status.values:
                     if kv.key.startswith('stamp to state latency') \
-                            or kv.key.endswith((' skipped while busy', ' messages')):
+                            or kv.key.endswith((' skipped while busy', ' messages')) \
+                            or kv.key in ('frames detected', LEAN_KEY):
                         self.diag.setdefault(status.name, {'worst': 0})[kv.key] = kv.value
                     if kv.key.endswith(' dropped'):
                         try:
@@ -170,6 +174,9 @@ class ReportCollector:
                     total = int(value) + int(d.get(f'{topic} messages', 0) or 0)
                     lines.append(f'  {name}: {value} of {total} frames on {topic} skipped while '
                                  'busy (its input queue was full)')
+                if int(d.get(LEAN_KEY, 0) or 0):
+                    lines.append(f'  {name}: {d[LEAN_KEY]} of {d.get("frames detected", "?")} '
+                                 'frames measured lean (it had fallen behind the camera)')
                 lat = [f"{k.rsplit(' ', 2)[1]} {v} ms" for k, v in d.items()
                        if k.startswith('stamp to state latency') and v]
                 if lat:

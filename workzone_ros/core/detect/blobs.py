@@ -71,7 +71,10 @@ class BlobMixin:
 
     def _spend(self, kind: str) -> bool:
         """Take one of the frame's ``kind`` measurements (``grown`` or ``blur_fit``) from
-        its budget (``max_grown``, ``max_blur_fits``); False when none is left."""
+        its budget (``max_grown``, ``max_blur_fits``); False when none is left, or on a
+        frame measured lean (:meth:`detect`)."""
+        if self.lean:
+            return False
         left = self._budget.get(kind, 0)
         if left <= 0:
             self.budget_spent.add(kind)

@@ -71,6 +71,8 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``)
         self.budget_spent: set[str] = set()
         self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown}
+        #: the last frame was measured lean (:meth:`detect`)
+        self.lean = False
         if config.method == 'rgb_lp' and rgb_lp is None:
             raise ModelError("method 'rgb_lp' needs the RGB thresholds of Balali and "
                              'Golparvar-Fard (train them with workzone-ros train color '
@@ -165,19 +167,25 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
             self._cache[key] = (s, sw, sh, thr, p_full, roi, own)
         return self._cache[key]
 
-    def detect(self, bgr: np.ndarray, rois: Sequence[Roi] = ()) -> list[Detection]:
+    def detect(self, bgr: np.ndarray, rois: Sequence[Roi] = (), lean: bool = False
+               ) -> list[Detection]:
         """Detect colour signs in one BGR frame.
 
         Args:
             bgr: (H, W, 3) uint8 image.
             rois: LiDAR ROIs of this frame (empty when there is no LiDAR).
+            lean: measure without the costly second attempts on a blob that the first
+                measurement did not box (the chroma fit, the grown blob, the moved
+                refinement starts): about half the time on busy real frames, for a caller
+                that has fallen behind its camera.
 
         Returns:
             Every detected sign, largest first.
         """
-        return [c.detection() for c in self.candidates(bgr, rois)]
+        return [c.detection() for c in self.candidates(bgr, rois, lean)]
 
-    def candidates(self, bgr: np.ndarray, rois: Sequence[Roi] = ()) -> list[Candidate]:
+    def candidates(self, bgr: np.ndarray, rois: Sequence[Roi] = (), lean: bool = False
+                   ) -> list[Candidate]:
         """As :meth:`detect`, returning :class:`Candidate` objects (with shape features)."""
         if bgr.ndim != 3 or bgr.shape[2] != 3 or bgr.dtype != np.uint8:
             raise ValueError(f'expected an (H, W, 3) uint8 BGR image, got {bgr.shape} '
@@ -189,6 +197,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         # this frame's costly measurements left; the kinds whose budget ran out
         self._budget = {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown}
         self.budget_spent = set()
+        self.lean = lean
         self._ref_row = None
         self._sharp_faces = set()
         if self._geometry is not None and cfg.use_geometry and own:

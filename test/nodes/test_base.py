@@ -92,6 +92,7 @@ def test_bad_input_is_counted_and_good_input_processed(ros):
     assert status.hardware_id == 'workzone_ros'
     assert int(values['/probe/image messages']) >= 4
     assert values['/probe/image publishers'] == '1'
+    assert values['/probe/image publishers matched'] == '1'    # its own subscription's view
     assert values['/probe/image processing p99 ms'] != ''
     assert float(values['/probe/image age of last input s']) < 5.0
     warned = [s for d in diags for s in d.status if s.level == DiagnosticStatus.WARN]

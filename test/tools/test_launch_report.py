@@ -36,3 +36,35 @@ def test_the_report_says_which_frames_were_skipped_and_which_measured_lean():
     assert ('color_detector: 15 of 453 frames measured lean (it had fallen behind the '
             'camera)') in text
     assert 'tracker:' not in text                   # nothing skipped, nothing lean
+
+
+def test_the_bag_waits_until_every_node_has_matched_its_inputs():
+    """The launcher plays only once each node's ``/diagnostics`` says that every
+    subscription is matched with each publisher of its topic the launcher sees (a reliable,
+    volatile topic keeps nothing for a subscription matched late); a node that publishes no
+    ``/diagnostics`` is not waited for."""
+    from types import SimpleNamespace
+
+    from workzone_ros.tools.launch_supervisor import Launcher
+    publishers = {'/workzone/detections': 1, '/camera/image_raw': 0}
+    reporting = [SimpleNamespace(node_name=n) for n in ('tracker', 'fusion')]
+    launcher = SimpleNamespace(
+        specs=[SimpleNamespace(name=n) for n in ('tracker', 'fusion', 'someone_elses_node')],
+        _node=SimpleNamespace(count_publishers=lambda topic: publishers.get(topic, 0),
+                              get_publishers_info_by_topic=lambda topic: reporting),
+        _node_inputs={})
+
+    def diag(name, matched):
+        Launcher._on_diag(launcher, DiagnosticArray(status=[_status(name, **{
+            '/workzone/detections publishers matched': matched,
+            '/camera/image_raw publishers matched': -1})]))     # not subscribed
+
+    ready = lambda: Launcher._inputs_matched(launcher)   # noqa: E731
+    diag('tracker', 0)
+    assert not ready()                        # fusion not heard from, tracker not matched
+    diag('fusion', 1)
+    assert not ready()
+    diag('tracker', 1)
+    assert ready()
+    publishers['/workzone/detections'] = 2    # a second publisher appeared
+    assert not ready()

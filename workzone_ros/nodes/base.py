@@ -623,6 +623,8 @@ class WorkzoneNode(Node):
                 (f'{topic} stamps repeated', str(repeated)),
                 (f'{topic} stamps out of order', str(out_of_order)),
                 (f'{topic} publishers', str(publishers)),
+                (f'{topic} publishers matched', str(stats.subscription.get_publisher_count()
+                                                    if stats.subscription is not None else -1)),
                 (f'{topic} processing p50 ms',
                  f'{np.percentile(times, 50) * 1e3:.3f}' if times.size else ''),
                 (f'{topic} processing p99 ms',

@@ -105,6 +105,8 @@ class Launcher:
         self._player_thread: Optional[threading.Thread] = None
         self._player_error: Optional[str] = None
         self.report: Optional[ReportCollector] = None
+        # node name -> its last /diagnostics values (its inputs' matching, before playing)
+        self._node_inputs: dict[str, dict[str, str]] = {}
         self.recorder = None
         self.score_result: Optional[dict] = None
         self._inproc_nodes: list = []
@@ -263,6 +265,12 @@ class Launcher:
                                        start_parameter_services=False)
         if self.args.report:
             self.report = ReportCollector(self._node)
+        if self.reader is not None:
+            # each node's inputs as it sees them: the bag plays once they are matched
+            from diagnostic_msgs.msg import DiagnosticArray
+            from rclpy.qos import QoSProfile
+            self._node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag,
+                                           QoSProfile(depth=100))
         if getattr(self.args, 'score', None) and self.reader is not None:
             from workzone_ros.tools.live_score import LiveRecorder
             self.recorder = LiveRecorder(self._node)
@@ -351,7 +359,29 @@ class Launcher:
         if getattr(self, '_settle', None) is None or self._settle[0] != counts:
             self._settle = (counts, now)
             return False
-        return now - self._settle[1] >= 0.5
+        return now - self._settle[1] >= 0.5 and self._inputs_matched()
+
+    def _on_diag(self, msg) -> None:
+        for status in msg.status:
+            self._node_inputs[status.name] = {kv.key: kv.value for kv in status.values}
+
+    def _inputs_matched(self) -> bool:
+        """Every launched node has said (``/diagnostics``) that each of its subscriptions is
+        matched with every publisher of the topic this process sees: a reliable, volatile
+        topic keeps nothing for a subscription matched late, so the frames published before
+        would be lost to it (the tracker missed the demo's first 9 detections once).  A node
+        that publishes no ``/diagnostics`` (not a workzone node) is not waited for."""
+        reporting = {i.node_name for i in
+                     self._node.get_publishers_info_by_topic('/diagnostics')}
+        for spec in self.specs:
+            values = self._node_inputs.get(spec.name)
+            if values is None and spec.name in reporting:
+                return False
+            for key, value in list((values or {}).items()):
+                if key.endswith(' publishers matched') and 0 <= int(value) < \
+                        self._node.count_publishers(key[:-len(' publishers matched')]):
+                    return False            # (-1: a topic the node does not subscribe)
+        return True
 
     def _start_player(self) -> None:
         from workzone_ros.tools.player import BagPlayer

@@ -9,6 +9,7 @@ import pytest
 
 from workzone_ros.core.sync import (
     ApproximateTimeSync,
+    ExactStampPairs,
     LatestSync,
     NearestSync,
     PoseBuffer,
@@ -269,3 +270,33 @@ def test_frame_gaps_count_the_frames_a_busy_node_never_saw():
     gaps.add(0)                                        # a looping bag: no gap counted
     gaps.add(period)
     assert gaps.skipped == 7 and gaps.frames == 34
+
+
+def test_exact_stamp_pairs_in_either_order_and_every_unpaired_box_reported():
+    """An image and its boxes pair by stamp whichever comes first; boxes more than ``size``
+    frames late, boxes whose image never came and boxes over the waiting limit are each
+    reported with a reason, never silently forgotten."""
+    pairs = ExactStampPairs(2)
+    assert pairs.add_image(1, 'i1') is None
+    assert pairs.add_boxes(1, 'b1') == (('i1', 'b1'), [])          # image first
+    assert pairs.add_boxes(2, 'b2') == (None, [])
+    assert pairs.add_image(2, 'i2') == ('i2', 'b2')                 # boxes first
+    for ns in (3, 4, 5):
+        assert pairs.add_image(ns, f'i{ns}') is None                # 3 leaves the ring
+    pair, dropped = pairs.add_boxes(3, 'b3')
+    assert pair is None and len(dropped) == 1 and 'left the buffer' in dropped[0]
+    assert pairs.processed(3) == []
+    assert pairs.add_boxes(6, 'b6') == (None, [])                   # 6's image never comes
+    assert pairs.add_boxes(5, 'b5') == (('i5', 'b5'), [])
+    assert pairs.processed(5) == []
+    assert pairs.add_boxes(8, 'b8') == (None, [])
+    assert pairs.add_image(7, 'i7') is None
+    assert pairs.processed(8) == ['no image with their stamp arrived']   # 6
+    assert pairs.add_image(9, 'i9') is None and pairs.add_image(10, 'i10') is None
+    for ns in (11, 12, 13):
+        pair, dropped = pairs.add_boxes(ns, f'b{ns}')
+    assert dropped == ['no image with their stamp arrived']        # over the limit of 2
+    pairs.clear()
+    assert pairs.add_boxes(9, 'b9') == (None, [])                   # forgotten, not late
+    with pytest.raises(ValueError):
+        ExactStampPairs(0)

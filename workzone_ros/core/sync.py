@@ -11,6 +11,8 @@
 * :class:`NearestSync` -- each image is paired with the candidate set nearest in time within
   the slop; a set may serve several images (15 Hz camera, 10 Hz LiDAR: every frame gets one),
   and an image waits a bounded time for a later set only when that set could be nearer.
+* :class:`ExactStampPairs` -- each image with the boxes (detections, tracks) computed on it:
+  the same stamp, whichever comes first; what cannot be paired is reported, not lost.
 * :class:`PoseBuffer` -- odometry poses with interpolation (linear for the position, slerp
   for the orientation) and short extrapolation, used for ego-motion compensation between
   scan time and image time (the seed's 5 m error at 60 mph without it).
@@ -20,13 +22,13 @@ Stamps are integer nanoseconds everywhere.
 from __future__ import annotations
 
 import bisect
-from collections import deque
+from collections import OrderedDict, deque
 from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'PoseBuffer',
-           'FrameGaps', 'quat_to_matrix', 'matrix_to_quat', 'slerp', 'pose_matrix']
+__all__ = ['SyncError', 'ApproximateTimeSync', 'LatestSync', 'NearestSync', 'ExactStampPairs',
+           'PoseBuffer', 'FrameGaps', 'quat_to_matrix', 'matrix_to_quat', 'slerp', 'pose_matrix']
 
 
 class SyncError(ValueError):
@@ -257,6 +259,76 @@ class LatestSync:
     def add_image(self, stamp_ns: int) -> Optional[tuple[int, Any]]:
         """The cloud to project onto this image (the latest), or None."""
         return self._cloud
+
+
+class ExactStampPairs:
+    """Each image paired with the boxes computed on it (the same stamp), in either order.
+
+    A node downstream of a detector gets the camera image and the boxes of that image on two
+    topics; the boxes come later (the detector's processing time), or earlier when the image
+    is late.  Up to ``size`` images wait for their boxes and ``size`` boxes for their image.
+    Boxes that cannot be paired are reported with the reason (for ``/diagnostics``): their
+    image left the ring before they came (they are more than ``size`` frames late), their
+    image never came (a frame the node did not receive), or too many boxes waited.
+
+    Args:
+        size: images (and boxes) kept waiting.
+    """
+
+    def __init__(self, size: int) -> None:
+        if size < 1:
+            raise ValueError(f'size must be at least 1, got {size}')
+        self.size = int(size)
+        self._images: OrderedDict[int, Any] = OrderedDict()
+        self._boxes: OrderedDict[int, Any] = OrderedDict()
+        self._evicted: OrderedDict[int, None] = OrderedDict()   # images that left unpaired
+
+    def add_image(self, stamp_ns: int, image: Any) -> Optional[tuple[Any, Any]]:
+        """``(image, boxes)`` when this image's boxes were waiting, else None (it waits)."""
+        if stamp_ns in self._boxes:
+            return image, self._boxes.pop(stamp_ns)
+        self._images[stamp_ns] = image
+        while len(self._images) > self.size:
+            old, _ = self._images.popitem(last=False)
+            self._evicted[old] = None
+            while len(self._evicted) > self.size:
+                self._evicted.popitem(last=False)
+        return None
+
+    def add_boxes(self, stamp_ns: int, boxes: Any) -> tuple[Optional[tuple[Any, Any]], list[str]]:
+        """``((image, boxes) or None, reasons)``: the pair when the image is here; else the
+        boxes wait for it, and ``reasons`` lists each boxes dropped (these, when their image
+        already left the ring; the oldest waiting, when too many wait)."""
+        image = self._images.pop(stamp_ns, None)
+        if image is not None:
+            return (image, boxes), []
+        if self._evicted.pop(stamp_ns, 0) is None:
+            return None, [f'their image had left the buffer ({self.size} frames): they came '
+                          'that many frames late']
+        self._boxes[stamp_ns] = boxes
+        reasons = []
+        while len(self._boxes) > self.size:
+            self._boxes.popitem(last=False)
+            reasons.append('no image with their stamp arrived')
+        return None, reasons
+
+    def processed(self, stamp_ns: int) -> list[str]:
+        """Frame ``stamp_ns`` was processed: older images are forgotten (their boxes never
+        came: the detector skipped them), and so are older waiting boxes, whose image never
+        came; returns a reason per boxes dropped."""
+        for old in [k for k in self._images if k <= stamp_ns]:
+            del self._images[old]
+        self._boxes.pop(stamp_ns, None)
+        late = [k for k in self._boxes if k < stamp_ns]
+        for old in late:
+            del self._boxes[old]
+        return ['no image with their stamp arrived'] * len(late)
+
+    def clear(self) -> None:
+        """Forget everything (the time jumped back: a looping bag)."""
+        self._images.clear()
+        self._boxes.clear()
+        self._evicted.clear()
 
 
 class NearestSync:

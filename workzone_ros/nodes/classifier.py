@@ -32,6 +32,7 @@ from workzone_ros import interfaces as I
 from workzone_ros.core.overlay import draw_debug
 from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer, general_signs
 from workzone_ros.core.sign_distance import focal_from_fov
+from workzone_ros.core.sync import ExactStampPairs
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
 from workzone_ros.resources import config_path
@@ -92,8 +93,8 @@ class ClassifierNode(WorkzoneNode):
         if p.read_speed:
             from workzone_ros.core.digits import warm_up
             warm_up()       # the digit classifier and templates, before the first frame
-        self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
-        self._pending: collections.OrderedDict[int, Any] = collections.OrderedDict()
+        # each image with its boxes (the same stamp), whichever comes first
+        self._pairs = ExactStampPairs(self.params.image_buffer)
         self._rois: collections.OrderedDict[int, list[I.Roi]] = collections.OrderedDict()
         self._focal: Optional[float] = None
         self._state: Optional[I.WorkzoneState] = None
@@ -142,8 +143,7 @@ class ClassifierNode(WorkzoneNode):
 
     def on_time_jump(self, old_ns: int, new_ns: int) -> None:
         """A looping bag: the images, boxes and ROIs waiting by stamp are from the old pass."""
-        self._images.clear()
-        self._pending.clear()
+        self._pairs.clear()
         self._rois.clear()
         self._last_ns = None
 
@@ -167,26 +167,19 @@ class ClassifierNode(WorkzoneNode):
         # buffered until it silently falls out of the ring
         image = ((conv.compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
                   else conv.image_to_numpy(msg, 'bgr8')), msg.header)
-        if ns in self._pending:
-            self._process(image, self._pending.pop(ns))
-            return
-        self._images[ns] = image
-        while len(self._images) > self.params.image_buffer:
-            self._images.popitem(last=False)
+        pair = self._pairs.add_image(ns, image)
+        if pair is not None:
+            self._process(*pair)
 
     def _on_boxes(self, msg: String) -> None:
         payload = conv.string_to_payload(msg)
         if not isinstance(payload, (I.Tracks, I.Detections)):
             raise InputError(f'expected Tracks or Detections, got {I.schema_of(payload)}')
-        ns = payload.header.stamp.to_ns()
-        image = self._images.pop(ns, None)
-        if image is not None:
-            self._process(image, payload)
-            return
-        self._pending[ns] = payload
-        while len(self._pending) > self.params.image_buffer:
-            self._pending.popitem(last=False)
-            self.drop(self.params.input_topic, 'no image with the stamp of these boxes arrived')
+        pair, dropped = self._pairs.add_boxes(payload.header.stamp.to_ns(), payload)
+        for reason in dropped:
+            self.drop(self.params.input_topic, reason)
+        if pair is not None:
+            self._process(*pair)
 
     # --- the step -------------------------------------------------------------------------
 
@@ -199,8 +192,8 @@ class ClassifierNode(WorkzoneNode):
             self.get_logger().info('time jumped back: buffers reset')
             self._rois.clear()
         self._last_ns = ns
-        for old in [k for k in self._images if k <= ns]:
-            del self._images[old]
+        for reason in self._pairs.processed(ns):
+            self.drop(self.params.input_topic, reason)
         items = payload.tracks if isinstance(payload, I.Tracks) else payload.detections
         signs, rejected = self._classify(frame, items, self._rois.get(ns, ()))
         self._signs_pub.publish(conv.payload_to_string(I.Signs(header=payload.header,

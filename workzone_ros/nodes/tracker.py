@@ -20,6 +20,7 @@ from typing import Any, Optional
 from sensor_msgs.msg import CompressedImage
 from std_msgs.msg import String
 
+from workzone_ros.core.sync import ExactStampPairs
 from workzone_ros.core.track import MultiTracker, TrackerConfig
 from workzone_ros.core.track.confirmation import classifier_verdicts
 from workzone_ros.interfaces import Detections, Signs, Tracks
@@ -78,12 +79,8 @@ class TrackerNode(WorkzoneNode):
         """Create the node (kwargs go to ``rclpy.node.Node``)."""
         super().__init__('tracker', **kwargs)
         self._tracker = MultiTracker(config_from_params(self.params))
-        n = self.params.image_buffer
-        self._images: collections.OrderedDict[int, Any] = collections.OrderedDict()
-        self._pending: collections.OrderedDict[int, Detections] = collections.OrderedDict()
-        # stamps of the last images that left the ring unprocessed (their detections late)
-        self._evicted: collections.OrderedDict[int, None] = collections.OrderedDict()
-        self._max = n
+        # each image with its detections (the same stamp), whichever comes first
+        self._pairs = ExactStampPairs(self.params.image_buffer)
         self._last_ns: Optional[int] = None
         self._sent: collections.OrderedDict[int, list[int]] = collections.OrderedDict()
         self.counts = {'confirmed': 0, 'rejected': 0}
@@ -106,9 +103,7 @@ class TrackerNode(WorkzoneNode):
     def on_time_jump(self, old_ns: int, new_ns: int) -> None:
         """A looping bag: tracks and the images / detections waiting by stamp restart."""
         self._tracker.reset()
-        self._images.clear()
-        self._pending.clear()
-        self._evicted.clear()
+        self._pairs.clear()
         self._sent.clear()
         self._last_ns = None
 
@@ -120,31 +115,17 @@ class TrackerNode(WorkzoneNode):
         # buffered until it silently falls out of the ring
         frame = (compressed_to_numpy(msg) if isinstance(msg, CompressedImage)
                  else image_to_numpy(msg, desired_encoding='bgr8'))
-        if ns in self._pending:
-            self._process(frame, self._pending.pop(ns))
-            return
-        self._images[ns] = frame
-        while len(self._images) > self._max:
-            old, _ = self._images.popitem(last=False)
-            self._evicted[old] = None
-            while len(self._evicted) > self._max:
-                self._evicted.popitem(last=False)
+        pair = self._pairs.add_image(ns, frame)
+        if pair is not None:
+            self._process(*pair)
 
     def _on_detections(self, msg: String) -> None:
         dets = string_to_payload(msg, Detections)
-        ns = dets.header.stamp.to_ns()
-        image = self._images.pop(ns, None)
-        if image is not None:
-            self._process(image, dets)
-            return
-        if self._evicted.pop(ns, 0) is None:
-            raise InputError(f'its image had left the buffer (image_buffer {self._max} frames): '
-                             'the detections came that many frames late')
-        self._pending[ns] = dets              # its image has not arrived yet
-        while len(self._pending) > self._max:
-            self._pending.popitem(last=False)
-            self.drop(self.params.detections_topic,
-                      'no image with the stamp of these detections arrived')
+        pair, dropped = self._pairs.add_boxes(dets.header.stamp.to_ns(), dets)
+        for reason in dropped:
+            self.drop(self.params.detections_topic, reason)
+        if pair is not None:
+            self._process(*pair)
 
     def _on_signs(self, msg: String) -> None:
         signs = string_to_payload(msg, Signs)
@@ -166,13 +147,8 @@ class TrackerNode(WorkzoneNode):
                 raise InputError('detections older than the last processed frame')
         tracks = self._tracker.step(frame, dets.detections, stamp=ns * 1e-9)
         self._last_ns = ns
-        for old in [k for k in self._images if k <= ns]:
-            del self._images[old]
-        for old in [k for k in self._pending if k < ns]:
-            del self._pending[old]         # its image never came (the image topic's gap)
-            self.drop(self.params.detections_topic,
-                      'no image with the stamp of these detections arrived')
-        self._pending.pop(ns, None)
+        for reason in self._pairs.processed(ns):
+            self.drop(self.params.detections_topic, reason)
         self._sent[ns] = [t.track_id for t in tracks]
         while len(self._sent) > _SENT_FRAMES:
             self._sent.popitem(last=False)

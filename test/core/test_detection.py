@@ -1910,6 +1910,44 @@ def test_a_busy_frame_spends_a_bounded_number_of_chroma_fits(detector, monkeypat
     assert not bounded.budget_spent
 
 
+def test_a_busy_frame_moves_the_starts_of_a_bounded_number_of_blobs(detector, monkeypatch):
+    """``max_shifted``: on a frame of many large signs whose line measures from no start
+    and whose chroma does not fit, the moved starts (eight refinements each) are tried on at
+    most that many blobs, the largest first; a frame under the budget is measured as
+    without one."""
+    from workzone_ros.core.detect import warning
+    moved = []
+    real_shifted = warning.refine_shifted
+
+    def counting(starts, *args, **kwargs):
+        moved.append(float(starts[0][2]))
+        return real_shifted(starts, *args, **kwargs)
+
+    monkeypatch.setattr(warning, 'refine_shifted', counting)
+
+    def no_line(max_shifted):
+        det = detector.with_config(max_shifted=max_shifted, blur_fit=False)
+        det._refine = lambda *args, **kwargs: None     # no face-to-line step anywhere
+        return det
+
+    img, x = _background(3), 30
+    for r in (22, 34, 26, 30):
+        _diamond(img, x + r, 150, r)
+        x += 2 * r + 30
+    unbounded, bounded = no_line(50), no_line(1)
+    unbounded.detect(img)
+    assert len(moved) == 4 and not unbounded.budget_spent
+    moved.clear()
+    bounded.detect(img)
+    assert len(moved) == 1 and moved[0] > 28.0              # the 34 px sign's
+    assert bounded.budget_spent == {'shifted'}
+    one = _background(3)
+    _diamond(one, 200, 150, 30)
+    moved.clear()
+    assert bounded.detect(one) == unbounded.detect(one) and len(moved) == 2
+    assert not bounded.budget_spent
+
+
 def test_a_lean_frame_skips_the_second_attempts_and_the_next_frame_does_not(detector,
                                                                            monkeypatch):
     """``detect(..., lean=True)`` (a caller behind its camera): no chroma fit, no grown

@@ -38,6 +38,7 @@ RANGES = {
     'blur_fit_max_sigma': (0.3, 10.0, True, False),
     'max_blur_fits': (0, 50, False, False),
     'max_grown': (0, 100, False, False),
+    'max_shifted': (0, 50, False, False),
     'blur_fit_bias': (-3.0, 3.0, False, False),
     'rim_chroma': (0.0, 1.0, False, False),
     'search_min_contrast': (0.0, 1.0, True, True),
@@ -55,7 +56,7 @@ RANGES = {
     'ext_overlong': (0.0, None, False, False),
     'ext_ratio_tol': (0.0, None, False, False),
 }
-INTEGER = {'diamond_stroke_steps', 'max_blur_fits', 'max_grown'}
+INTEGER = {'diamond_stroke_steps', 'max_blur_fits', 'max_grown', 'max_shifted'}
 FIELDS = {f.name: f for f in dataclasses.fields(DetectorConfig)}
 
 

@@ -632,6 +632,8 @@ def warm() -> None:
     """Compile (or load from the cache) every kernel for the types the detector passes:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
     waits for the compiler."""
+    from workzone_ros.core import chroma_fit  # (the chroma fit's solver, its own module)
+    chroma_fit.warm()
     mask = np.zeros((12, 12), np.uint8)
     mask[2:10, 3:9] = 1
     ratios = np.linspace(0.7, 1.4, 6)

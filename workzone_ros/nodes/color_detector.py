@@ -53,7 +53,7 @@ _CORE = ('method', 'colors', 'threshold', 'scale', 'use_prior', 'open_px', 'clos
          'lidar_only', 'lidar_only_confidence', 'smooth_px', 'border_frac', 'use_geometry',
          'roi_relax', 'lidar_only_threshold', 'camera_match', 'foreign_prior',
          'diamond_refine', 'rect_refine', 'pixel_boxes', 'blur_fit', 'max_blur_fits',
-         'max_grown', 'outline_evidence',
+         'max_grown', 'max_shifted', 'outline_evidence',
          'rect_needs_edges', 'v_hysteresis', 'grow_level')
 _CORE_PARAMS = params_from_dataclass(DetectorConfig, only=_CORE)
 

@@ -177,6 +177,10 @@ class DetectorConfig:
     max_grown: int = knob(4, 'blobs grown into their neighbours per frame at most (the largest '
                           'first): a busy frame costs a bounded time',
                           0, 100, integer=True, note='per frame')
+    max_shifted: int = knob(1, "blobs whose mask's starts are moved (``shift_min_px``) per frame "
+                            'at most (the largest first): 8 refinements per start, a busy frame '
+                            'costs a bounded time',
+                            0, 50, integer=True, note='per frame')
     rim_chroma: float = knob(0.35, 'reject an outline whose rim is this far from the '
                              "background's chroma to the face's (0: off)",
                              0.0, 1.0, note='0 = off')

@@ -70,7 +70,8 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         #: the costly measurements whose per-frame budget ran out on the last frame
         #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``)
         self.budget_spent: set[str] = set()
-        self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown}
+        self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown,
+                        'shifted': config.max_shifted}
         #: the last frame was measured lean (:meth:`detect`)
         self.lean = False
         if config.method == 'rgb_lp' and rgb_lp is None:
@@ -195,7 +196,8 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         cfg = self.config
         self.channelizers = set()   # blobs rejected as banded drums / cones this frame
         # this frame's costly measurements left; the kinds whose budget ran out
-        self._budget = {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown}
+        self._budget = {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown,
+                        'shifted': cfg.max_shifted}
         self.budget_spent = set()
         self.lean = lean
         self._ref_row = None

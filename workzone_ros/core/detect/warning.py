@@ -149,8 +149,8 @@ class WarningMixin:
             # no line to measure: the sign's blurred colour
             blurred = self._blur_fit(bgr, (x0, y0, x1, y1), (bx0, by0, bw, bh),
                                      fd if fd is not None and fd[4] >= 0.5 else None)
-        if sub is None and blurred is None and refine and not self.lean and \
-                0 < cfg.shift_min_px <= min(bw, bh):
+        if sub is None and blurred is None and refine and \
+                0 < cfg.shift_min_px <= min(bw, bh) and self._spend('shifted'):
             # nothing measured: a large face whose mask's starts are a few pixels off
             # (the mask took in a surface of its colour beside it)
             held_args = (bgr, hsv, face_px, dx, dy, (x0, y0, x1, y1), bw, bh)

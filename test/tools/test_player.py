@@ -123,3 +123,23 @@ def test_cli_bad_bags_exit_2_with_one_line(tmp_path):
         assert proc.returncode == 2, proc.stderr
         assert len(lines) == 1 and text in lines[0], proc.stderr
         assert 'Traceback' not in proc.stderr
+
+
+def test_a_stalled_player_counts_the_messages_it_sent_late(tmp_path, ros_context):
+    """A player kept from running (here: its reader stalls 0.4 s before the fifth message)
+    sends what it owes back to back; it counts those messages as late, with the worst
+    lateness, for the launcher's report (a burst can overflow the nodes' queues)."""
+    bag = write_ros2_bag(tmp_path / 'in', 'mcap')
+    player = BagPlayer(bag, rate=1.0, wait_for=[], wait_timeout=5.0, quiet=True)
+    messages = player.reader.messages
+
+    def stalling(*args, **kwargs):
+        for i, msg in enumerate(messages(*args, **kwargs)):
+            if i == 4:
+                time.sleep(0.4)
+            yield msg
+
+    player.reader.messages = stalling
+    player.run()
+    assert player.stats.published == N_CHATTER + 6
+    assert player.stats.late >= 1 and 0.25 < player.stats.late_max_s < 2.0

@@ -67,9 +67,10 @@ class ColorDetectorNode(WorkzoneNode):
         Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
               'while no raw image arrives)',
               read_only=True),
-        Param('image_queue', 3, 'images queued while the detector is busy (sensor QoS keep '
-              'last): 1 = the newest frame wins and every frame that arrives during a slow '
-              'one is skipped; 3 absorbs a slow frame or a busy core and catches up, at the '
+        Param('image_queue', 5, 'images queued while the detector is busy (sensor QoS keep '
+              'last, as deep as the other image subscriptions): 1 = the newest frame wins and '
+              'every frame that arrives during a slow one is skipped; 5 absorbs a slow frame '
+              'or a core kept busy for 150 ms at 30 fps and catches up (lean frames), at the '
               "cost of the queued frames' latency", min=1, max=30, read_only=True),
         Param('lean_behind', 1.0, 'an image that waited this many frame intervals or more in '
               'the input queue (the detector has fallen behind its camera) is measured lean: '

@@ -27,6 +27,7 @@ from workzone_ros.tools.launch_nodes import (
     _ros_args,
 )
 from workzone_ros.tools.launch_report import ReportCollector
+from workzone_ros.tools.player import LATE_S
 
 __all__ = ['EXIT_BAG', 'EXIT_CRASH_LOOP', 'Launcher']
 
@@ -513,6 +514,12 @@ class Launcher:
         wall = time.monotonic() - self._t_start
         if self.reader is not None and self._player is not None:
             st = self._player.stats
-            return (f'== report: {self.reader.path} {st.bag_s:.1f} s of bag at rate '
+            head = (f'== report: {self.reader.path} {st.bag_s:.1f} s of bag at rate '
                     f'{self.args.rate:g}, {st.published} messages played, wall {wall:.1f} s')
+            if st.late:
+                head += (f'\n  player: {st.late} messages sent over {LATE_S * 1e3:.0f} ms late '
+                         f'(worst {st.late_max_s * 1e3:.0f} ms): the player was kept from '
+                         'running and then sent them in a burst, which can overflow the '
+                         "nodes' queues (skips counted while it lasted are the player's)")
+            return head
         return f'== report: live graph, wall {wall:.1f} s'

@@ -62,6 +62,14 @@ class PlayStats:
     loops: int = 0
     interrupted: bool = False
     withheld: dict[str, int] = field(default_factory=dict)   # messages held back by cuts
+    late: int = 0               # messages published more than LATE_S after their time
+    late_max_s: float = 0.0     # the latest of them (s)
+
+
+#: a message published this long after its time at the rate (s) counts as late: the player
+#: was kept from running and then sent what it owed back to back, a burst no camera sends
+#: (the subscribers' queues may overflow)
+LATE_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -371,6 +379,12 @@ class BagPlayer:
             if pending:
                 self._stop.wait(0.02)
 
+    def _lateness(self, late_s: float) -> None:
+        """Count a message sent ``late_s`` after its time (:data:`LATE_S`)."""
+        if late_s > LATE_S:
+            self.stats.late += 1
+            self.stats.late_max_s = max(self.stats.late_max_s, late_s)
+
     def _play_once(self, pubs, clock) -> None:
         stats = self.stats
         period = 1.0 / self.clock_hz if self.clock_hz > 0 else 0.05
@@ -398,6 +412,7 @@ class BagPlayer:
                     self._stop.wait(min(period, target - now))
                 if self._stop.is_set():
                     break
+                self._lateness(time.monotonic() - target)
             entry = pubs.get(msg.topic)
             if entry is None:  # skipped after a conversion error
                 continue

@@ -5,14 +5,14 @@
 to a few thousand chroma pixels, with a soft-L1 loss.  SciPy's ``least_squares`` (trust
 region reflective) spent more time in its own bookkeeping (an SVD of the whole Jacobian and
 a dozen numpy calls per step) than in the model: 8 ms a fit on average on real frames,
-up to 50, the colour detector's costliest step.  Here the same model is summed straight into its 9 x 9
-normal equations pixel by pixel, and a Levenberg-Marquardt loop solves them (Marquardt's
-scaling by the normal matrix's diagonal, Nielsen's damping update, steps projected into
-the bounds, soft-L1 by reweighting: each pixel weighs ``1 / sqrt(1 + (r / c)^2)``); no
-Jacobian is ever stored.  On 196 chroma fits of the real clips it took 2.5 ms on average;
-188 ended as SciPy's did (a diamond or none), those with a diamond within 0.03 px of
-SciPy's at the median; the detector's results on held-out renders and the labelled clips
-did not change.
+up to 50, the colour detector's costliest step.  Here the same model is summed straight
+into its 9 x 9 normal equations pixel by pixel, and a Levenberg-Marquardt loop solves them
+(Marquardt's scaling by the normal matrix's diagonal, Nielsen's damping update, steps
+projected into the bounds, soft-L1 by reweighting: each pixel weighs
+``1 / sqrt(1 + (r / c)^2)``); no Jacobian is ever stored.  On 196 chroma fits of the real
+clips it took 2.5 ms on average; 188 ended as SciPy's did (a diamond or none), those with
+a diamond within 0.03 px of SciPy's at the median; the detector's results on held-out
+renders and the labelled clips did not change.
 
 An edge's blurred half-plane is within 1e-16 of 0 or 1 more than 8.5 blur widths away,
 and the model's derivatives through it vanish there: the error function is evaluated only

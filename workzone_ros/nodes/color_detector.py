@@ -298,8 +298,8 @@ class ColorDetectorNode(WorkzoneNode):
 
     def extra_diagnostics(self) -> list[tuple[str, str]]:
         """Images held for their ROIs by how the wait ended, the frames whose budget of
-        costly measurements (``max_blur_fits``, ``max_grown``) ran out, and the frames
-        detected and of them measured lean (``lean_behind``)."""
+        costly measurements (``max_blur_fits``, ``max_grown``, ``max_shifted``) ran out, and
+        the frames detected and of them measured lean (``lean_behind``)."""
         return [(k if k.startswith('frames') else f'images held: {k}', str(v))
                 for k, v in sorted(self._held_counts.items())] + [
             ('frames detected', str(self._frames)),

@@ -70,9 +70,9 @@ class BlobMixin:
         return [c for _, c in sorted(out, key=lambda ic: ic[0])]
 
     def _spend(self, kind: str) -> bool:
-        """Take one of the frame's ``kind`` measurements (``grown`` or ``blur_fit``) from
-        its budget (``max_grown``, ``max_blur_fits``); False when none is left, or on a
-        frame measured lean (:meth:`detect`)."""
+        """Take one of the frame's ``kind`` measurements (``grown``, ``blur_fit`` or
+        ``shifted``) from its budget (``max_grown``, ``max_blur_fits``, ``max_shifted``);
+        False when none is left, or on a frame measured lean (:meth:`detect`)."""
         if self.lean:
             return False
         left = self._budget.get(kind, 0)

@@ -68,7 +68,8 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         #: places (16 px cells) of the last frame's blobs rejected as drums or cones
         self.channelizers: set = set()
         #: the costly measurements whose per-frame budget ran out on the last frame
-        #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``)
+        #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``, ``shifted``:
+        #: ``max_shifted``)
         self.budget_spent: set[str] = set()
         self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown,
                         'shifted': config.max_shifted}

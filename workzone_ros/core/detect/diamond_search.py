@@ -117,7 +117,7 @@ def fit_blurred_diamond(chroma: np.ndarray, start: Sequence[float], max_sigma: f
     window's (a fit to noise).
 
     The least squares are :func:`workzone_ros.core.chroma_fit.lm_fit` (compiled; SciPy's
-    ``least_squares`` reached the same diamond at two to three times the cost).
+    ``least_squares`` reached the same diamond at about three times the cost).
     """
     cx, cy, a, b = (float(v) for v in start[:4])
     h, w = chroma.shape[:2]

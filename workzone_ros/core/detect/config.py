@@ -177,7 +177,7 @@ class DetectorConfig:
     max_grown: int = knob(4, 'blobs grown into their neighbours per frame at most (the largest '
                           'first): a busy frame costs a bounded time',
                           0, 100, integer=True, note='per frame')
-    max_shifted: int = knob(1, "blobs whose mask's starts are moved (``shift_min_px``) per frame "
+    max_shifted: int = knob(1, "blobs whose mask's starts are moved (shift_min_px) per frame "
                             'at most (the largest first): 8 refinements per start, a busy frame '
                             'costs a bounded time',
                             0, 50, integer=True, note='per frame')

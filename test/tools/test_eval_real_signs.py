@@ -32,3 +32,31 @@ def test_a_few_frames_of_a_real_clip_give_the_figures():
     r = ers.evaluate_clip(REAL / 'charlotte.mp4', load_model(config_path(DEFAULT_MODEL)), 60.0,
                           max_frames=6)
     assert r['frames'] == 6 and r['sign_frames'] == 6 and 0.0 <= r['sign_share'] <= 1.0
+
+
+def test_signs_of_one_clip_are_interpolated_each_between_its_own_keyframes(tmp_path):
+    """Two signs of a clip (column ``sign``): each box comes from its own keyframes, never
+    from the other sign's, and a frame where both are labelled lists both;
+    ``load_real_labels`` refuses such a file with the frame named."""
+    from workzone_ros.tools.eval_color import load_real_labels, load_sign_labels
+    csv = tmp_path / 'boxes.csv'
+    csv.write_text('# two signs\nclip,sign,frame,x,y,w,h,visible\n'
+                   'a.mp4,1,0,10,10,20,20,1\na.mp4,1,10,20,10,20,20,1\n'
+                   'a.mp4,2,8,100,50,30,30,1\na.mp4,2,12,104,50,30,30,0\n')
+    frames = load_sign_labels(csv)['a.mp4']
+    assert sorted(frames) == list(range(13))
+    assert [b.x for b, _ in frames[5]] == [15.0]
+    assert [(b.x, v) for b, v in frames[9]] == [(19.0, True), (101.0, False)]
+    assert [(b.x, v) for b, v in frames[8]] == [(18.0, True), (100.0, True)]
+    assert [v for _, v in frames[12]] == [False]
+    with pytest.raises(ValueError, match='frame 8'):
+        load_real_labels(csv)
+
+
+def test_unreadable_labels_are_a_one_line_error(tmp_path, capsys):
+    bad = tmp_path / 'bad.csv'
+    bad.write_text('clip,frame\na.mp4,1\n')
+    for path in (tmp_path / 'none.csv', bad):
+        assert ers.main(['--labels', str(path)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert '\n' not in err and path.name in err

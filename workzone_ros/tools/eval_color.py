@@ -340,8 +340,10 @@ def evaluate_pixels(model: cm.ColorModel, folder: str, threshold: float) -> dict
 
 # --- real clips ---------------------------------------------------------------------------
 
-def load_real_labels(path: Path = REAL_LABELS) -> dict:
-    """clip -> {frame: (box, visible)} from the hand-made keyframe CSV, linearly interpolated.
+def load_sign_labels(path: Path = REAL_LABELS) -> dict:
+    """clip -> {frame: [(box, visible), ...]}: every labelled sign of the hand-made keyframe
+    CSV, each linearly interpolated between its own keyframes (column ``sign``, 1 when the
+    file has none; a sign's box is never interpolated towards another sign's).
 
     The boxes are approximate (labelled by eye) and for evaluation only.
     """
@@ -349,19 +351,32 @@ def load_real_labels(path: Path = REAL_LABELS) -> dict:
     keys: dict = defaultdict(list)
     with open(path) as fh:
         for row in csv.DictReader(line for line in fh if not line.startswith('#')):
-            keys[row['clip']].append((int(row['frame']), *(float(row[k]) for k in 'xywh'),
-                                      int(row['visible'])))
-    out = {}
-    for clip, ks in keys.items():
+            keys[(row['clip'], int(row.get('sign') or 1))].append(
+                (int(row['frame']), *(float(row[k]) for k in 'xywh'), int(row['visible'])))
+    out: dict = defaultdict(lambda: defaultdict(list))
+    for (clip, _), ks in sorted(keys.items()):
         ks.sort()
-        frames = {}
         for a, b in zip(ks, ks[1:]):
-            for f in range(a[0], b[0] + 1):
+            for f in range(a[0], b[0] + (1 if b is ks[-1] else 0)):
                 u = (f - a[0]) / max(b[0] - a[0], 1)
                 box = Box(*(float((1 - u) * a[i] + u * b[i]) for i in range(1, 5)))
                 vis = bool(a[5] and b[5]) or (f == a[0] and a[5]) or (f == b[0] and b[5])
-                frames[f] = (box, bool(vis))
-        out[clip] = frames
+                out[clip][f].append((box, bool(vis)))
+        if len(ks) == 1:
+            out[clip][ks[0][0]].append((Box(*ks[0][1:5]), bool(ks[0][5])))
+    return {clip: dict(frames) for clip, frames in out.items()}
+
+
+def load_real_labels(path: Path = REAL_LABELS) -> dict:
+    """clip -> {frame: (box, visible)}: :func:`load_sign_labels` of a file with one sign in
+    any frame (ValueError naming the clip and frame otherwise)."""
+    out = {}
+    for clip, frames in load_sign_labels(path).items():
+        for f, signs in frames.items():
+            if len(signs) > 1:
+                raise ValueError(f'{path}: {clip} frame {f} has {len(signs)} labelled signs; '
+                                 'use load_sign_labels')
+        out[clip] = {f: signs[0] for f, signs in frames.items()}
     return out
 
 

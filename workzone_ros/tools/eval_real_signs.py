@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Optional
 
 from workzone_ros.resources import config_path
-from workzone_ros.tools.eval_color import load_real_labels
+from workzone_ros.tools.eval_color import REAL_LABELS, load_sign_labels
 from workzone_ros.tools.outputs import write_contact_sheet
 
 __all__ = ['evaluate_clip', 'main']
@@ -47,8 +47,8 @@ def sign_ranges(path: Path = RANGES) -> dict[str, list[tuple[int, int]]]:
     return out
 
 
-def _draw(img, label, dets, items, signs, text: str):
-    """One contact-sheet tile: label (white), proposals (grey), rule detections (green),
+def _draw(img, labels, dets, items, signs, text: str):
+    """One contact-sheet tile: labels (white), proposals (grey), rule detections (green),
     tracks (blue), work-zone signs (orange, with the class) and rejected ones (red)."""
     import cv2
     out = img.copy()
@@ -56,7 +56,7 @@ def _draw(img, label, dets, items, signs, text: str):
     def rect(b, color, t=1):
         cv2.rectangle(out, (int(b.x), int(b.y)), (int(b.x + b.w), int(b.y + b.h)), color, t)
 
-    if label is not None:
+    for label in labels:
         rect(label, (255, 255, 255), 1)
     for d in dets:
         rect(d.box, (150, 150, 150) if d.proposal else (0, 200, 0))
@@ -75,7 +75,8 @@ def _draw(img, label, dets, items, signs, text: str):
 
 def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
-                  tile_every: int = 15, rules: str = 'auto') -> dict:
+                  tile_every: int = 15, rules: str = 'auto',
+                  labels_path: Path = REAL_LABELS) -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
@@ -83,7 +84,9 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     ``track`` false classifies the detections themselves (the graph without the tracker).
     ``tiles``: every ``tile_every``-th labelled sign frame is drawn into it (contact sheet).
     ``rules``: the rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
-    (with proposals, only on frames of the colour model's own camera).
+    (with proposals, only on frames of the colour model's own camera).  ``labels_path``: the
+    keyframe CSV of the signs (:func:`~workzone_ros.tools.eval_color.load_sign_labels`; a
+    frame with two visible signs counts twice).
 
     ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
     the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
@@ -97,7 +100,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.core.track.confirmation import classifier_verdicts
     from workzone_ros.tools.eval_tracker import _ColorDetector
-    labels = load_real_labels().get(path.name, {})
+    labels = load_sign_labels(labels_path).get(path.name, {})
     ranges = sign_ranges().get(path.name, [])
     det, tracker = _ColorDetector(None), MultiTracker(TrackerConfig())
     recognizer = SignRecognizer(model)
@@ -119,15 +122,16 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         if track:      # the answers go back to the tracker, as /workzone/signs to the node
             tracker.confirm(*classifier_verdicts([t.track_id for t in items], signs))
         wz = [s for s in signs if s.category == 'workzone']
-        label = labels.get(k)
-        if label and label[1]:
+        shown = [box for box, visible in labels.get(k, ()) if visible]
+        for box in shown:
             n += 1
-            hits += any(s.box.iou(label[0]) >= 0.3 for s in wz)
-            if max(label[0].w, label[0].h) >= 20:
+            hits += any(s.box.iou(box) >= 0.3 for s in wz)
+            if max(box.w, box.h) >= 20:
                 big += 1
-                big_hit += any(d.box.iou(label[0]) >= 0.3 for d in [*dets, *items])
-            if tiles is not None and n % tile_every == 1:
-                tiles.append(_draw(img, label[0], dets, items, signs, f'{path.stem} #{k}'))
+                big_hit += any(d.box.iou(box) >= 0.3 for d in [*dets, *items])
+        if tiles is not None and any(m % tile_every == 1 for m in range(n - len(shown) + 1,
+                                                                         n + 1)):
+            tiles.append(_draw(img, shown, dets, items, signs, f'{path.stem} #{k}'))
         if not any(a <= k <= b for a, b in ranges):
             free += 1
             false += len(wz)
@@ -162,8 +166,17 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help="the rule-based detector, as color_detector's rules parameter")
     p.add_argument('--no-tracker', action='store_true',
                    help='classify the detections themselves (the graph without the tracker)')
+    p.add_argument('--labels', metavar='CSV', default=str(REAL_LABELS),
+                   help='keyframe boxes of the signs (default: tools/data/real_sign_boxes.csv; '
+                        'tools/data/real_sign_boxes_more.csv holds more signs)')
     p.add_argument('--json', metavar='OUT')
     args = p.parse_args(argv)
+    try:
+        load_sign_labels(Path(args.labels))
+    except (OSError, KeyError, ValueError) as exc:
+        print(f'workzone-ros evaluate real_signs: cannot read the labels {args.labels}: '
+              f'{exc!r}', file=sys.stderr)
+        return 2
     folder = Path(args.real)
     if not folder.is_dir():
         print(f'workzone-ros evaluate real_signs: no such folder: {folder}', file=sys.stderr)
@@ -195,7 +208,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             continue
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
                           not args.no_tracker, tiles if args.sheet else None,
-                          rules=args.rules)
+                          rules=args.rules, labels_path=Path(args.labels))
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "

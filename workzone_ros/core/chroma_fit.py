@@ -11,8 +11,9 @@ into its 9 x 9 normal equations pixel by pixel, and a Levenberg-Marquardt loop s
 projected into the bounds, soft-L1 by reweighting: each pixel weighs
 ``1 / sqrt(1 + (r / c)^2)``); no Jacobian is ever stored.  On 196 chroma fits of the real
 clips it took 2.5 ms on average; 188 ended as SciPy's did (a diamond or none), those with
-a diamond within 0.03 px of SciPy's at the median; the detector's results on held-out
-renders and the labelled clips did not change.
+a diamond within 0.03 px of SciPy's at the median; the figures of ``evaluate ablation``
+(held-out renders, labelled clips) did not change, and on every frame of chicago the boxes
+of 3 frames of 627 moved by 1-5 px.
 
 An edge's blurred half-plane is within 1e-16 of 0 or 1 more than 8.5 blur widths away,
 and the model's derivatives through it vanish there: the error function is evaluated only

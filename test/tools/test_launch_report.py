@@ -68,3 +68,22 @@ def test_the_bag_waits_until_every_node_has_matched_its_inputs():
     assert ready()
     publishers['/workzone/detections'] = 2    # a second publisher appeared
     assert not ready()
+
+
+def test_the_report_names_a_stalled_player():
+    """A player that sent messages late (kept from running, then a burst) is named in the
+    report's head with the count and the worst lateness; a punctual one is not."""
+    import time
+    from types import SimpleNamespace
+
+    from workzone_ros.tools.launch_supervisor import Launcher
+    from workzone_ros.tools.player import PlayStats
+    stats = PlayStats(published=1068, bag_s=17.8)
+    launcher = SimpleNamespace(_t_start=time.monotonic(), reader=SimpleNamespace(path='bag'),
+                               _player=SimpleNamespace(stats=stats),
+                               args=SimpleNamespace(rate=1.0))
+    assert 'player:' not in Launcher._report_header(launcher)
+    stats.late, stats.late_max_s = 6, 0.198
+    head = Launcher._report_header(launcher)
+    assert head.startswith('== report: bag 17.8 s of bag at rate 1, 1068 messages played')
+    assert 'player: 6 messages sent over 100 ms late (worst 198 ms)' in head

@@ -343,3 +343,27 @@ def test_warm_compiles_every_kernel_the_detector_calls():
                          text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().splitlines()[-1] == '[]'
+
+
+@pytest.mark.parametrize('connectivity', [4, 8])
+def test_components_with_stats_are_opencvs(connectivity):
+    """The labels and statistics of ``components_with_stats`` are OpenCV's
+    (``connectedComponentsWithStats``) on masks of every density, shape and value, views
+    included; a label without pixels (the background of a full mask) has zeros."""
+    rng = np.random.default_rng(connectivity)
+    for _ in range(300):
+        h, w = (int(v) for v in rng.integers(1, 90, 2))
+        mask = ((rng.random((h, w)) < rng.choice([0.0, 0.02, 0.2, 0.6, 1.0]))
+                * int(rng.integers(1, 256))).astype(np.uint8)
+        if rng.random() < 0.5:
+            mask = cv2.dilate(mask, np.ones((3, 3), np.uint8))
+        if rng.random() < 0.3:
+            mask = mask[:, ::2]
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=connectivity)
+        n2, labels2, stats2 = k.components_with_stats(mask, connectivity)
+        assert n2 == n and np.array_equal(labels2, labels)
+        assert np.array_equal(stats2[1:], stats[1:])
+        if np.count_nonzero(mask) < mask.size:
+            assert np.array_equal(stats2[0], stats[0])
+        else:
+            assert not stats2[0].any()

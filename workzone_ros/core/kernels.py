@@ -5,7 +5,8 @@ dozen values.  In numpy each step is a call costing microseconds of dispatch, mo
 arithmetic: a frame with a sign made some 2300 numpy calls, and a sign cost 2.3-2.7 ms.  The
 loops here (the diamond's row tent, its tip pixels, the edge model's choice per stretch, the
 rhombus through the edge points, the frame's white balance, the hysteresis' blob lookup, the
-colour tables' lookup) do the same arithmetic compiled and in the same order, so they return
+colour tables' lookup, the connected components' statistics) do the same arithmetic
+compiled and in the same order, so they return
 what the numpy code returned, bit for bit: sums are numpy's pairwise sums
 (:func:`pairwise_sum`), float ranges are filled as ``np.arange`` fills them
 (:func:`float_range`), a median is np.median's middle value or the mean of the middle two
@@ -23,12 +24,14 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numba import njit
 
 __all__ = ['pairwise_sum', 'float_range', 'select_kth', 'median_inplace', 'diamond_tent',
            'rhombus_fit', 'tip_pixel', 'low_chroma_rounds', 'profile_medians', 'edge_choice',
-           'label_at_first_pixel', 'flat_take', 'hue_sat_take', 'NO_PIXEL']
+           'label_at_first_pixel', 'flat_take', 'hue_sat_take', 'NO_PIXEL', 'label_stats',
+           'components_with_stats']
 
 #: :func:`tip_pixel`'s "no pixel" (an index no image has)
 NO_PIXEL = -(1 << 62)
@@ -628,6 +631,64 @@ def hue_sat_take(table: np.ndarray, hue: np.ndarray, sat: np.ndarray) -> np.ndar
     return out
 
 
+@njit(cache=True)
+def label_stats(labels: np.ndarray, n: int, mask: np.ndarray) -> np.ndarray:
+    """Per label of ``labels`` (``n`` labels of the nonzero pixels of ``mask``, 0 the
+    zeros): x, y, width, height and area (int32), as ``cv2.connectedComponentsWithStats``
+    gives them; a label without pixels: zeros.  The zeros (most of a sparse mask) are read
+    from ``mask`` a byte each, the labels only where it is set."""
+    h, w = labels.shape
+    x0 = np.full(n, w, np.int64)
+    y0 = np.full(n, h, np.int64)
+    x1 = np.full(n, -1, np.int64)
+    y1 = np.full(n, -1, np.int64)
+    area = np.zeros(n, np.int64)
+    for r in range(h):
+        first, last, zeros = -1, -1, 0
+        for c in range(w):
+            if mask[r, c] == 0:
+                if first < 0:
+                    first = c
+                last = c
+                zeros += 1
+                continue
+            lab = labels[r, c]
+            area[lab] += 1
+            if c < x0[lab]:
+                x0[lab] = c
+            if c > x1[lab]:
+                x1[lab] = c
+            if r < y0[lab]:
+                y0[lab] = r
+            y1[lab] = r
+        if zeros:
+            area[0] += zeros
+            x0[0] = min(x0[0], first)
+            x1[0] = max(x1[0], last)
+            y0[0] = min(y0[0], r)
+            y1[0] = r
+    out = np.zeros((n, 5), np.int32)
+    for lab in range(n):
+        if area[lab] > 0:
+            out[lab, 0] = x0[lab]
+            out[lab, 1] = y0[lab]
+            out[lab, 2] = x1[lab] - x0[lab] + 1
+            out[lab, 3] = y1[lab] - y0[lab] + 1
+            out[lab, 4] = area[lab]
+    return out
+
+
+def components_with_stats(mask: np.ndarray, connectivity: int = 8
+                          ) -> tuple[int, np.ndarray, np.ndarray]:
+    """``cv2.connectedComponentsWithStats(mask, connectivity)`` without the centroids:
+    ``(n, labels, stats)``, the same labels and statistics (a label without pixels, the
+    background of a full mask, has zeros).  OpenCV's statistics pass cost about 0.35 ms
+    on the detector's 361 x 203 mask on one thread, five times its labelling; here the
+    labelling is OpenCV's and the statistics one compiled pass."""
+    n, labels = cv2.connectedComponents(mask, connectivity=connectivity, ltype=cv2.CV_32S)
+    return n, labels, label_stats(labels, n, mask)
+
+
 def warm() -> None:
     """Compile (or load from the cache) every kernel for the types the detector passes:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
@@ -651,6 +712,7 @@ def warm() -> None:
                 np.arange(4, dtype=np.float32), 2, np.empty(2), np.empty(2, np.int64))
     labels = np.zeros((4, 4), np.int32)
     label_at_first_pixel(labels, 1, labels)
+    label_stats(labels, 1, np.zeros((4, 4), np.uint8))
     flat_take(np.zeros(180 * 256, np.uint8), np.zeros((4, 4), np.uint16))
     hsv = np.zeros((4, 4, 3), np.uint8)
     for table in (np.zeros((180, 256), np.float32), np.zeros((180, 256), np.uint8)):

@@ -39,6 +39,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from workzone_ros.core.kernels import components_with_stats
+
 __all__ = ['ProposalConfig', 'Proposal', 'SignProposer', 'FEATURES', 'Ranker', 'fit_ranker',
            'candidate_labels', 'proposals_as_detections']
 
@@ -205,7 +207,7 @@ class SignProposer:
 
     def _components(self, mask: np.ndarray, maps: '_Maps') -> tuple[list, np.ndarray]:
         c, s = self.config, self.config.scale
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
+        n, labels, stats = components_with_stats(mask, 4)
         st = stats[1:]
         x, y, w, h, area = (st[:, k] for k in range(5))
         longer, shorter = np.maximum(w, h), np.maximum(np.minimum(w, h), 1)

@@ -14,6 +14,7 @@ import numpy as np
 from workzone_ros.core.color_model import HSV_RANGES
 from workzone_ros.core.detect.candidates import Candidate, _contained
 from workzone_ros.core.detect.common import _P_SCALE, _lookup, _mode, _paste
+from workzone_ros.core.kernels import components_with_stats
 
 __all__ = ['BlobMixin']
 
@@ -41,7 +42,7 @@ class BlobMixin:
             if cfg.close_px > 1:
                 mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE,
                                         np.ones((cfg.close_px, cfg.close_px), np.uint8))
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        n, labels, stats = components_with_stats(mask)
         out = []
         min_area_small = cfg.min_area_px / (s * s)
         # the largest blobs first: they take the frame's budget of costly measurements

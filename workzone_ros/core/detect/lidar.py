@@ -11,6 +11,7 @@ import numpy as np
 from workzone_ros.core.color_model import apply_gains
 from workzone_ros.core.detect.candidates import Candidate, _contained, _iou
 from workzone_ros.core.detect.common import _lookup
+from workzone_ros.core.kernels import components_with_stats
 from workzone_ros.interfaces import Roi
 
 __all__ = ['LidarMixin']
@@ -79,7 +80,7 @@ class LidarMixin:
         like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
         like[hsv[..., 2] < self.model.v_min[i]] = 0.0
         mask = (cv2.blur(like, (3, 3)) >= cfg.lidar_only_threshold).astype(np.uint8)
-        n, lab, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        n, lab, st = components_with_stats(mask)
         if n <= 1:
             return None
         j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))

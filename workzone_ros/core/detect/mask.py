@@ -16,7 +16,7 @@ import numpy as np
 from workzone_ros.core.color_model import HSV_RANGES, apply_gains
 from workzone_ros.core.detect.candidates import Candidate
 from workzone_ros.core.detect.common import _lookup
-from workzone_ros.core.kernels import flat_take, label_at_first_pixel
+from workzone_ros.core.kernels import components_with_stats, flat_take, label_at_first_pixel
 
 __all__ = ['MaskMixin']
 
@@ -36,7 +36,7 @@ def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound
     if not (clip.any() if near is None else (clip & (near == 0)).any()):
         return out
     joined = (clip | (strong > 0)).astype(np.uint8)
-    n, lab, st, _ = cv2.connectedComponentsWithStats(joined, connectivity=8)
+    n, lab, st = components_with_stats(joined)
     keep = np.zeros(n, bool)
     keep[np.unique(lab[strong > 0])] = True
     keep[0] = False
@@ -70,7 +70,7 @@ def _hysteresis(mask: np.ndarray, prob_lo: np.ndarray, thr: np.ndarray, smooth_p
     # the lower gate passes a superset and the blur keeps the order: lo holds hi
     if cv2.countNonZero(lo) == cv2.countNonZero(hi):
         return mask
-    n_hi, lab_hi, stats, _ = cv2.connectedComponentsWithStats(hi, connectivity=8)
+    n_hi, lab_hi, stats = components_with_stats(hi)
     _, lab_lo = cv2.connectedComponents(lo, connectivity=8)
     boxes: dict = {}                 # dim blob -> its bright pixels' box (x0, y0, x1, y1)
     count: dict = {}

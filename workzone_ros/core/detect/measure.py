@@ -22,6 +22,7 @@ from workzone_ros.core.detect.common import (
     _paste,
 )
 from workzone_ros.core.detect.mask import _clipped_growth
+from workzone_ros.core.kernels import components_with_stats
 
 __all__ = ['MeasureMixin']
 
@@ -237,7 +238,7 @@ class MeasureMixin:
         if cfg.clip_grow > 0:
             near |= _clipped_growth(raw, weak, strong, cfg.clip_grow, near)
         face = cv2.morphologyEx(near, cv2.MORPH_CLOSE, kern)
-        n, lab, st, _ = cv2.connectedComponentsWithStats(face, connectivity=8)
+        n, lab, st = components_with_stats(face)
         if n <= 1:
             return None
         j = 1 + int(np.argmax(st[1:, cv2.CC_STAT_AREA]))

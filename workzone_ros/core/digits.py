@@ -34,6 +34,8 @@ from typing import Optional, Sequence
 import cv2
 import numpy as np
 
+from workzone_ros.core.kernels import components_with_stats
+
 __all__ = [
     'SpeedReading', 'read_speed_limit', 'warm_up', 'classify_glyphs', 'digit_model',
     'DigitModel', 'features', 'number_templates', 'VALID_SPEEDS', 'MIN_CONFIDENCE', 'WORK_H',
@@ -169,7 +171,7 @@ Blob = tuple[int, int, int, int, int]
 
 def _blobs(mask: np.ndarray) -> tuple[np.ndarray, list[Blob]]:
     """(labels, [(x, y, w, h, area), ...] with the label i + 1) of a mask's 8-connected blobs."""
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    n, labels, stats = components_with_stats(mask)
     return labels, [tuple(st) for st in stats[1:n].tolist()]
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from workzone_ros.core import digits
 from workzone_ros.core.general import colour
 from workzone_ros.core.general.config import GeneralConfig
+from workzone_ros.core.kernels import components_with_stats
 
 __all__ = ['Panel', 'white_panels', 'green_panels', 'read_mile']
 
@@ -159,7 +160,7 @@ def _digit_boxes(ink: np.ndarray) -> list[tuple[int, int, int, int]]:
     H, W = ink.shape
     mask = (ink >= 0.5).astype(np.uint8)
     mask[:int(0.27 * H)] = 0
-    n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    n, _, stats = components_with_stats(mask)
     comps = [tuple(int(v) for v in stats[i, :4]) for i in range(1, n)]
     comps = [c for c in comps if c[3] >= 0.08 * H and c[2] >= 0.05 * c[3]
              and c[0] > 0 and c[0] + c[2] < W and abs(c[0] + c[2] / 2 - W / 2) < 0.25 * W]

@@ -357,13 +357,13 @@ def load_sign_labels(path: Path = REAL_LABELS) -> dict:
     for (clip, _), ks in sorted(keys.items()):
         ks.sort()
         for a, b in zip(ks, ks[1:]):
-            for f in range(a[0], b[0] + (1 if b is ks[-1] else 0)):
+            for f in range(a[0], b[0]):         # (each keyframe once: the last one below)
                 u = (f - a[0]) / max(b[0] - a[0], 1)
                 box = Box(*(float((1 - u) * a[i] + u * b[i]) for i in range(1, 5)))
-                vis = bool(a[5] and b[5]) or (f == a[0] and a[5]) or (f == b[0] and b[5])
+                vis = bool(a[5] and b[5]) or (f == a[0] and a[5])
                 out[clip][f].append((box, bool(vis)))
-        if len(ks) == 1:
-            out[clip][ks[0][0]].append((Box(*ks[0][1:5]), bool(ks[0][5])))
+        last = ks[-1]
+        out[clip][last[0]].append((Box(*last[1:5]), bool(last[5])))
     return {clip: dict(frames) for clip, frames in out.items()}
 
 

@@ -76,7 +76,7 @@ def _draw(img, labels, dets, items, signs, text: str):
 def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
                   tile_every: int = 15, rules: str = 'auto',
-                  labels_path: Path = REAL_LABELS) -> dict:
+                  labels: Optional[dict] = None) -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
@@ -84,9 +84,9 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     ``track`` false classifies the detections themselves (the graph without the tracker).
     ``tiles``: every ``tile_every``-th labelled sign frame is drawn into it (contact sheet).
     ``rules``: the rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
-    (with proposals, only on frames of the colour model's own camera).  ``labels_path``: the
-    keyframe CSV of the signs (:func:`~workzone_ros.tools.eval_color.load_sign_labels`; a
-    frame with two visible signs counts twice).
+    (with proposals, only on frames of the colour model's own camera).  ``labels``: the
+    signs, :func:`~workzone_ros.tools.eval_color.load_sign_labels` of a keyframe CSV (None:
+    ``tools/data/real_sign_boxes.csv``; a frame with two visible signs counts twice).
 
     ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
     the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
@@ -100,7 +100,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.core.track.confirmation import classifier_verdicts
     from workzone_ros.tools.eval_tracker import _ColorDetector
-    labels = load_sign_labels(labels_path).get(path.name, {})
+    frames = (load_sign_labels() if labels is None else labels).get(path.name, {})
     ranges = sign_ranges().get(path.name, [])
     det, tracker = _ColorDetector(None), MultiTracker(TrackerConfig())
     recognizer = SignRecognizer(model)
@@ -122,7 +122,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         if track:      # the answers go back to the tracker, as /workzone/signs to the node
             tracker.confirm(*classifier_verdicts([t.track_id for t in items], signs))
         wz = [s for s in signs if s.category == 'workzone']
-        shown = [box for box, visible in labels.get(k, ()) if visible]
+        shown = [box for box, visible in frames.get(k, ()) if visible]
         for box in shown:
             n += 1
             hits += any(s.box.iou(box) >= 0.3 for s in wz)
@@ -172,7 +172,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--json', metavar='OUT')
     args = p.parse_args(argv)
     try:
-        load_sign_labels(Path(args.labels))
+        labels = load_sign_labels(Path(args.labels))
     except (OSError, KeyError, ValueError) as exc:
         print(f'workzone-ros evaluate real_signs: cannot read the labels {args.labels}: '
               f'{exc!r}', file=sys.stderr)
@@ -208,7 +208,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             continue
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
                           not args.no_tracker, tiles if args.sheet else None,
-                          rules=args.rules, labels_path=Path(args.labels))
+                          rules=args.rules, labels=labels)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "

@@ -71,8 +71,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         #: (``blur_fit``: ``max_blur_fits``, ``grown``: ``max_grown``, ``shifted``:
         #: ``max_shifted``)
         self.budget_spent: set[str] = set()
-        self._budget = {'blur_fit': config.max_blur_fits, 'grown': config.max_grown,
-                        'shifted': config.max_shifted}
+        self._budget = self._frame_budget()
         #: the last frame was measured lean (:meth:`detect`)
         self.lean = False
         if config.method == 'rgb_lp' and rgb_lp is None:
@@ -133,6 +132,12 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
             return True
         return self.model.same_camera(width, height, self._intrinsics,
                                       self.config.camera_tolerance)
+
+    def _frame_budget(self) -> dict:
+        """A frame's costly measurements, by kind (:meth:`_spend`)."""
+        cfg = self.config
+        return {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown,
+                'shifted': cfg.max_shifted}
 
     def reset(self) -> None:
         """A new camera or clip (the detector keeps no state between frames today)."""
@@ -197,8 +202,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         cfg = self.config
         self.channelizers = set()   # blobs rejected as banded drums / cones this frame
         # this frame's costly measurements left; the kinds whose budget ran out
-        self._budget = {'blur_fit': cfg.max_blur_fits, 'grown': cfg.max_grown,
-                        'shifted': cfg.max_shifted}
+        self._budget = self._frame_budget()
         self.budget_spent = set()
         self.lean = lean
         self._ref_row = None

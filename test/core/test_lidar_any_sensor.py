@@ -1,4 +1,4 @@
-"""The candidate stage on any sensor and mounting (core/lidar_clustering.py, issue 38).
+"""The candidate stage on any sensor and mounting (core/lidar_clustering.py).
 
 One scene, built in the vehicle frame (road at z = 0), is handed to the stage as different
 sensors would send it: each intensity encoding, each axis convention, other mounting heights,

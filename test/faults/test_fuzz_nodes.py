@@ -1,8 +1,8 @@
-"""Issue 37, item 1: every subscription of every node, fuzzed with malformed messages on its
+"""Every subscription of every node, fuzzed with malformed messages on its
 real topic (a few hypothesis examples per topic; ``workzone-ros evaluate faults`` runs the
 full campaign).  Each message: no crash, no internal error, a one-line reason when dropped,
 and the next good frame processed normally; ``/diagnostics`` shows the drop counter and the
-reason.  Item 2: a repeated and an out-of-order stamp are counted, never fatal."""
+reason.  Stamps: a repeated and an out-of-order stamp are counted, never fatal."""
 from __future__ import annotations
 
 import array

@@ -1,4 +1,4 @@
-"""Issue 37 items 3, 4 and 6 in small: an input whose publisher is gone is reported in
+"""Lost inputs and files from outside, in small: an input whose publisher is gone is reported in
 ``/diagnostics``; the player withholds a topic for a window (``--cut``); files from outside
 (params files, model files, bad options) are refused with one line and the right exit code."""
 from __future__ import annotations

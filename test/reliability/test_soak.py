@@ -1,5 +1,5 @@
-"""Issue 37 items 2-5 on the live graph: minutes of real processes, behind the ``soak``
-marker (``make soak``; ``make test`` skips them).
+"""Time, killed nodes, lost sensors and load on the live graph: minutes of real processes,
+behind the ``soak`` marker (``make soak``; ``make test`` skips them).
 
 * the campaign of ``workzone-ros evaluate reliability`` on a short synthetic bag: a loop, a
   killed node, a lost LiDAR, a 2x replay;

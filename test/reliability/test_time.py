@@ -1,4 +1,4 @@
-"""Issue 37 item 2, time: a looping bag's jump back resets every node's buffers and the output
+"""Time: a looping bag's jump back resets every node's buffers and the output
 goes on; the fusion restarts at ``unknown``; ``use_sim_time`` without ``/clock`` waits and
 says so."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""``workzone-ros evaluate faults``: fuzz every subscription of every node (issue 37, item 1).
+"""``workzone-ros evaluate faults``: fuzz every subscription of every node with malformed messages.
 
 Each node runs with its real subscriptions on real topics, in a private rclpy context (a
 unique ROS_DOMAIN_ID and localhost discovery), next to a peer node that feeds it.  After a
@@ -16,7 +16,7 @@ output is right again.  Per message it records:
   frames that took (target: the first).
 
 And per subscription, that ``/diagnostics`` reports the node's drop counter and last reason.
-Duplicate and out-of-order stamps (item 2) are tried too: each is counted in
+Duplicate and out-of-order stamps are tried too: each is counted in
 ``/diagnostics``, and the next good frame is processed normally.
 
 Usage::
@@ -52,7 +52,7 @@ __all__ = ['targets', 'Harness', 'Outcome', 'fuzz_topic', 'stamp_faults', 'summa
            'GOOD_EVERY_S']
 
 
-# --- stamps (item 2) ----------------------------------------------------------------------
+# --- stamps: repeated and out of order -----------------------------------------------------------
 
 def stamp_faults(h: Harness, topic: str) -> list[Outcome]:
     """A good message with the stamp of the last one, then one 0.5 s older: each must be

@@ -51,7 +51,7 @@ parameters of ``--config``, changed with ``--set key=value``.
     conventions, cast in process from library scenarios (no bags; see
     :mod:`workzone_ros.tools.eval_lidar_sensors`).
 
-Report on scenarios you did not tune on (the issue's rule); the command line names them.
+Report on scenarios you did not tune on; the command line names them.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ with the hand-made labels (evaluation only, never trained on):
 
 * ``sign_share``: of the frames where the labelled work-zone sign is visible
   (``tools/data/real_sign_boxes.csv``), the share where a work-zone class is reported on a
-  box with IoU >= 0.3 with the label (the issue's target: >= 0.8);
+  box with IoU >= 0.3 with the label (target: >= 0.8);
 * ``false_per_frame``: work-zone signs reported per frame in the frames outside every
   ``workzone_sign`` range of ``tools/data/real_clip_ranges.csv`` (target <= 0.05).
 

@@ -1,5 +1,5 @@
 """``workzone-ros evaluate reliability``: the live graph under time jumps, kills, lost sensors
-and load (issue 37, items 2-5), with a JSON report.
+and load, with a JSON report (docs/reliability.md has the measured numbers).
 
 Each scenario is one real ``workzone-ros launch --bag BAG`` (every node in its own process,
 the launcher restarting dead ones) watched from this process by a recorder node that keeps
@@ -413,7 +413,7 @@ class Campaign:
                 'score': parse_score(res['run'].text()),
                 'load': load_figures(res['diag'])}
 
-    # -- item 2: the loop --
+    # -- the loop: a looping bag --
     def loop(self) -> dict:
         """1.5 passes with ``--loop``: the jump back resets every node."""
         self.log('loop: --loop, 1.5 passes')
@@ -449,7 +449,7 @@ class Campaign:
         report['exceptions'] = res['run'].text().count('Traceback')
         return report
 
-    # -- item 3: kills --
+    # -- kills: SIGKILL a node, the launcher restarts it --
     def kill(self, node: str, at_s: float) -> dict:
         """SIGKILL ``node`` at ``at_s`` s of bag time; measure its and the state's recovery."""
         self.log(f'kill {node} at {at_s:g} s of bag time')
@@ -485,7 +485,7 @@ class Campaign:
         report['exceptions'] = run.text().count('Traceback')
         return report
 
-    # -- item 4: lost sensors --
+    # -- lost sensors: an input withheld for a while --
     def cut(self, cuts: list[tuple[str, float]], seconds: float) -> dict:
         """Withhold each topic for ``seconds`` from its start; staleness and recovery."""
         spec = [f'{topic}:{start:g}:{seconds:g}' for topic, start in cuts]
@@ -532,7 +532,7 @@ class Campaign:
         report['exceptions'] = run.text().count('Traceback')
         return report
 
-    # -- item 5: load --
+    # -- load: faster replay, a busy neighbour --
     def load(self, rate: float, hog: int = 0) -> dict:
         """One run at ``rate`` (optionally next to ``hog`` busy processes on our cores)."""
         self.log(f'load: rate {rate:g}' + (f' with {hog} CPU hog(s)' if hog else ''))
@@ -559,7 +559,7 @@ class Campaign:
                 'nodes': load_figures(res['diag']),
                 'exceptions': res['run'].text().count('Traceback')}
 
-    # -- item 5: soak --
+    # -- soak: memory over a long loop --
     def soak(self, seconds: float, every_s: float = 10.0) -> dict:
         """``--loop`` for ``seconds``; RSS of every process every ``every_s``."""
         self.log(f'soak: --loop for {seconds:g} s, RSS every {every_s:g} s')

@@ -1,8 +1,7 @@
 """Hypothesis strategies of malformed ROS messages, for ``workzone-ros evaluate faults``.
 
 Each strategy starts from a good message of the node under test (``good(stamp) -> msg``, so
-every fault is stamped like live input) and draws one to three malformations of its type
-(issue 37, item 1):
+every fault is stamped like live input) and draws one to three malformations of its type:
 
 * ``PointCloud2``: wrong or duplicated field offsets, names, datatypes and counts, wrong
   ``point_step`` / ``row_step``, truncated or padded data, NaN/inf values, zero and huge

@@ -129,7 +129,7 @@ class TrackerConfig:
             only on development bags.  The weights still decide between disjoint boxes and
             how much of the detection's histogram enters the model; the box geometry
             (``relation``) is the detection's own, so a track that then runs on its own
-            keeps the geometry of its last good detection.  False: PR 6a5d439's blend.
+            keeps the geometry of its last good detection.  False: the weighted blend above.
         truncated_aspect: two-colour guard: a detection whose box ends above the part the
             track knows is extended by the track's geometry only when its height / width is
             also below this times that of the track's box (0 = off: the previous rule, which

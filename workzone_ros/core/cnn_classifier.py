@@ -1,7 +1,7 @@
 """Work-zone sign classifier: a small convolutional network run by OpenCV's ``dnn`` module.
 
-The alternative to the log-polar + PCA + SVM of :mod:`workzone_ros.core.classifier` (issue
-item "beyond the seed"): a few-10k-parameter CNN trained offline on the same crops
+The alternative to the log-polar + PCA + SVM of :mod:`workzone_ros.core.classifier`: a
+few-10k-parameter CNN trained offline on the same crops
 (``workzone-ros train cnn``, PyTorch in the ``cnn`` extra), exported to ONNX and run here by
 ``cv2.dnn`` -- no training framework at run time (no torch, no onnx import).
 

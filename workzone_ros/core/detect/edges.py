@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 from scipy.special import ndtr
 
+from workzone_ros.core.edge_kernels import edge_fit, valid_models
 from workzone_ros.core.kernels import edge_choice, profile_medians
 
 __all__ = ['EDGE_MIN_CONTRAST']
@@ -50,6 +51,21 @@ def _profile_bases(u_out: float, u_in: float, border: float, margin: float
     ok = (_PROFILE_U0 <= u_in - 1.0) & (_PROFILE_U0 >= border + margin + 1.0 - u_out)
     return u, np.ascontiguousarray(bases.transpose(0, 2, 1).reshape(-1, u.size)), \
         np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
+
+
+#: :func:`_valid_models`' arrays by the id of their bases (each beside the bases it was made
+#: of, which so stay alive and keep their id)
+_VALID_MODELS: dict[int, tuple] = {}
+
+
+def _valid_models(prof: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`edge_kernels.valid_models` of a :func:`_profile_bases` tuple, once per tuple."""
+    got = _VALID_MODELS.get(id(prof[1]))
+    if got is None or got[0] is not prof[1]:
+        if len(_VALID_MODELS) >= 1024:
+            _VALID_MODELS.clear()
+        got = _VALID_MODELS[id(prof[1])] = (prof[1], valid_models(*prof[1:]))
+    return got[1]
 
 
 def _edge_profile(extent: float, border: float, margin: float) -> tuple:
@@ -108,6 +124,36 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     u, bases_t, ata_inv, valid = prof
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
     ts = _unit_steps(max(3, int(length) + 1))
+    n = segs.shape[0]
+    if img.dtype == np.float32 and img.ndim == 2 and n >= 2:
+        # compiled, the same arithmetic (:func:`edge_kernels.edge_fit`; one stretch's
+        # products are numpy's matrix-vector ones, summed otherwise)
+        off, best = np.empty(n), np.empty(n, np.int64)
+        b_, lv = np.empty(n), np.empty((n, 2))
+        seen = edge_fit(img, np.ascontiguousarray(segs, np.float64),
+                        np.ascontiguousarray(nvecs, np.float64), u, ts, *_valid_models(prof),
+                        valid, float(min_contrast), _PROFILE_U0, _PROFILE_SIG, off, best,
+                        b_, lv)
+        if seen != -2:
+            if seen < 0 or not (seen > 0 if missing else seen == n):
+                return None
+            if blur is not None:
+                blur[:] = b_
+            if levels is not None:
+                levels[:] = lv
+            return off
+    return _edge_offsets_numpy(img, segs, nvecs, prof, min_contrast, ts, missing, blur,
+                               levels)
+
+
+def _edge_offsets_numpy(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tuple,
+                        min_contrast: float, ts: np.ndarray, missing: bool,
+                        blur: Optional[np.ndarray], levels: Optional[np.ndarray]
+                        ) -> Optional[np.ndarray]:
+    """:func:`_edge_offsets` in numpy and OpenCV (one stretch, an image of another type than
+    float32, or a sample point that is not a number); ``ts``: the sample positions along a
+    stretch."""
+    u, bases_t, ata_inv, valid = prof
     # the sample points ``s0 + t (s1 - s0) + u n`` (n, t, u): the part along the stretch
     # (n, t) and the part along the normal (n, u) each once, then summed per point in that
     # order (the same sums as over the broadcast (n, t, u, 2) points, at a fraction of the

@@ -9,8 +9,10 @@ from __future__ import annotations
 import functools
 import math
 
+import cv2
 import numpy as np
 
+from workzone_ros.core.blob_kernels import hull_points
 from workzone_ros.core.color_model import table_lookup
 
 __all__ = ['pixel_box']
@@ -44,6 +46,13 @@ def _mode(values: np.ndarray, lo: float = 0.0, hi: float = 1.0, bins: int = 20) 
     hist[-1] += np.count_nonzero(values == edges[-1])
     i = int(np.argmax(hist))
     return float(0.5 * (edges[i] + edges[i + 1]))
+
+
+def _convex_hull(mask: np.ndarray) -> np.ndarray:
+    """``cv2.convexHull(cv2.findNonZero(mask))`` of a non-empty 2-d uint8 or bool mask, from
+    the pixels that can lie on the hull (:func:`~workzone_ros.core.blob_kernels.hull_points`):
+    the same hull, a tenth of the time on a large blob."""
+    return cv2.convexHull(hull_points(mask))
 
 
 def _padded(window: tuple, bw: int, bh: int) -> tuple[int, int, int, int]:

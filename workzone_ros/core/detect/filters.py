@@ -13,8 +13,9 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from workzone_ros.core.blob_kernels import masked_median_u8
 from workzone_ros.core.color_model import apply_gains
-from workzone_ros.core.detect.common import _lookup
+from workzone_ros.core.detect.common import _convex_hull, _lookup
 from workzone_ros.core.detect.diamond import fit_diamond
 from workzone_ros.core.profiles import (
     banded_rows,
@@ -68,7 +69,7 @@ class FilterMixin:
                     needs_outline = True      # a face behind a guardrail: its edges may tell
         hmask = np.zeros_like(pix)
         cv2.fillConvexPoly(hmask, hull, 1)
-        v_ref = float(np.median(vch[pix > 0]))
+        v_ref = masked_median_u8(vch, pix)         # (np.median(vch[pix > 0]))
         if cfg.max_surround_like < 1.0 and not relaxed:
             # a sign is an object on its own: beyond its border the background is not the
             # sign's colour on average; a patch of a larger sign-coloured surface (dirt, a
@@ -151,7 +152,7 @@ class FilterMixin:
         face = orange[by - r0:by + bh - r0]
         if not face.any():
             return False
-        y_ref = float(np.median(luma[by - r0:by + bh - r0][face]))
+        y_ref = masked_median_u8(luma[by - r0:by + bh - r0], face)
         white = (hsv[..., 1] <= cfg.white_s_max) & (luma >= cfg.band_white_luma * y_ref)
         # a band is the object's own: bounded by its silhouette; white that runs on past
         # the blob's sides on both flanks is the background (an overcast sky, snow, a
@@ -196,14 +197,14 @@ class FilterMixin:
                 if pix is None:
                     return False
                 row_fit = None
-            pts = cv2.findNonZero(pix)
-            if pts is None or len(pts) < 5:
+            count = cv2.countNonZero(pix)
+            if count < 5:
                 return False
-            hull = cv2.convexHull(pts)
+            hull = _convex_hull(pix)
             hull_area = max(float(cv2.contourArea(hull)), 1.0)
             # the hull's box is the pixels' box
             x, y, w, h = cv2.boundingRect(hull)
-            solidity, fill = len(pts) / hull_area, hull_area / (w * h)
+            solidity, fill = count / hull_area, hull_area / (w * h)
             if fill >= cfg.diamond_hull_fill or max(w / h, h / w) > cfg.low_max_aspect:
                 continue
             fr = row_fit if row_fit is not None else fit_diamond(pix)

@@ -18,6 +18,7 @@ from workzone_ros.core.color_model import apply_gains
 from workzone_ros.core.detect.candidates import Candidate
 from workzone_ros.core.detect.common import (
     _P_SCALE,
+    _convex_hull,
     _mode,
     _paste,
 )
@@ -127,7 +128,7 @@ class MeasureMixin:
         # the cut-off part must not come back as the border's blur rings
         cut = (pix > 0) & (trimmed == 0)
         like = np.where(cut, np.float32(0), like)
-        hull = cv2.convexHull(cv2.findNonZero(trimmed))
+        hull = _convex_hull(trimmed)
         bx0, by0, bw, bh = (int(v) for v in cv2.boundingRect(hull))
         hmask = np.zeros_like(trimmed)
         cv2.fillConvexPoly(hmask, hull, 1)
@@ -250,8 +251,7 @@ class MeasureMixin:
             return None
         if bw < 2 or bh < 2:
             return None
-        pts = cv2.findNonZero(pix)
-        hull = cv2.convexHull(pts)
+        hull = _convex_hull(pix)
         hull_area = max(float(cv2.contourArea(hull)), 1.0)
         hull_fill = hull_area / (bw * bh)
         solidity = area / hull_area

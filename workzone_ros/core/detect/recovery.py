@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.core.detect.candidates import Candidate
+from workzone_ros.core.detect.common import _convex_hull
 
 __all__ = ['RecoveryMixin']
 
@@ -53,7 +54,7 @@ class RecoveryMixin:
         comp = comp[by:by + bh, bx:bx + bw]
         # only a diamond is kept: about square, its hull about half its box (checked again
         # at full resolution by the measure)
-        hull = cv2.convexHull(cv2.findNonZero(comp))
+        hull = _convex_hull(comp)
         if max(bw / bh, bh / bw) >= cfg.ext_min_aspect or \
                 cv2.contourArea(hull) >= cfg.diamond_hull_fill * bw * bh:
             return None

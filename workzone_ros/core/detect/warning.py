@@ -12,6 +12,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from workzone_ros.core.blob_kernels import masked_median_u8
 from workzone_ros.core.color_model import _quantile
 from workzone_ros.core.detect.common import _padded
 from workzone_ros.core.detect.diamond import (
@@ -289,8 +290,8 @@ class WarningMixin:
             return None
         sat, val = hsv[..., 1], hsv[..., 2]
         # the face's own orange: as saturated and not dark (a legend stroke is neither)
-        face_like = (sat >= cfg.hold_sat * float(np.median(sat[inside]))) & (
-            val >= cfg.dark_rel * float(np.median(val[inside])))
+        face_like = (sat >= cfg.hold_sat * masked_median_u8(sat, inside)) & (
+            val >= cfg.dark_rel * masked_median_u8(val, inside))
         # the blob's pixels beyond the outline: a background blended in or merged with the
         # sign is not the face's orange; a fit inside a larger face leaves that face out
         beyond = (face_px > 0) & (dist >= 0.5)

@@ -1,0 +1,72 @@
+"""The compiled blob helpers (workzone_ros.core.blob_kernels) against OpenCV and numpy."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from workzone_ros.core.blob_kernels import hull_points, masked_median_u8
+
+
+def _masks(n: int, seed: int = 0):
+    """Random masks: noise, filled polygons with holes, ellipses, diamonds with cut rows."""
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        m = np.zeros((h, w), np.uint8)
+        kind = i % 4
+        if kind == 0:
+            m[:] = rng.random((h, w)) < rng.random()
+        elif kind == 1:
+            pts = rng.integers(0, [w, h], (int(rng.integers(3, 8)), 2)).astype(np.int32)
+            cv2.fillConvexPoly(m, cv2.convexHull(pts), 1)
+            m &= (rng.random((h, w)) < 0.9).astype(np.uint8)
+        elif kind == 2:
+            cv2.ellipse(m, (w // 2, h // 2), (w // 3 + 1, h // 3 + 1),
+                        float(rng.integers(0, 90)), 0, 360, 1, -1)
+        else:
+            ys, xs = np.mgrid[:h, :w]
+            m[:] = np.abs(xs + 0.5 - w / 2) / (w / 2.2) + np.abs(ys + 0.5 - h / 2) / (h / 2.2) <= 1
+            m[rng.integers(0, h, 3)] = 0
+        yield m
+
+
+def test_hull_points_give_the_hull_of_all_pixels():
+    n = 0
+    for m in _masks(3000):
+        if not m.any():
+            assert hull_points(m).shape == (0, 1, 2)
+            continue
+        pts = hull_points(m)
+        assert pts.dtype == np.int32 and pts.ndim == 3 and pts.shape[1:] == (1, 2)
+        # a subset of the pixels, in findNonZero's order
+        assert m[pts[:, 0, 1], pts[:, 0, 0]].all()
+        order = pts[:, 0, 1].astype(np.int64) * m.shape[1] + pts[:, 0, 0]
+        assert (np.diff(order) > 0).all()
+        want = cv2.convexHull(cv2.findNonZero(m))
+        got = cv2.convexHull(pts)
+        assert got.shape == want.shape and (got == want).all()       # integer points
+        # a bool mask and a slice of a larger mask give the same points
+        assert (hull_points(m > 0) == pts).all()
+        big = np.zeros((m.shape[0] + 2, m.shape[1] + 3), np.uint8)
+        big[1:-1, 2:-1] = m
+        assert (hull_points(big[1:-1, 2:-1]) == pts).all()
+        n += 1
+    assert n > 2500
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_masked_median_u8_is_np_median(seed):
+    rng = np.random.default_rng(seed)
+    for _ in range(500):
+        h, w = (int(v) for v in rng.integers(1, 40, 2))
+        hsv = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        lo, hi = sorted(int(v) for v in rng.integers(0, 256, 2))
+        hsv[..., 2] = np.clip(hsv[..., 2], lo, hi)
+        mask = rng.random((h, w)) < rng.random()
+        if not mask.any():
+            assert np.isnan(masked_median_u8(hsv[..., 2], mask))
+            continue
+        want = float(np.median(hsv[..., 2][mask]))
+        for m in (mask, mask.astype(np.uint8)):
+            assert np.allclose(masked_median_u8(hsv[..., 2], m), want, rtol=1e-6, atol=1e-9)

@@ -5,8 +5,10 @@ face: per stretch the brightness sampled (bilinear, every quarter pixel along th
 normal, one profile per pixel along the edge), the median profile, its least-squares fit by
 every model of the edge-offset x blur grid, the best model's offset.  In numpy that was a
 dozen array passes over some 10,000 sample points and two BLAS products per call, about
-0.2 ms, and a busy real frame makes some thirty calls.  :func:`edge_fit` does the same in
-one pass without the intermediate arrays, with the same arithmetic in the same order:
+0.2 ms, and a busy real frame makes some thirty calls.  :func:`edge_fit` does the same
+without the intermediate arrays, with the same arithmetic in the same order, stretch by
+stretch (it stops once more stretches show no step than its caller accepts: most calls on
+a busy frame fail so after three or four of their eight):
 
 * the sample points as numpy's broadcast sums (float64, then float32);
 * the bilinear samples as ``cv2.remap`` (``INTER_LINEAR``, a constant zero border) computes
@@ -33,8 +35,8 @@ from numba.extending import intrinsic
 
 from workzone_ros.core.kernels import edge_choice, median_inplace
 
-__all__ = ['fma', 'bilinear', 'column_medians', 'edge_profiles', 'model_fits', 'edge_fit',
-           'valid_models', 'warm']
+__all__ = ['fma', 'bilinear', 'column_medians', 'sample_points', 'stretch_profile',
+           'edge_profiles', 'model_fits', 'edge_fit', 'valid_models', 'warm']
 
 
 @intrinsic
@@ -109,13 +111,13 @@ def column_medians(x: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def edge_profiles(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray,
-                  ts: np.ndarray) -> np.ndarray:
-    """The median brightness profile of each edge stretch: ``segs`` (n, 2, 2) its end points,
-    ``nvecs`` (n, 2) its inward normal, sampled at ``s0 + t (s1 - s0) + u n - 0.5`` for each
-    ``t`` of ``ts`` and ``u`` of ``u`` (float32 coordinates) in the float32 image ``img``;
-    (n, len(u)) float64.  (0, len(u)) when a sample point lies outside ``img``, (0, 0) when
-    one is not a number."""
+def sample_points(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray,
+                  ts: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """:func:`edge_profiles`' sample points ``s0 + t (s1 - s0) + u n - 0.5`` of each edge
+    stretch (``segs`` (n, 2, 2) its end points, ``nvecs`` (n, 2) its inward normal) for each
+    ``t`` of ``ts`` and ``u`` of ``u``: ``(x, y, code)``, x and y (n, len(ts), len(u))
+    float32 and code 0; -1 when a point lies outside the ``img.shape`` image, -2 when one is
+    not a number (whichever comes first, stretch by stretch)."""
     n, nt, nu = segs.shape[0], ts.size, u.size
     h, w = img.shape
     mx = np.empty((n, nt, nu), np.float32)
@@ -130,30 +132,54 @@ def edge_profiles(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.nd
                 x = np.float32(ax + u[j] * nvecs[s, 0] - 0.5)
                 y = np.float32(ay + u[j] * nvecs[s, 1] - 0.5)
                 if math.isnan(x) or math.isnan(y):
-                    return np.empty((0, 0))
+                    return mx, my, -2
                 if x < 0 or y < 0 or x > w - 1 or y > h - 1:
-                    return np.empty((0, nu))
+                    return mx, my, -1
                 mx[s, t, j] = x
                 my[s, t, j] = y
-    # each stretch's samples (nt, nu) with the columns padded to whole vectors
+    return mx, my, 0
+
+
+@njit(cache=True)
+def stretch_profile(img: np.ndarray, mx: np.ndarray, my: np.ndarray, out: np.ndarray) -> None:
+    """The median brightness profile of one edge stretch into ``out`` (nu,): ``img``'s
+    bilinear samples at float32 ``mx``, ``my`` (nt, nu) (:func:`sample_points`), the median
+    over the nt profiles of each of the nu columns."""
+    nt, nu = mx.shape
+    # the samples with the columns padded to whole vectors
     nup = (nu + _LANES - 1) // _LANES * _LANES
-    samples = np.zeros((n, nt, nup), np.float32)
-    for s in range(n):
-        for t in range(nt):
-            for j in range(nu):
-                samples[s, t, j] = bilinear(img, mx[s, t, j], my[s, t, j])
-    out = np.empty((n, nu))
-    col = np.empty(nup)
-    buf = np.empty(nt, np.float32)
-    for s in range(n):
-        if nt <= _RANK_MAX:
-            column_medians(samples[s], col)
-            out[s] = col[:nu]
-            continue
+    samples = np.zeros((nt, nup), np.float32)
+    for t in range(nt):
         for j in range(nu):
-            for t in range(nt):
-                buf[t] = samples[s, t, j]
-            out[s, j] = median_inplace(buf, nt)
+            samples[t, j] = bilinear(img, mx[t, j], my[t, j])
+    if nt <= _RANK_MAX:
+        col = np.empty(nup)
+        column_medians(samples, col)
+        out[:] = col[:nu]
+        return
+    buf = np.empty(nt, np.float32)
+    for j in range(nu):
+        for t in range(nt):
+            buf[t] = samples[t, j]
+        out[j] = median_inplace(buf, nt)
+
+
+@njit(cache=True)
+def edge_profiles(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray,
+                  ts: np.ndarray) -> np.ndarray:
+    """The median brightness profile of each edge stretch: ``segs`` (n, 2, 2) its end points,
+    ``nvecs`` (n, 2) its inward normal, sampled at ``s0 + t (s1 - s0) + u n - 0.5`` for each
+    ``t`` of ``ts`` and ``u`` of ``u`` (float32 coordinates) in the float32 image ``img``;
+    (n, len(u)) float64.  (0, len(u)) when a sample point lies outside ``img``, (0, 0) when
+    one is not a number."""
+    mx, my, code = sample_points(img, segs, nvecs, u, ts)
+    if code == -2:
+        return np.empty((0, 0))
+    if code == -1:
+        return np.empty((0, u.size))
+    out = np.empty((segs.shape[0], u.size))
+    for s in range(segs.shape[0]):
+        stretch_profile(img, mx[s], my[s], out[s])
     return out
 
 
@@ -190,40 +216,47 @@ def edge_fit(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray
              ts: np.ndarray, bases_vt: np.ndarray, ata_inv_v: np.ndarray,
              models: np.ndarray, valid: np.ndarray, min_contrast: float, u0: np.ndarray,
              sig: np.ndarray, off: np.ndarray, best: np.ndarray, blur: np.ndarray,
-             levels: np.ndarray) -> int:
-    """:func:`~workzone_ros.core.detect.edges._edge_offsets` on float32 ``img``: the median
-    profiles (:func:`edge_profiles`), the least squares of the ``valid`` models of the grid
-    (:func:`model_fits`; ``models`` their indices, ``bases_vt`` and ``ata_inv_v`` theirs,
-    as :func:`valid_models` gives them) and the choice per stretch
-    (:func:`~workzone_ros.core.kernels.edge_choice`, ``u0`` the offsets, ``sig`` the blur
-    widths; the other models it never reads).  Writes ``off``, ``best`` (as
+             levels: np.ndarray, max_lost: int) -> int:
+    """:func:`~workzone_ros.core.detect.edges._edge_offsets` on float32 ``img``, stretch by
+    stretch: its median profile (:func:`stretch_profile` at :func:`sample_points`), the
+    least squares of the ``valid`` models of the grid (:func:`model_fits`; ``models`` their
+    indices, ``bases_vt`` and ``ata_inv_v`` theirs, as :func:`valid_models` gives them) and
+    the choice (:func:`~workzone_ros.core.kernels.edge_choice`, ``u0`` the offsets, ``sig``
+    the blur widths; the other models it never reads).  Writes ``off``, ``best`` (as
     ``edge_choice``), ``blur`` (n,) the best model's blur width and ``levels`` (n, 2) its
     face and background levels (NaN without a step); returns how many stretches show a
-    step; -1 when a sample point lies outside ``img``, -2 when one is not a number."""
-    prof_v = edge_profiles(img, segs, nvecs, u, ts)
-    n, nu = segs.shape[0], u.size
-    if prof_v.shape[0] != n:
-        return -1 if prof_v.shape[1] == nu else -2
-    fit_atb, fit_coef = model_fits(prof_v, bases_vt, ata_inv_v)
-    nk = valid.size
-    atb = np.zeros((nk, 3, n))
-    coef = np.zeros((nk, 3, n))
-    for m in range(models.size):
-        k = models[m]
-        for i in range(3):
-            for c in range(n):
-                atb[k, i, c] = fit_atb[c, 3 * m + i]
-                coef[k, i, c] = fit_coef[c, 3 * m + i]
-    seen = edge_choice(prof_v, atb, coef, valid, min_contrast, u0, sig.size, off, best)
+    step; -1 when a sample point lies outside ``img``, -2 when one is not a number, -3 as
+    soon as more than ``max_lost`` stretches show none (the later ones not measured)."""
+    mx, my, code = sample_points(img, segs, nvecs, u, ts)
+    if code < 0:
+        return code
+    n, nu, nk = segs.shape[0], u.size, valid.size
+    prof = np.empty((1, nu))
+    # the models' A^T p and coefficients of one stretch (the invalid ones stay zero)
+    atb = np.zeros((nk, 3, 1))
+    coef = np.zeros((nk, 3, 1))
+    seen = 0
     for c in range(n):
+        stretch_profile(img, mx[c], my[c], prof[0])
+        fit_atb, fit_coef = model_fits(prof, bases_vt, ata_inv_v)
+        for m in range(models.size):
+            k = models[m]
+            for i in range(3):
+                atb[k, i, 0] = fit_atb[0, 3 * m + i]
+                coef[k, i, 0] = fit_coef[0, 3 * m + i]
+        edge_choice(prof, atb, coef, valid, min_contrast, u0, sig.size, off[c:c + 1],
+                    best[c:c + 1])
         k = best[c]
         if k < 0:
             blur[c] = np.nan
             levels[c, 0] = levels[c, 1] = np.nan
+            if c + 1 - seen > max_lost:
+                return -3
         else:
+            seen += 1
             blur[c] = sig[k % sig.size]
-            levels[c, 0] = coef[k, 0, c]
-            levels[c, 1] = coef[k, 2, c]
+            levels[c, 0] = coef[k, 0, 0]
+            levels[c, 1] = coef[k, 2, 0]
     return seen
 
 
@@ -250,4 +283,4 @@ def warm() -> None:
     n = 1
     edge_fit(img, segs, nvecs, u, ts, vt, inv, models, valid, 0.25,
              np.arange(2, dtype=np.float32), np.ones(1, np.float32), np.empty(n),
-             np.empty(n, np.int64), np.empty(n), np.empty((n, 2)))
+             np.empty(n, np.int64), np.empty(n), np.empty((n, 2)), n)

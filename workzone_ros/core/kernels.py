@@ -694,10 +694,11 @@ def warm() -> None:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
     waits for the compiler."""
     # (the chroma fit's solver and the edge measurement: their own modules)
-    from workzone_ros.core import blob_kernels, chroma_fit, edge_kernels
+    from workzone_ros.core import blob_kernels, chroma_fit, diamond_kernels, edge_kernels
     chroma_fit.warm()
     edge_kernels.warm()
     blob_kernels.warm()
+    diamond_kernels.warm()
     mask = np.zeros((12, 12), np.uint8)
     mask[2:10, 3:9] = 1
     ratios = np.linspace(0.7, 1.4, 6)

@@ -16,11 +16,14 @@ import numpy as np
 
 from workzone_ros.core.detect.edges import (
     _PROFILE_SIG,
+    _PROFILE_U0,
     EDGE_MIN_CONTRAST,
     _edge_offsets,
     _edge_profile,
     _taper,
+    _valid_models,
 )
+from workzone_ros.core.diamond_kernels import diamond_frame, diamond_round
 from workzone_ros.core.kernels import NO_PIXEL, diamond_tent, rhombus_fit, tip_pixel
 
 __all__ = [
@@ -286,47 +289,23 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
     img = np.ascontiguousarray(value, dtype=np.float32)
     for _ in range(iterations):
         m = min(a, b)
-        border, margin = border_rel * m, margin_rel * m
-        prof = _edge_profile(m, border, margin)
+        border = border_rel * m
+        prof = _edge_profile(m, border, margin_rel * m)
         # the four edges (left corner to top, top to right, right to bottom, bottom to
-        # left), all at once: direction, inward normal, and the two stretches of each
-        p0 = np.array([(cx - a, cy), (cx, cy - b), (cx + a, cy), (cx, cy + b)])
-        p1 = p0[[1, 2, 3, 0]]
-        e = p1 - p0
-        dvec = e / np.hypot(e[:, 0], e[:, 1])[:, None]
-        nvec = np.stack([-dvec[:, 1], dvec[:, 0]], axis=1)
-        inward = (nvec * (np.array([cx, cy]) - 0.5 * (p0 + p1))).sum(axis=1)
-        nvec[inward < 0] *= -1.0
+        # left), two stretches on each
         f_from, f_to, shown = _EDGE_FROM, _EDGE_TO, _ALL_SHOWN
         if hidden_below is not None:
+            p0, e, nvec = diamond_frame(cx, cy, a, b)
             f_from, f_to, shown = _stretches_above(p0, e, nvec, f_from, f_to, prof[0],
                                                    hidden_below - 1.0)
             if not shown.any():
                 return None
-        segs = np.stack([p0[:, None] + f_from[..., None] * e[:, None],
-                         p0[:, None] + f_to[..., None] * e[:, None]],
-                        axis=2).reshape(8, 2, 2)
-        mids = 0.5 * (segs[:, 0] + segs[:, 1])
-        nv = np.repeat(nvec, 2, axis=0)
-        blur = np.full(8, np.nan)
-        off = np.full(8, np.nan)
-        b_ = np.empty(int(shown.sum()))
-        bright = _taper(bright_bias, border)
-        lv = np.empty((b_.size, 2)) if bright > 0 else None
-        o_ = _edge_offsets(img, segs[shown], nv[shown], prof, min_contrast, missing=True,
-                           blur=b_, levels=lv)
-        if o_ is None:
+        got = _round_edges(img, (cx, cy, a, b), (f_from, f_to, shown), prof, min_contrast,
+                           _taper(bright_bias, border), max_lost)
+        if got is None:
             return None
-        if lv is not None:
-            # (NaN levels compare False: a stretch without a step stays NaN)
-            o_ = o_ - bright * (lv[:, 1] > lv[:, 0])
-        off[shown], blur[shown] = o_, b_
-        # a stretch without a face-to-border step (a symbol or legend reaching the edge)
-        # counts as one of the points the fit may drop
+        mids, nv, off, blur, lost = got
         seen = np.isfinite(off)
-        lost = int(np.count_nonzero(shown & ~seen))
-        if lost > max_lost:
-            return None
         fit_ = None
         if stroke_steps > 0:
             # without the stretches a stroke runs into, unless the rest then disagree
@@ -351,6 +330,37 @@ def _refine_diamond_rounds(value: np.ndarray, fit: Sequence[float], border_rel: 
         # ones; at least one is, or the round returned)
         info['blur'] = float(np.median(blur[~np.isnan(blur)]))
     return cx, cy, a, b
+
+
+def _round_edges(img: np.ndarray, diamond: tuple, stretches: tuple, prof: tuple,
+                 min_contrast: float, bright: float, max_lost: int) -> Optional[tuple]:
+    """One round of :func:`refine_diamond` from ``diamond = (cx, cy, a, b)`` on the float32
+    brightness ``img``: the edge stretches ``stretches = (f_from, f_to, shown)`` measured
+    (compiled: :func:`~workzone_ros.core.diamond_kernels.diamond_round`; numpy's path for
+    fewer than two stretches).  Returns ``(mids, nv, off, blur, lost)``: the eight
+    stretches' middles and inward normals, their offsets and blur widths (NaN: not shown or
+    no face-to-border step) and how many shown show no step (a symbol or legend reaching
+    the edge: one of the points the fit may drop); None when the round fails (a stretch
+    outside ``img``, none with a step, or more than ``max_lost`` without one)."""
+    f_from, f_to, shown = stretches
+    lost, segs, mids, nv, off, blur = diamond_round(
+        img, *diamond, f_from, f_to, shown, prof[0], *_valid_models(prof), prof[3],
+        float(min_contrast), _PROFILE_U0, _PROFILE_SIG, float(bright), int(max_lost))
+    if lost == -2:
+        b_ = np.empty(int(shown.sum()))
+        lv = np.empty((b_.size, 2)) if bright > 0 else None
+        o_ = _edge_offsets(img, segs[shown], nv[shown], prof, min_contrast, missing=True,
+                           blur=b_, levels=lv)
+        if o_ is None:
+            return None
+        if lv is not None:
+            # (NaN levels compare False: a stretch without a step stays NaN)
+            o_ = o_ - bright * (lv[:, 1] > lv[:, 0])
+        off[shown], blur[shown] = o_, b_
+        lost = int(np.count_nonzero(shown & ~np.isfinite(off)))
+    if lost < 0 or lost > max_lost:
+        return None
+    return mids, nv, off, blur, lost
 
 
 def _stroke_stretches(blur: np.ndarray, seen: np.ndarray, spare: int, steps: int

@@ -133,7 +133,7 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
         seen = edge_fit(img, np.ascontiguousarray(segs, np.float64),
                         np.ascontiguousarray(nvecs, np.float64), u, ts, *_valid_models(prof),
                         valid, float(min_contrast), _PROFILE_U0, _PROFILE_SIG, off, best,
-                        b_, lv)
+                        b_, lv, n - 1 if missing else 0)
         if seen != -2:
             if seen < 0 or not (seen > 0 if missing else seen == n):
                 return None

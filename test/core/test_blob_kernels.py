@@ -5,7 +5,12 @@ import cv2
 import numpy as np
 import pytest
 
-from workzone_ros.core.blob_kernels import hull_points, masked_median_u8
+from workzone_ros.core.blob_kernels import (
+    clipped_outside,
+    gated_likelihood,
+    hull_points,
+    masked_median_u8,
+)
 
 
 def _masks(n: int, seed: int = 0):
@@ -70,3 +75,39 @@ def test_masked_median_u8_is_np_median(seed):
         want = float(np.median(hsv[..., 2][mask]))
         for m in (mask, mask.astype(np.uint8)):
             assert np.allclose(masked_median_u8(hsv[..., 2], m), want, rtol=1e-6, atol=1e-9)
+
+
+def test_gated_likelihood_is_the_table_lookup():
+    rng = np.random.default_rng(4)
+    for table in (rng.random((180, 256)).astype(np.float32),
+                  rng.integers(0, 255, (180, 256)).astype(np.uint8)):
+        for _ in range(50):
+            h, w = (int(v) for v in rng.integers(1, 50, 2))
+            bgr = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+            hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+            sat_tab = np.minimum(255, np.round(np.arange(256) * rng.uniform(1, 3))).astype(
+                np.uint8)
+            v_min = int(rng.integers(0, 120))
+            want = table[hsv[..., 0], cv2.LUT(hsv[..., 1], sat_tab)]
+            want[hsv[..., 2] < v_min] = 0
+            got = gated_likelihood(table, hsv, sat_tab, v_min)
+            assert got.dtype == table.dtype
+            assert np.allclose(got, want, rtol=1e-6, atol=1e-9)
+    with pytest.raises(IndexError):
+        gated_likelihood(np.zeros((10, 256), np.float32), hsv, sat_tab, 0)
+
+
+def test_clipped_outside_is_numpys_test():
+    rng = np.random.default_rng(6)
+    hits = 0
+    for _ in range(400):
+        h, w = (int(v) for v in rng.integers(1, 30, 2))
+        frame = rng.integers(200, 256, (h + 2, w + 2, 3), dtype=np.uint8)
+        bgr = frame[1:-1, 1:-1]                 # a window of the frame
+        weak = (rng.random((h, w)) < 0.5).astype(np.uint8)
+        near = (rng.random((h, w)) < rng.random()).astype(np.uint8)
+        want = bool(((weak > 0) & (bgr[..., 2] >= 250) & (bgr[..., 1] < bgr[..., 2])
+                     & (near == 0)).any())
+        assert clipped_outside(bgr, weak, near) == want
+        hits += want
+    assert 50 < hits < 350

@@ -1,9 +1,10 @@
 """Compiled helpers of the colour detector's blob measurement (numba).
 
-Each orange blob of a frame has its face's convex hull taken and a few medians of its
-pixels' brightness; a busy real frame measures 10-16 blobs.  Done on all of a blob's pixels
-(``cv2.findNonZero`` then ``cv2.convexHull``; ``np.median`` of a masked selection), these
-cost 40-90 us each; the kernels here give the same results from less:
+Each orange blob of a frame has its face's likelihood looked up, its convex hull taken and
+a few medians of its pixels' brightness; a busy real frame measures 10-16 blobs.  Done on
+all of a blob's pixels in numpy and OpenCV (``cv2.findNonZero`` then ``cv2.convexHull``;
+``np.median`` of a masked selection), these cost 20-90 us each; the kernels here give the
+same results from less:
 
 * :func:`hull_points`: the pixels that can lie on a mask's convex hull (each row's first
   and last pixel, every pixel of the first and last rows), in ``cv2.findNonZero``'s form
@@ -11,16 +12,21 @@ cost 40-90 us each; the kernels here give the same results from less:
   vertical hull edge is its row's first or last; a horizontal edge is the first or last
   row), so ``cv2.convexHull`` of them is the hull of all the pixels;
 * :func:`masked_median_u8`: np.median of the uint8 values under a mask, by their
-  histogram (the middle value, or the mean of the middle two, in float64 as np.median's).
+  histogram (the middle value, or the mean of the middle two, in float64 as np.median's);
+* :func:`gated_likelihood`: a colour table's likelihood of a window's HSV pixels, its
+  saturation through the frame's table and its brightness floor in the same pass (numpy
+  made three);
+* :func:`clipped_outside`: whether a face has pixels of clipped red it does not hold yet
+  (most have none; numpy built four masks of the window to say so).
 
-``test/core/test_blob_kernels.py`` checks both against OpenCV and numpy.
+``test/core/test_blob_kernels.py`` checks each against OpenCV and numpy.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-__all__ = ['hull_points', 'masked_median_u8', 'warm']
+__all__ = ['hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside', 'warm']
 
 
 @njit(cache=True)
@@ -98,6 +104,37 @@ def masked_median_u8(values: np.ndarray, mask: np.ndarray) -> float:
     return (np.float64(lo) + np.float64(hi)) / 2.0
 
 
+@njit(cache=True)
+def gated_likelihood(table: np.ndarray, hsv: np.ndarray, sat_tab: np.ndarray, v_min: int
+                     ) -> np.ndarray:
+    """``table[hue, sat_tab[sat]]`` of each pixel of a (h, w, 3) uint8 HSV image, 0 where its
+    value is below ``v_min``: a colour table's likelihood (its dtype) with the frame's
+    saturation table (``cv2.LUT``'s) and the table's brightness floor."""
+    h, w = hsv.shape[:2]
+    nh, ns = table.shape
+    out = np.empty((h, w), table.dtype)
+    for y in range(h):
+        for x in range(w):
+            hue, sat = hsv[y, x, 0], sat_tab[hsv[y, x, 1]]
+            if hue >= nh or sat >= ns:
+                raise IndexError('gated_likelihood: a hue or saturation past the table')
+            out[y, x] = table[hue, sat] if hsv[y, x, 2] >= v_min else 0
+    return out
+
+
+@njit(cache=True)
+def clipped_outside(bgr: np.ndarray, weak: np.ndarray, near: np.ndarray) -> bool:
+    """Whether any pixel of a (h, w, 3) uint8 BGR window is of ``weak`` likelihood (non-zero)
+    with its red clipped (250 or more, above its green) and not in ``near`` (zero)."""
+    h, w = weak.shape
+    for y in range(h):
+        for x in range(w):
+            r = bgr[y, x, 2]
+            if weak[y, x] and near[y, x] == 0 and r >= 250 and bgr[y, x, 1] < r:
+                return True
+    return False
+
+
 def warm() -> None:
     """Compile (or load from the cache) the kernels for the types the detector passes."""
     mask = np.zeros((6, 6), np.uint8)
@@ -108,3 +145,9 @@ def warm() -> None:
     for values in (hsv[..., 2], np.zeros((6, 6), np.uint8), np.zeros((6, 8), np.uint8)[:, 1:7]):
         masked_median_u8(values, mask)
         masked_median_u8(values, mask > 0)
+    bgr = np.zeros((8, 8, 3), np.uint8)
+    win = bgr[1:7, 1:7]                            # (a window of the frame)
+    ident = np.arange(256, dtype=np.uint8)
+    for table in (np.zeros((180, 256), np.float32), np.zeros((180, 256), np.uint8)):
+        gated_likelihood(table, np.zeros((6, 6, 3), np.uint8), ident, 40)
+    clipped_outside(win, mask, mask)

@@ -13,12 +13,15 @@ from typing import Optional
 import cv2
 import numpy as np
 
+from workzone_ros.core.blob_kernels import clipped_outside, gated_likelihood
 from workzone_ros.core.color_model import HSV_RANGES, apply_gains
 from workzone_ros.core.detect.candidates import Candidate
-from workzone_ros.core.detect.common import _lookup
 from workzone_ros.core.kernels import components_with_stats, flat_take, label_at_first_pixel
 
 __all__ = ['MaskMixin']
+
+#: the identity of uint8 values (the saturation table of a frame that needs none)
+_SAME = np.arange(256, dtype=np.uint8)
 
 
 def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound: float,
@@ -31,9 +34,11 @@ def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound
     the table rates it weak.  A connected part more than ``1 + bound`` times the core's
     width or height (plus 2 px) is left out (a surface of that colour, not the face).
     ``near``: pixels the face has already (nothing to do when they hold every clipped one)."""
-    clip = (weak > 0) & (bgr[..., 2] >= 250) & (bgr[..., 1] < bgr[..., 2])
     out = np.zeros(weak.shape, np.uint8)
-    if not (clip.any() if near is None else (clip & (near == 0)).any()):
+    if near is not None and not clipped_outside(bgr, weak, near):
+        return out                  # (compiled: most blobs have no such pixel)
+    clip = (weak > 0) & (bgr[..., 2] >= 250) & (bgr[..., 1] < bgr[..., 2])
+    if near is None and not clip.any():
         return out
     joined = (clip | (strong > 0)).astype(np.uint8)
     n, lab, st = components_with_stats(joined)
@@ -186,9 +191,9 @@ class MaskMixin:
         """The orange table's likelihood of each pixel of ``hsv`` (0 below its brightness
         floor)."""
         i = self._idx['orange']
-        like = _lookup(self.model.luts[i], hsv[..., 0], self._sat(hsv))
-        like[hsv[..., 2] < self.model.v_min[i]] = 0.0
-        return like
+        return gated_likelihood(self.model.luts[i], hsv,
+                                _SAME if self._sat_tab is None else self._sat_tab,
+                                int(self.model.v_min[i]))
 
     def _sat(self, hsv: np.ndarray) -> np.ndarray:
         """The saturation channel as the orange table sees it (frame-normalised)."""

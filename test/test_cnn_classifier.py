@@ -194,30 +194,6 @@ def test_bad_files_are_refused_with_one_line(model, tmp_path):
     md5['sha256'] = digest(fewer, md5)
     np.savez_compressed(tmp_path / 'fewer.npz', metadata=np.array(json.dumps(md5)), **fewer)
     _one_line_error(tmp_path / 'fewer.npz', 'malformed')
-    # a decision rule this build does not know
-    md6 = {**md, 'decision': 'vote'}
-    md6['sha256'] = digest(arrays, md6)
-    np.savez_compressed(tmp_path / 'vote.npz', metadata=np.array(json.dumps(md6)), **arrays)
-    _one_line_error(tmp_path / 'vote.npz', 'decision rule')
-
-
-def test_an_ensemble_is_one_network_of_the_mean_probability(model):
-    torch = pytest.importorskip('torch')
-    from workzone_ros.tools import train_cnn
-    torch.manual_seed(0)
-    nets = [train_cnn.build_net(len(model.classes)).eval() for _ in range(3)]
-    for net in nets:                            # trained-looking outputs, not all ~uniform
-        with torch.no_grad():
-            net[-1].weight.mul_(40.0)
-    md = {'input_size': 32}
-    members = [cnn.CnnSignClassifier(train_cnn.export(n, 32), model.classes, md) for n in nets]
-    ens = cnn.CnnSignClassifier(train_cnn.export(train_cnn.average(nets), 32), model.classes,
-                                md)
-    rng = np.random.default_rng(3)
-    crops = [sign_crop('road_work_ahead', rng), drum_crop(rng), sign_crop('stop', rng)]
-    mean = np.mean([m.predict_proba(crops) for m in members], axis=0)
-    assert np.allclose(ens.predict_proba(crops), mean, atol=1e-5)
-    assert not np.allclose(members[0].predict_proba(crops), mean, atol=1e-2)
 
 
 def test_trainer_without_torch_is_a_one_line_error(monkeypatch, capsys):
@@ -229,5 +205,3 @@ def test_trainer_without_torch_is_a_one_line_error(monkeypatch, capsys):
     assert train.main(['cnn', '--synth', '0', '--data', 'nowhere']) == 2
     err = capsys.readouterr().err.strip()
     assert '\n' not in err and 'pip install' in err and '[cnn]' in err
-    assert train.main(['cnn', '--ensemble', '0']) == 2
-    assert capsys.readouterr().err.count('--ensemble must be 1 or more') == 1

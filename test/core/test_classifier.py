@@ -200,28 +200,3 @@ def test_training_refuses_classes_without_crops():
 def test_default_model_path_is_under_config_models():
     assert cl.DEFAULT_MODEL.startswith('models/sign_classifier')
     assert ft.FEATURE_KINDS[0] == 'logpolar'
-
-
-def test_category_decision_keeps_a_sign_the_network_spreads_over_classes():
-    classes = ('background', 'road_work_ahead', 'other_workzone', 'stop', 'mystery')
-    proba = np.array([[0.40, 0.30, 0.30, 0.00, 0.00],    # work-zone mass 0.6 beats background
-                      [0.50, 0.25, 0.20, 0.05, 0.00],    # background holds the most
-                      [0.20, 0.25, 0.20, 0.35, 0.00],    # work-zone 0.45 beats stop's 0.35
-                      [0.10, 0.20, 0.20, 0.05, 0.45]])   # a class outside the catalogue
-    assert cl.decide(proba, classes).tolist() == [0, 0, 3, 4]
-    assert cl.decide(proba, classes, 'category').tolist() == [1, 0, 1, 4]
-    with pytest.raises(ValueError, match='unknown decision rule'):
-        cl.decide(proba, classes, 'vote')
-
-
-def test_a_model_names_its_decision_rule(model):
-    crops = [np.full((40, 40, 3), 128, np.uint8)]
-    argmax = cl.SignClassifier(model.classes, model.arrays, model.metadata)
-    category = cl.SignClassifier(model.classes, model.arrays,
-                                 {**model.metadata, 'decision': 'category'})
-    proba = argmax.predict_proba(crops)
-    assert argmax.classify(crops)[0].class_key == model.classes[int(proba.argmax())]
-    want = cl.decide(proba, model.classes, 'category')[0]
-    assert category.classify(crops)[0].class_key == model.classes[want]
-    with pytest.raises(ValueError, match="unknown decision rule 'vote'"):
-        cl.SignClassifier(model.classes, model.arrays, {**model.metadata, 'decision': 'vote'})

@@ -30,12 +30,10 @@ from typing import Callable, Mapping, Optional, Sequence
 import numpy as np
 
 from workzone_ros.core import features as ft
-from workzone_ros.core import signs
 from workzone_ros.core.model_files import check_header, one_line, read_npz, write_npz
 
 __all__ = [
-    'SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'METHODS', 'DECISIONS', 'ModelError', 'Prediction',
-    'decide',
+    'SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'METHODS', 'ModelError', 'Prediction',
     'SignClassifier', 'fit', 'fit_arrays', 'load_model', 'save_model', 'couple_pairwise',
 ]
 
@@ -48,11 +46,6 @@ METHODS = ('svm', 'lda', 'knn')
 GAMMA_FACTORS = (0.25, 0.5, 1.0, 2.0, 4.0)
 C_VALUES = (1.0, 10.0, 100.0, 1000.0)
 _MIN_PROB = 1e-7                      # libsvm's clip of the pairwise probabilities
-
-
-#: How a model turns probabilities into a class (its metadata's ``decision``; see
-#: :func:`decide`).
-DECISIONS = ('argmax', 'category')
 
 
 class ModelError(ValueError):
@@ -117,35 +110,6 @@ def _softmax(z: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=1, keepdims=True)
 
 
-def decide(proba: np.ndarray, classes: Sequence[str], rule: str = 'argmax') -> np.ndarray:
-    """The class index of each row of ``proba`` (``(n, len(classes))``) under ``rule``.
-
-    ``argmax``: the most probable class.  ``category``: first the category (``workzone``,
-    ``general``, ``background``, of ``signs.CATALOGUE``; a class outside it is a category of
-    its own) whose classes hold the most probability together, then its most probable class.
-    A work-zone sign the network spreads over several work-zone classes (a legend it has not
-    seen) is then still a work-zone sign and not the background that beat each class alone.
-
-    Raises:
-        ValueError: an unknown rule.
-    """
-    check_decision({'decision': rule})
-    if rule == 'argmax':
-        return proba.argmax(axis=1)
-    cats = [signs.BY_KEY[c].category if c in signs.BY_KEY else c for c in classes]
-    names = sorted(set(cats))
-    member = np.array([[c == n for c in cats] for n in names], float)     # (categories, k)
-    cat = (proba @ member.T).argmax(axis=1)
-    return np.where(member[cat] > 0, proba, -1.0).argmax(axis=1)
-
-
-def check_decision(metadata: Mapping) -> None:
-    """Raise ``ValueError`` when the metadata names a decision rule this build does not know."""
-    rule = metadata.get('decision', 'argmax')
-    if rule not in DECISIONS:
-        raise ValueError(f'unknown decision rule {rule!r} (known: {", ".join(DECISIONS)})')
-
-
 class SignClassifier:
     """A trained classifier rebuilt from arrays; see :func:`fit` and :func:`load_model`.
 
@@ -166,7 +130,6 @@ class SignClassifier:
         self.margin: float = float(self.metadata.get('margin', 0.1))
         if self.method not in METHODS:
             raise ValueError(f'unknown method {self.method!r}')
-        check_decision(self.metadata)
         ft._parts(self.features)
         self._check_shapes()
         if self.method == 'svm':
@@ -261,9 +224,10 @@ class SignClassifier:
         return self.predict_proba_reduced(self.transform(crops))
 
     def _predictions(self, proba: np.ndarray) -> list[Prediction]:
-        best = decide(proba, self.classes, self.metadata.get('decision', 'argmax'))
-        return [Prediction(self.classes[b], row[b], dict(zip(self.classes, row)))
-                for b, row in zip(best.tolist(), proba.tolist())]
+        out = []
+        for best, row in zip(proba.argmax(axis=1).tolist(), proba.tolist()):
+            out.append(Prediction(self.classes[best], row[best], dict(zip(self.classes, row))))
+        return out
 
     def classify(self, crops: Sequence[np.ndarray]) -> list[Prediction]:
         """Classify BGR ``uint8`` crops in one batch."""

@@ -37,11 +37,11 @@ import cv2
 import numpy as np
 
 from workzone_ros.core import classifier as _svm
-from workzone_ros.core.classifier import DECISIONS, ModelError, Prediction
+from workzone_ros.core.classifier import ModelError, Prediction
 from workzone_ros.core.features import _square
 from workzone_ros.core.model_files import check_header, one_line, write_npz
 
-__all__ = ['SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'DECISIONS', 'CnnSignClassifier', 'ModelError',
+__all__ = ['SCHEMA', 'VERSION', 'DEFAULT_MODEL', 'CnnSignClassifier', 'ModelError',
            'Prediction', 'preprocess', 'save_model', 'load_model', 'from_contents']
 
 SCHEMA = 'workzone_ros/SignClassifierCNN'
@@ -129,7 +129,6 @@ class CnnSignClassifier:
                              f'{self.temperature} out of range')
         if len(self.classes) < 2:
             raise ValueError('fewer than two classes')
-        _svm.check_decision(self.metadata)
         try:
             self._net = cv2.dnn.readNetFromONNX(buf)
         except cv2.error as exc:

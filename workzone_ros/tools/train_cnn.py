@@ -71,7 +71,7 @@ import math
 import sys
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Sequence
 
@@ -245,24 +245,6 @@ def build_net(n_classes: int, width: int = 8, dropout: float = 0.2):
                          nn.Linear(8 * w, n_classes))
 
 
-def average(nets):
-    """One network of several trained ones: its outputs are the log of the mean of their class
-    probabilities, so the softmax the classifier applies gives that mean (an ensemble,
-    exported and run as one ONNX graph)."""
-    import torch
-
-    class MeanProbability(torch.nn.Module):
-        def __init__(self, members):
-            super().__init__()
-            self.members = torch.nn.ModuleList(members)
-
-        def forward(self, x):
-            p = torch.stack([torch.softmax(m(x), dim=1) for m in self.members]).mean(0)
-            return torch.log(p.clamp_min(1e-12))
-
-    return MeanProbability(nets).eval()
-
-
 def macs(width: int, size: int, n_classes: int) -> int:
     """Multiply-accumulates of one crop through :func:`build_net`."""
     chans = [3, width, 2 * width, 4 * width, 8 * width]
@@ -400,26 +382,6 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
     return net, {'epochs': epochs, 'minutes': round((time.monotonic() - t0) / 60, 2)}
 
 
-def train_members(sample: Sample, labels: Sequence[str], classes: Sequence[str],
-                  cfg: TrainConfig, members: int = 1, progress=_say):
-    """:func:`train` ``members`` times (seeds ``cfg.seed``, ``cfg.seed + 1``, ...) and
-    :func:`average` them; one network and its run figures when ``members`` is 1."""
-    if members < 1:
-        raise ValueError(f'an ensemble of {members} networks')
-    nets, runs = [], []
-    for k in range(members):
-        if members > 1:
-            progress(f'network {k + 1} of {members} (seed {cfg.seed + k})')
-        net, run = train(sample, labels, classes, replace(cfg, seed=cfg.seed + k), progress)
-        nets.append(net)
-        runs.append(run)
-    if members == 1:
-        return nets[0], runs[0]
-    return average(nets), {'epochs': [r['epochs'] for r in runs],
-                           'minutes': round(sum(r['minutes'] for r in runs), 2),
-                           'ensemble_seeds': [cfg.seed + k for k in range(members)]}
-
-
 def export(net, input_size: int) -> bytes:
     """The network as ONNX bytes (batch dimension dynamic), BatchNorm folded."""
     import torch
@@ -541,14 +503,6 @@ def _parser() -> argparse.ArgumentParser:
                    help='time budget: fewer epochs when one epoch says it would not fit '
                         f'(default {d.max_minutes:g})')
     p.add_argument('--seed', type=int, default=0, help='training seed')
-    p.add_argument('--ensemble', type=int, default=1, metavar='K',
-                   help='train K networks (seeds --seed, --seed + 1, ...) and store the mean '
-                        'of their probabilities as one network: steadier on an unfamiliar '
-                        'camera, at K times the classification cost (default 1)')
-    p.add_argument('--decision', choices=cnn.DECISIONS, default='argmax',
-                   help='how the model names a class (stored in it): the most probable class, '
-                        'or first the category (work-zone, general, background) holding the '
-                        'most probability, then its most probable class (default argmax)')
     p.add_argument('--holdout-split', type=int, default=None, metavar='K',
                    help="train on split K's training part of the rendered crops (evaluate "
                         "classifier's Table III splits) and report on its test part")
@@ -659,14 +613,12 @@ def _model_metadata(args: argparse.Namespace, cfg: TrainConfig, net, run: dict,
                           'held_out_render_crops': len(data.test)}
     md = {'input_size': cfg.input_size, 'normalise': 'per_crop', 'channels': 'bgr',
           'margin': RUN_MARGIN, 'square_crops': True, 'temperature': 1.0,
-          'method': 'cnn', 'features': 'cnn', 'decision': args.decision,
-          'architecture': {'ensemble': args.ensemble,
-                           'blocks': [cfg.width * m for m in (1, 2, 4, 8)], 'conv': '3x3',
+          'method': 'cnn', 'features': 'cnn',
+          'architecture': {'blocks': [cfg.width * m for m in (1, 2, 4, 8)], 'conv': '3x3',
                            'norm': 'batch (folded)', 'pool': 'max 2x2 between blocks',
                            'head': 'global average, dropout, linear',
                            'parameters': int(sum(q.numel() for q in net.parameters())),
-                           'macs_per_crop': args.ensemble * macs(cfg.width, cfg.input_size,
-                                                                 len(classes))},
+                           'macs_per_crop': macs(cfg.width, cfg.input_size, len(classes))},
           'training': {**{k: getattr(cfg, k) for k in (
               'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
               'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
@@ -715,9 +667,6 @@ def main(argv: Optional[list[str]] = None) -> int:
     """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
     args = _parser().parse_args(argv)
     prog = 'workzone-ros train cnn'
-    if args.ensemble < 1:
-        print(f'{prog}: --ensemble must be 1 or more, not {args.ensemble}', file=sys.stderr)
-        return 2
     if not _have_torch(prog):
         return 2
     try:
@@ -731,7 +680,7 @@ def main(argv: Optional[list[str]] = None) -> int:
          f'{macs(cfg.width, cfg.input_size, len(classes)) / 1e6:.2f} M MAC per crop) on '
          f'{len(train_set.data)} crops ({len(data.real.data)} real), {len(classes)} classes: '
          + ', '.join(f'{k} {v}' for k, v in sorted(train_set.data.counts().items())))
-    net, run = train_members(train_set, data.labels, classes, cfg, args.ensemble)
+    net, run = train(train_set, data.labels, classes, cfg)
     md = _model_metadata(args, cfg, net, run, data)
     model = cnn.CnnSignClassifier(export(net, cfg.input_size), classes, md)
     probe = train_set.data.crops[:64]

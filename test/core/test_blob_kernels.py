@@ -6,10 +6,14 @@ import numpy as np
 import pytest
 
 from workzone_ros.core.blob_kernels import (
+    blur_rings,
+    chessboard_distance,
     clipped_outside,
     gated_likelihood,
     hull_points,
     masked_median_u8,
+    mean32,
+    pairwise_sum32,
 )
 
 
@@ -111,3 +115,39 @@ def test_clipped_outside_is_numpys_test():
         assert clipped_outside(bgr, weak, near) == want
         hits += want
     assert 50 < hits < 350
+
+
+def test_mean32_is_np_mean_of_float32():
+    rng = np.random.default_rng(8)
+    for i in range(600):
+        n = int(rng.integers(1, 3000)) if i % 4 == 0 else int(rng.integers(1, 300))
+        a = (rng.random(n + 5) * rng.uniform(1e-3, 300)).astype(np.float32)
+        got = mean32(a, 3, n)
+        assert np.allclose(got, a[3:3 + n].mean(), rtol=1e-6, atol=1e-9)
+        assert np.allclose(pairwise_sum32(a, 3, n), np.add.reduce(a[3:3 + n]), rtol=1e-6,
+                           atol=1e-9)
+
+
+def test_chessboard_distance_and_blur_rings_are_dilations():
+    rng = np.random.default_rng(10)
+    k3 = np.ones((3, 3), np.uint8)
+    counts = set()
+    for m in _masks(600, seed=2):
+        like = rng.random(m.shape).astype(np.float32) * rng.uniform(0.2, 1.0)
+        like[m > 0] = 1.0
+        cap = int(rng.integers(1, 12))
+        d = chessboard_distance(m, cap)
+        # the rings of repeated dilations (numpy's loop) and the distances
+        prev, blur, level = m, None, float(rng.uniform(0.05, 0.5))
+        for k in range(1, cap + 1):
+            nxt = cv2.dilate(prev, k3)
+            ring = (nxt > 0) & (prev == 0)
+            assert (ring == (d == k)).all()
+            if blur is None and (not ring.any() or float(like[ring].mean()) < level):
+                blur = k - 1
+            prev = nxt
+        assert ((d > cap) == (prev == 0)).all() and (d <= cap + 1).all()
+        blur = cap if blur is None else blur
+        assert blur_rings(m, like, level, cap) == blur
+        counts.add(blur)
+    assert len(counts) > 4

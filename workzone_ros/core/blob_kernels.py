@@ -17,7 +17,12 @@ same results from less:
   saturation through the frame's table and its brightness floor in the same pass (numpy
   made three);
 * :func:`clipped_outside`: whether a face has pixels of clipped red it does not hold yet
-  (most have none; numpy built four masks of the window to say so).
+  (most have none; numpy built four masks of the window to say so);
+* :func:`blur_rings`: how many 1-px rings around a face's hull show its colour blended
+  with the background: the rings of repeated 3 x 3 dilations are those of the chessboard
+  distance (:func:`chessboard_distance`, one pass each way), each ring's mean likelihood
+  as np.mean takes it of float32 values (:func:`mean32`: numpy's pairwise sum in float32,
+  divided in float64 and rounded to float32).
 
 ``test/core/test_blob_kernels.py`` checks each against OpenCV and numpy.
 """
@@ -26,7 +31,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ['hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside', 'warm']
+__all__ = ['hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside',
+           'pairwise_sum32', 'mean32', 'chessboard_distance', 'blur_rings', 'warm']
 
 
 @njit(cache=True)
@@ -135,6 +141,105 @@ def clipped_outside(bgr: np.ndarray, weak: np.ndarray, near: np.ndarray) -> bool
     return False
 
 
+@njit(cache=True)
+def pairwise_sum32(a: np.ndarray, lo: int, n: int) -> np.float32:
+    """``np.add.reduce`` of float32 ``a[lo:lo + n]``: numpy's pairwise summation in float32
+    (fewer than 8 values in turn from -0.0; up to 128 in eight interleaved partial sums
+    combined as a tree, the rest after them in turn; more: the two halves, split at a
+    multiple of 8)."""
+    if n < 8:
+        res = np.float32(-0.0)
+        for i in range(n):
+            res += a[lo + i]
+        return res
+    if n <= 128:
+        r = a[lo:lo + 8].copy()
+        i = 8
+        while i < n - (n % 8):
+            for j in range(8):
+                r[j] += a[lo + i + j]
+            i += 8
+        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+        while i < n:
+            res += a[lo + i]
+            i += 1
+        return res
+    n2 = n // 2
+    n2 -= n2 % 8
+    return pairwise_sum32(a, lo, n2) + pairwise_sum32(a, lo + n2, n - n2)
+
+
+@njit(cache=True)
+def mean32(a: np.ndarray, lo: int, n: int) -> np.float32:
+    """``a[lo:lo + n].mean()`` of float32 values (n > 0) as numpy takes it: the float32 sum
+    from zero (:func:`pairwise_sum32`), divided by the count in float64, rounded to
+    float32."""
+    s = np.float32(0.0) + pairwise_sum32(a, lo, n)
+    return np.float32(np.float64(s) / np.float64(n))
+
+
+@njit(cache=True)
+def chessboard_distance(mask: np.ndarray, cap: int) -> np.ndarray:
+    """Each pixel's chessboard (8-neighbour) distance in pixels to the nearest non-zero pixel
+    of ``mask`` within the image, at most ``cap + 1`` (int32; two raster passes, exact)."""
+    h, w = mask.shape
+    far = cap + 1
+    d = np.empty((h, w), np.int32)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                d[y, x] = 0
+                continue
+            v = far
+            if x > 0:
+                v = min(v, d[y, x - 1] + 1)
+            if y > 0:
+                for xx in range(max(x - 1, 0), min(x + 2, w)):
+                    v = min(v, d[y - 1, xx] + 1)
+            d[y, x] = v
+    for y in range(h - 1, -1, -1):
+        for x in range(w - 1, -1, -1):
+            v = d[y, x]
+            if x < w - 1:
+                v = min(v, d[y, x + 1] + 1)
+            if y < h - 1:
+                for xx in range(max(x - 1, 0), min(x + 2, w)):
+                    v = min(v, d[y + 1, xx] + 1)
+            d[y, x] = v
+    return d
+
+
+@njit(cache=True)
+def blur_rings(mask: np.ndarray, like: np.ndarray, level: float, max_rings: int) -> int:
+    """How many of the 1-px rings around ``mask`` (the pixels each further 3 x 3 dilation
+    adds, as ``cv2.dilate`` grows it inside the image), in turn from the innermost, have a
+    mean of the float32 ``like`` (np.mean's) of at least ``level``: the count before the
+    first empty ring, the first below ``level``, or ``max_rings``."""
+    h, w = mask.shape
+    d = chessboard_distance(mask, max_rings)
+    # each ring's values in row-major order (as ``like[ring]`` gathers them)
+    start = np.zeros(max_rings + 2, np.int64)
+    for y in range(h):
+        for x in range(w):
+            if 0 < d[y, x] <= max_rings:
+                start[d[y, x] + 1] += 1
+    for k in range(1, max_rings + 2):
+        start[k] += start[k - 1]
+    vals = np.empty(start[max_rings + 1], np.float32)
+    fill = start.copy()
+    for y in range(h):
+        for x in range(w):
+            k = d[y, x]
+            if 0 < k <= max_rings:
+                vals[fill[k]] = like[y, x]
+                fill[k] += 1
+    for k in range(1, max_rings + 1):
+        n = start[k + 1] - start[k]
+        if n == 0 or np.float64(mean32(vals, start[k], n)) < level:
+            return k - 1
+    return max_rings
+
+
 def warm() -> None:
     """Compile (or load from the cache) the kernels for the types the detector passes."""
     mask = np.zeros((6, 6), np.uint8)
@@ -151,3 +256,4 @@ def warm() -> None:
     for table in (np.zeros((180, 256), np.float32), np.zeros((180, 256), np.uint8)):
         gated_likelihood(table, np.zeros((6, 6, 3), np.uint8), ident, 40)
     clipped_outside(win, mask, mask)
+    blur_rings(mask, np.zeros((6, 6), np.float32), 0.1, 3)

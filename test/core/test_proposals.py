@@ -71,6 +71,19 @@ def test_a_sign_in_front_of_its_own_colour_is_separated(proposer):
     assert _best_iou(props, box) >= 0.5
 
 
+def test_a_saturated_sign_before_duller_foliage_as_bright_is_separated():
+    img = _road()
+    foliage = cv2.cvtColor(np.uint8([[[12, 140, 190]]]), cv2.COLOR_HSV2BGR)[0, 0]
+    noise = np.random.default_rng(1).normal(0, 8, (120, 200, 3))
+    img[100:220, 450:650] = np.clip(foliage + noise, 0, 255).astype(np.uint8)   # autumn tree
+    img[160:182, 560:600] = (0, 110, 255)      # a small sign, as bright, far more saturated
+    box = (560, 160, 40, 22)
+    model = cm.load_model(config_path('models/color_proposals.npz'))
+    found = SignProposer(model).propose(img)
+    brightness_only = SignProposer(model, ProposalConfig(saturation_edges=False)).propose(img)
+    assert _best_iou(found, box) >= 0.5 > _best_iou(brightness_only, box)
+
+
 def test_the_work_per_frame_is_bounded():
     model = cm.load_model(config_path('models/color_proposals.npz'))
     prop = SignProposer(model, ProposalConfig(max_candidates=5))

@@ -15,9 +15,10 @@ One frame costs a fixed amount of work:
 2. four masks are cut from it: ``P >= threshold`` (recall) closed with a 3x3 kernel; the
    same closed with a ``join`` kernel, so that a face broken into pieces by a large legend
    (arrows, two lines of text) is one candidate again; ``P >= strong`` (the sign's saturated
-   face alone); and the recall mask with the image's edges removed (Canny), so that a sign's
-   border separates it from a same-coloured barrier or drum behind it.  Each is split into
-   connected components;
+   face alone); and the recall mask with the image's edges removed (Canny of the brightness
+   and of the saturation), so that a sign's border separates it from a same-coloured
+   barrier or drum behind it, or from autumn foliage as bright as the sign but duller.  Each
+   is split into connected components;
 3. a component is a candidate when its box is at least ``min_size`` px, not more elongated
    than ``max_aspect``, fills at least ``min_fill`` of its box and covers at most
    ``max_area`` of the frame; components touching the frame edge are kept (a sign cut by
@@ -69,6 +70,9 @@ class ProposalConfig:
     max_candidates: int = 12
     #: Cut the recall mask along Canny edges as a further level.
     edge_split: bool = True
+    #: The edges that cut it include the saturation's, not only the brightness's: a sign's
+    #: saturated face against dull orange foliage or brick of the same brightness.
+    saturation_edges: bool = True
     #: Closing kernel (shrunk-frame pixels) of the level that joins a face broken by its
     #: legend; 3 or less turns that level off.
     join: int = 7
@@ -110,6 +114,9 @@ class Proposal:
 
 
 _K3 = np.ones((3, 3), np.uint8)
+#: Canny's hysteresis thresholds on the saturation (0-255) where it cuts the edge level: a
+#: sign's face is tens of levels more saturated than the foliage or brick around it.
+_SATURATION_CANNY = (40, 100)
 
 #: The candidate measurements the ranker weighs (all on the shrunk frame).
 FEATURES = ('mean_p', 'fill', 'log_size', 'log_aspect', 'edge_touch', 'centre_row',
@@ -163,7 +170,8 @@ class SignProposer:
             interpolation=cv2.INTER_AREA)
 
     def masks(self, prob: np.ndarray, edges: np.ndarray) -> list[np.ndarray]:
-        """The candidate masks of one frame (module docstring, step 2)."""
+        """The candidate masks of one frame (module docstring, step 2); ``edges``: where the
+        edge level cuts."""
         c = self.config
         low = cv2.morphologyEx((prob >= c.threshold).astype(np.uint8), cv2.MORPH_CLOSE, _K3)
         out = [low]
@@ -186,8 +194,11 @@ class SignProposer:
         prob = self.model.lookup(hsv, self.color)                # the model's likelihood
         edges = cv2.Canny(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), 60, 150)
         maps = _Maps(prob, hsv, edges)
+        cut = edges
+        if self.config.edge_split and self.config.saturation_edges:
+            cut = edges | cv2.Canny(np.ascontiguousarray(hsv[..., 1]), *_SATURATION_CANNY)
         boxes, rows = [], []
-        for mask in self.masks(prob, edges):
+        for mask in self.masks(prob, cut):
             b, f = self._components(mask, maps)
             boxes += b
             rows.append(f)

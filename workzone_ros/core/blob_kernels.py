@@ -142,31 +142,59 @@ def clipped_outside(bgr: np.ndarray, weak: np.ndarray, near: np.ndarray) -> bool
 
 
 @njit(cache=True)
-def pairwise_sum32(a: np.ndarray, lo: int, n: int) -> np.float32:
-    """``np.add.reduce`` of float32 ``a[lo:lo + n]``: numpy's pairwise summation in float32
-    (fewer than 8 values in turn from -0.0; up to 128 in eight interleaved partial sums
-    combined as a tree, the rest after them in turn; more: the two halves, split at a
-    multiple of 8)."""
+def _block_sum32(a: np.ndarray, lo: int, n: int) -> np.float32:
+    """numpy's float32 sum of at most 128 values ``a[lo:lo + n]``: fewer than 8 in turn from
+    -0.0; else in eight interleaved partial sums combined as a tree, the rest after them in
+    turn."""
     if n < 8:
         res = np.float32(-0.0)
         for i in range(n):
             res += a[lo + i]
         return res
+    r = a[lo:lo + 8].copy()
+    i = 8
+    while i < n - (n % 8):
+        for j in range(8):
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+@njit(cache=True)
+def pairwise_sum32(a: np.ndarray, lo: int, n: int) -> np.float32:
+    """``np.add.reduce`` of float32 ``a[lo:lo + n]``: numpy's pairwise summation in float32,
+    blocks of up to 128 values (:func:`_block_sum32`) summed as the two halves of each longer
+    range (split at a multiple of 8), left + right.  (numpy recurses; here an explicit stack
+    does, a cached recursive kernel being unsafe to load in numba.)"""
     if n <= 128:
-        r = a[lo:lo + 8].copy()
-        i = 8
-        while i < n - (n % 8):
-            for j in range(8):
-                r[j] += a[lo + i + j]
-            i += 8
-        res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
-        while i < n:
-            res += a[lo + i]
-            i += 1
-        return res
-    n2 = n // 2
-    n2 -= n2 % 8
-    return pairwise_sum32(a, lo, n2) + pairwise_sum32(a, lo + n2, n - n2)
+        return _block_sum32(a, lo, n)
+    # ranges to sum (start, length, 1: a marker to add the last two sums) and the sums
+    todo = np.empty((200, 3), np.int64)
+    sums = np.empty(100, np.float32)
+    todo[0, 0], todo[0, 1], todo[0, 2] = lo, n, 0
+    t, k = 1, 0
+    while t > 0:
+        t -= 1
+        start, m, add = todo[t, 0], todo[t, 1], todo[t, 2]
+        if add:
+            sums[k - 2] = sums[k - 2] + sums[k - 1]
+            k -= 1
+        elif m <= 128:
+            sums[k] = _block_sum32(a, start, m)
+            k += 1
+        else:
+            half = m // 2
+            half -= half % 8
+            # (a stack: the last pushed is summed first)
+            todo[t, 0], todo[t, 1], todo[t, 2] = start, m, 1
+            todo[t + 1, 0], todo[t + 1, 1], todo[t + 1, 2] = start + half, m - half, 0
+            todo[t + 2, 0], todo[t + 2, 1], todo[t + 2, 2] = start, half, 0
+            t += 3
+    return sums[0]
 
 
 @njit(cache=True)

@@ -125,6 +125,7 @@ def diamond_round(img: np.ndarray, cx: float, cy: float, a: float, b: float,
 def warm() -> None:
     """Compile (or load from the cache) the kernels for the types the detector passes."""
     from workzone_ros.core.detect.diamond import _ALL_SHOWN, _EDGE_FROM, _EDGE_TO
+    diamond_frame(20.0, 20.0, 10.0, 10.0)
     img = np.zeros((40, 40), np.float32)
     u = np.arange(-1.0, 1.01, 0.25)
     valid = np.array([True, False])

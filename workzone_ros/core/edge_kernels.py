@@ -7,8 +7,9 @@ every model of the edge-offset x blur grid, the best model's offset.  In numpy t
 dozen array passes over some 10,000 sample points and two BLAS products per call, about
 0.2 ms, and a busy real frame makes some thirty calls.  :func:`edge_fit` does the same
 without the intermediate arrays, with the same arithmetic in the same order, stretch by
-stretch (it stops once more stretches show no step than its caller accepts: most calls on
-a busy frame fail so after three or four of their eight):
+stretch (it stops once more stretches show no step than its caller accepts: on a busy
+frame more than half of a diamond's refinement rounds fail so, half of those after three of
+their eight stretches):
 
 * the sample points as numpy's broadcast sums (float64, then float32);
 * the bilinear samples as ``cv2.remap`` (``INTER_LINEAR``, a constant zero border) computes
@@ -281,6 +282,9 @@ def warm() -> None:
     valid = np.array([True, False])
     vt, inv, models = valid_models(np.zeros((6, u.size)), np.zeros((2, 3, 3)), valid)
     n = 1
-    edge_fit(img, segs, nvecs, u, ts, vt, inv, models, valid, 0.25,
-             np.arange(2, dtype=np.float32), np.ones(1, np.float32), np.empty(n),
-             np.empty(n, np.int64), np.empty(n), np.empty((n, 2)), n)
+    fixed = ts.copy()
+    fixed.flags.writeable = False       # (the sample positions the detector caches)
+    for steps in (ts, fixed):
+        edge_fit(img, segs, nvecs, u, steps, vt, inv, models, valid, 0.25,
+                 np.arange(2, dtype=np.float32), np.ones(1, np.float32), np.empty(n),
+                 np.empty(n, np.int64), np.empty(n), np.empty((n, 2)), n)

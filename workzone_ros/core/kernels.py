@@ -693,7 +693,8 @@ def warm() -> None:
     """Compile (or load from the cache) every kernel for the types the detector passes:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
     waits for the compiler."""
-    # (the chroma fit's solver and the edge measurement: their own modules)
+    # (the chroma fit's solver, the edge measurement, the blob helpers and the diamond's
+    # rounds: their own modules)
     from workzone_ros.core import blob_kernels, chroma_fit, diamond_kernels, edge_kernels
     chroma_fit.warm()
     edge_kernels.warm()
@@ -717,6 +718,7 @@ def warm() -> None:
     labels = np.zeros((4, 4), np.int32)
     label_at_first_pixel(labels, 1, labels)
     label_stats(labels, 1, np.zeros((4, 4), np.uint8))
+    label_stats(labels, 1, np.zeros((4, 5), np.uint8)[:, 1:])      # (a mask's window)
     flat_take(np.zeros(180 * 256, np.uint8), np.zeros((4, 4), np.uint16))
     hsv = np.zeros((4, 4, 3), np.uint8)
     for table in (np.zeros((180, 256), np.float32), np.zeros((180, 256), np.uint8)):

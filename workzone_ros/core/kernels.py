@@ -693,10 +693,17 @@ def warm() -> None:
     """Compile (or load from the cache) every kernel for the types the detector passes:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
     waits for the compiler."""
-    # (the chroma fit's solver, the edge measurement, the blob helpers and the diamond's
-    # rounds: their own modules)
-    from workzone_ros.core import blob_kernels, chroma_fit, diamond_kernels, edge_kernels
+    # (the chroma fit's solver, the edge measurement, the blob helpers, the diamond's
+    # rounds and the band tests' row profiles: their own modules)
+    from workzone_ros.core import (
+        blob_kernels,
+        chroma_fit,
+        diamond_kernels,
+        edge_kernels,
+        profile_kernels,
+    )
     chroma_fit.warm()
+    profile_kernels.warm()
     edge_kernels.warm()
     blob_kernels.warm()
     diamond_kernels.warm()

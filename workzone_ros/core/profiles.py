@@ -11,6 +11,8 @@ from typing import Optional
 
 import numpy as np
 
+from workzone_ros.core.profile_kernels import banded_kernel, row_share_at_least, taper_kernel
+
 __all__ = ['row_extents', 'row_taper', 'open_background_rows', 'white_cap', 'banded_rows']
 
 
@@ -35,16 +37,7 @@ def row_taper(mask: np.ndarray) -> float:
     about the middle row), about 0.7-0.8 for the orange part of a traffic cone below its
     band (a truncated cone, its top about a fifth of its base: MUTCD 6F.63).  1.0 for a blob
     of fewer than 5 rows."""
-    yc, left, right = row_extents(mask)
-    if yc.size < 5:
-        return 1.0
-    y0 = yc[0] - 0.5
-    t = (yc - y0) / (yc[-1] + 0.5 - y0)
-    w = right - left
-    up, lo = (t >= 0.15) & (t <= 0.4), (t >= 0.6) & (t <= 0.85)
-    if not (up.any() and lo.any()):
-        return 1.0
-    return float(w[up].mean() / max(w[lo].mean(), 1e-6))
+    return float(taper_kernel(mask))      # (compiled: the numpy form is in its test)
 
 
 def open_background_rows(left: np.ndarray, right: np.ndarray, min_cols: int
@@ -54,8 +47,7 @@ def open_background_rows(left: np.ndarray, right: np.ndarray, min_cols: int
     object's own.  A flank cut by the image border (narrower than ``min_cols``) does not
     count, the other one decides (a sign leaving the frame with its stand's flags over the
     sky); None when neither flank is in the frame."""
-    sides = [np.count_nonzero(m, axis=1) / m.shape[1] >= 0.5 for m in (left, right)
-             if m.shape[1] >= min_cols]
+    sides = [row_share_at_least(m, 0.5) for m in (left, right) if m.shape[1] >= min_cols]
     return np.logical_and.reduce(sides) if sides else None
 
 
@@ -98,44 +90,6 @@ def banded_rows(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: in
     n = orange.shape[0]
     if n == 0 or orange.shape[1] == 0:
         return False
-    w = float(orange.shape[1])
-    is_w = white.sum(axis=1) / w >= min_white
-    is_o = (orange.sum(axis=1) / w >= min_orange) & ~is_w
-    is_d = dark.sum(axis=1) / w >= line
-    # the row tests as lists of bools: the loops below read them one row at a time
-    is_w, is_o, is_d = is_w.tolist(), is_o.tolist(), is_d.tolist()
-    for start, step in ((top - 1, -1), (bottom, 1)):
-        i, n_white, first = start, 0, None
-        while 0 <= i < n and not is_d[i]:
-            if is_w[i]:
-                n_white += 1
-                first = i if first is None else first
-            elif is_o[i]:
-                k = i
-                while 0 <= k < n and is_o[k]:
-                    k += step
-                if first is not None and n_white >= min_run and abs(k - i) >= min_beyond:
-                    return True
-                if first is None and abs(i - start) >= gap:
-                    break                       # more orange, no band: not this blob's edge
-                if first is not None:
-                    i = k                       # a few orange rows (legend blend): go on
-                    continue
-            if first is None and abs(i - start) >= gap + 1:
-                break                           # no band right at the edge
-            if first is not None and abs(i - first) >= max_band:
-                break
-            i += step
-    # a band inside the blob (the closing bridged a drum's stripes into one blob)
-    i = top
-    while i < min(bottom, n):
-        if is_o[i] or not (is_w[i] or not is_d[i]) or i == top:
-            i += 1
-            continue
-        j = i
-        while j < min(bottom, n) and not is_o[j] and not is_d[j]:
-            j += 1
-        if j < min(bottom, n) and is_o[j] and is_o[i - 1] and sum(is_w[i:j]) >= min_run:
-            return True
-        i = j + 1
-    return False
+    # (compiled: the numpy form is in its test)
+    return bool(banded_kernel(orange, white, dark, top, bottom, min_run, gap, max_band,
+                              min_beyond, min_white, min_orange, line))

@@ -14,6 +14,7 @@ from workzone_ros.core.blob_kernels import (
     masked_median_u8,
     mean32,
     pairwise_sum32,
+    surround_ring,
 )
 
 
@@ -151,3 +152,32 @@ def test_chessboard_distance_and_blur_rings_are_dilations():
         assert blur_rings(m, like, level, cap) == blur
         counts.add(blur)
     assert len(counts) > 4
+
+
+def _ring_numpy(mask, like, r1, r2, level):
+    """The surround ring's (mean, share at ``level``) by two square dilations."""
+    d1 = cv2.dilate(mask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
+    d2 = cv2.dilate(mask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
+    ring = (d2 > 0) & (d1 == 0)
+    if not ring.any():
+        return 0.0, 0.0
+    lr = like[ring]
+    return float(lr.mean()), float(np.count_nonzero(lr >= level) / lr.size)
+
+
+def test_surround_ring_is_the_ring_between_two_dilations():
+    rng = np.random.default_rng(11)
+    for m in _masks(200, seed=4):
+        like = rng.random(m.shape).astype(np.float32)
+        r1 = int(rng.integers(1, 6))
+        r2 = r1 + int(rng.integers(1, 8))
+        level = float(rng.random())
+        got = surround_ring(m, like, r1, r2, level)
+        want = _ring_numpy(m, like, r1, r2, level)
+        assert np.allclose(got, want, rtol=1e-6, atol=1e-9)
+    # a level between a value and its float32 neighbour: compared in float32 as numpy does
+    m = np.zeros((9, 9), np.uint8)
+    m[4, 4] = 1
+    like = np.full((9, 9), np.float32(0.1))
+    level = float(np.float32(0.1)) + 1e-9
+    assert surround_ring(m, like, 1, 2, level) == _ring_numpy(m, like, 1, 2, level)

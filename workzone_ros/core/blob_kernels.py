@@ -22,7 +22,10 @@ same results from less:
   with the background: the rings of repeated 3 x 3 dilations are those of the chessboard
   distance (:func:`chessboard_distance`, one pass each way), each ring's mean likelihood
   as np.mean takes it of float32 values (:func:`mean32`: numpy's pairwise sum in float32,
-  divided in float64 and rounded to float32).
+  divided in float64 and rounded to float32);
+* :func:`surround_ring`: the mean likelihood of the ring around a face's hull (between two
+  square dilations) and its share at a level, from the same distances (numpy and OpenCV
+  dilated the hull twice and gathered the ring).
 
 ``test/core/test_blob_kernels.py`` checks each against OpenCV and numpy.
 """
@@ -32,7 +35,8 @@ import numpy as np
 from numba import njit
 
 __all__ = ['hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside',
-           'pairwise_sum32', 'mean32', 'chessboard_distance', 'blur_rings', 'warm']
+           'pairwise_sum32', 'mean32', 'chessboard_distance', 'blur_rings', 'surround_ring',
+           'warm']
 
 
 @njit(cache=True)
@@ -268,6 +272,37 @@ def blur_rings(mask: np.ndarray, like: np.ndarray, level: float, max_rings: int)
     return max_rings
 
 
+@njit(cache=True)
+def surround_ring(mask: np.ndarray, like: np.ndarray, r_in: int, r_out: int, level: float
+                  ) -> tuple[float, float]:
+    """(mean, share of values at least ``level``) of the float32 ``like`` over the ring of
+    pixels more than ``r_in`` and at most ``r_out`` px (chessboard distance: what square
+    ``cv2.dilate`` kernels of those radii add, inside the image) from the non-zero pixels
+    of ``mask``; the mean as np.mean takes it (:func:`mean32`), ``level`` compared in
+    float32 as numpy compares a float32 array with a Python float; (0, 0) for an empty
+    ring."""
+    h, w = mask.shape
+    d = chessboard_distance(mask, r_out)
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if r_in < d[y, x] <= r_out:
+                n += 1
+    if n == 0:
+        return 0.0, 0.0
+    vals = np.empty(n, np.float32)
+    lev = np.float32(level)
+    k = hits = 0
+    for y in range(h):
+        for x in range(w):
+            if r_in < d[y, x] <= r_out:
+                vals[k] = like[y, x]
+                if vals[k] >= lev:
+                    hits += 1
+                k += 1
+    return np.float64(mean32(vals, 0, n)), hits / n
+
+
 def warm() -> None:
     """Compile (or load from the cache) the kernels for the types the detector passes."""
     mask = np.zeros((6, 6), np.uint8)
@@ -285,3 +320,4 @@ def warm() -> None:
         gated_likelihood(table, np.zeros((6, 6, 3), np.uint8), ident, 40)
     clipped_outside(win, mask, mask)
     blur_rings(mask, np.zeros((6, 6), np.float32), 0.1, 3)
+    surround_ring(mask, np.zeros((6, 6), np.float32), 1, 2, 0.1)

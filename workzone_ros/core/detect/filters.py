@@ -13,7 +13,7 @@ from typing import Optional
 import cv2
 import numpy as np
 
-from workzone_ros.core.blob_kernels import masked_median_u8
+from workzone_ros.core.blob_kernels import masked_median_u8, surround_ring
 from workzone_ros.core.color_model import apply_gains
 from workzone_ros.core.detect.common import _convex_hull, _lookup
 from workzone_ros.core.detect.diamond import fit_diamond
@@ -107,6 +107,8 @@ class FilterMixin:
         cfg = self.config
         r1 = max(1, int(round(cfg.surround_in * size)))
         r2 = max(r1 + 1, int(round(cfg.surround_out * size)))
+        if like.dtype == np.float32:
+            return surround_ring(hmask, like, r1, r2, level)      # (compiled: the same ring)
         d1 = cv2.dilate(hmask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
         d2 = cv2.dilate(hmask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
         ring = (d2 > 0) & (d1 == 0)

@@ -34,13 +34,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ['hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside',
+__all__ = ['row_ends', 'hull_points', 'masked_median_u8', 'gated_likelihood', 'clipped_outside',
            'pairwise_sum32', 'mean32', 'chessboard_distance', 'blur_rings', 'surround_ring',
            'warm']
 
 
 @njit(cache=True)
-def _row_ends(mask: np.ndarray, y: int) -> tuple[int, int]:
+def row_ends(mask: np.ndarray, y: int) -> tuple[int, int]:
     """The first and last non-zero column of ``mask``'s row ``y`` ((-1, -1): none)."""
     w = mask.shape[1]
     first = -1
@@ -67,14 +67,14 @@ def hull_points(mask: np.ndarray) -> np.ndarray:
     h, w = mask.shape
     top, bottom = -1, -1
     for y in range(h):
-        if _row_ends(mask, y)[0] >= 0:
+        if row_ends(mask, y)[0] >= 0:
             if top < 0:
                 top = y
             bottom = y
     out = np.empty((max(0, bottom - top + 1) * 2 + 2 * w, 1, 2), np.int32)
     k = 0
     for y in range(max(top, 0), bottom + 1):
-        first, last = _row_ends(mask, y)
+        first, last = row_ends(mask, y)
         if first < 0:
             continue
         edge_row = y == top or y == bottom

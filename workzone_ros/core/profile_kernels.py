@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from workzone_ros.core.blob_kernels import row_ends
+
 __all__ = ['row_share_at_least', 'banded_kernel', 'taper_kernel', 'warm']
 
 
@@ -118,23 +120,17 @@ def banded_kernel(orange: np.ndarray, white: np.ndarray, dark: np.ndarray, top: 
 @njit(cache=True)
 def taper_kernel(mask: np.ndarray) -> float:
     """:func:`workzone_ros.core.profiles.row_taper` of a 2-D mask."""
-    h, w = mask.shape
+    h = mask.shape[0]
+    left = np.full(h, -1, np.int64)
+    right = np.full(h, -1, np.int64)
     first_row = last_row = -1
-    for y in range(h):
-        for x in range(w):
-            if mask[y, x]:
-                if first_row < 0:
-                    first_row = y
-                last_row = y
-                break
-    if first_row < 0:
-        return 1.0
     n_rows = 0
-    for y in range(first_row, last_row + 1):
-        for x in range(w):
-            if mask[y, x]:
-                n_rows += 1
-                break
+    for y in range(h):
+        left[y], right[y] = row_ends(mask, y)
+        if left[y] >= 0:
+            first_row = y if first_row < 0 else first_row
+            last_row = y
+            n_rows += 1
     if n_rows < 5:
         return 1.0
     y0 = (first_row + 0.5) - 0.5
@@ -142,19 +138,9 @@ def taper_kernel(mask: np.ndarray) -> float:
     s_up = s_lo = 0.0
     n_up = n_lo = 0
     for y in range(first_row, last_row + 1):
-        left = -1
-        for x in range(w):
-            if mask[y, x]:
-                left = x
-                break
-        if left < 0:
+        if left[y] < 0:
             continue
-        right = left
-        for x in range(w - 1, left - 1, -1):
-            if mask[y, x]:
-                right = x
-                break
-        width = float(right + 1) - float(left)
+        width = float(right[y] + 1) - float(left[y])
         t = ((y + 0.5) - y0) / span
         if 0.15 <= t <= 0.4:
             s_up += width

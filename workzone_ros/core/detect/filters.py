@@ -107,15 +107,9 @@ class FilterMixin:
         cfg = self.config
         r1 = max(1, int(round(cfg.surround_in * size)))
         r2 = max(r1 + 1, int(round(cfg.surround_out * size)))
-        if like.dtype == np.float32:
-            return surround_ring(hmask, like, r1, r2, level)      # (compiled: the same ring)
-        d1 = cv2.dilate(hmask, np.ones((2 * r1 + 1, 2 * r1 + 1), np.uint8))
-        d2 = cv2.dilate(hmask, np.ones((2 * r2 + 1, 2 * r2 + 1), np.uint8))
-        ring = (d2 > 0) & (d1 == 0)
-        if not ring.any():
-            return 0.0, 0.0
-        lr = like[ring]
-        return float(lr.mean()), float(np.count_nonzero(lr >= level) / lr.size)
+        # the ring between two square dilations of the hull (compiled; the dilations' form is
+        # in its test); the colour table's likelihood is float32 already
+        return surround_ring(hmask, like.astype(np.float32, copy=False), r1, r2, level)
 
     def _banded(self, bgr: np.ndarray, bx: int, by: int, bw: int, bh: int, pix: np.ndarray,
                 v_ref: float, t: float) -> bool:

@@ -254,7 +254,7 @@ def test_edge_choice_is_the_numpy_choice():
     """Profiles of blurred face-line-background edges and of plain noise, through the real
     edge models: the same model, offset and stretches without a step."""
     rng = np.random.default_rng(7)
-    u, bases_t, ata_inv, valid = _edge_profile(16.0, 1.1, 0.35)
+    u, bases_t, ata_inv, valid = _edge_profile(16.0, 1.1, 0.35)[:4]
     u0, ns = _PROFILE_U0, _PROFILE_SIG.size
     n_lost = 0
     for t in range(200):

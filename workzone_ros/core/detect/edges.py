@@ -25,8 +25,7 @@ _PROFILE_SIG = np.array([0.45, 0.65, 0.9, 1.2, 1.6], np.float32)
 
 
 @functools.lru_cache(maxsize=256)
-def _profile_bases(u_out: float, u_in: float, border: float, margin: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _profile_bases(u_out: float, u_in: float, border: float, margin: float) -> tuple:
     """Blurred step-profile bases of a sign edge and their normal-equation inverses.
 
     Samples ``u`` every quarter pixel from ``-u_out`` (outside) to ``u_in`` (inside).  For
@@ -34,9 +33,10 @@ def _profile_bases(u_out: float, u_in: float, border: float, margin: float
     a face at ``u > u0`` (level ``hi``), the black border line ``border`` px wide outside it
     (``lo``), a thin outer margin of the face's colour ``margin`` px wide (``hi``), then the
     background (``bg``), each step blurred by a Gaussian (optics, motion and the pixel's own
-    width).  Returns ``(u, bases, inv(bases^T bases) (k, 3, 3), valid (k,))``; the profile
-    is a linear combination of the hi, lo and bg bases (returned transposed, (k * 3,
-    len(u)), for one matrix product per profile).
+    width).  Returns ``(u, bases, inv(bases^T bases) (k, 3, 3), valid (k,), models)``; the
+    profile is a linear combination of the hi, lo and bg bases (returned transposed, (k * 3,
+    len(u)), for one matrix product per profile); ``models``: the valid ones' arrays as the
+    compiled fit takes them (:func:`edge_kernels.valid_models`).
     """
     u = np.arange(-u_out, u_in + 1e-6, 0.25, dtype=np.float64)
     d = u[None, None, :] - _PROFILE_U0.astype(np.float64)[:, None, None]
@@ -49,23 +49,15 @@ def _profile_bases(u_out: float, u_in: float, border: float, margin: float
     ata = np.einsum('kui,kuj->kij', bases, bases) + 1e-6 * np.eye(3)
     # offsets that leave at least a pixel of face inside and of background outside
     ok = (_PROFILE_U0 <= u_in - 1.0) & (_PROFILE_U0 >= border + margin + 1.0 - u_out)
-    return u, np.ascontiguousarray(bases.transpose(0, 2, 1).reshape(-1, u.size)), \
-        np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
-
-
-#: :func:`_valid_models`' arrays by the id of their bases (each beside the bases it was made
-#: of, which so stay alive and keep their id)
-_VALID_MODELS: dict[int, tuple] = {}
+    bases_t = np.ascontiguousarray(bases.transpose(0, 2, 1).reshape(-1, u.size))
+    ata_inv, valid = np.linalg.inv(ata), np.repeat(ok, _PROFILE_SIG.size)
+    return u, bases_t, ata_inv, valid, valid_models(bases_t, ata_inv, valid)
 
 
 def _valid_models(prof: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`edge_kernels.valid_models` of a :func:`_profile_bases` tuple, once per tuple."""
-    got = _VALID_MODELS.get(id(prof[1]))
-    if got is None or got[0] is not prof[1]:
-        if len(_VALID_MODELS) >= 1024:
-            _VALID_MODELS.clear()
-        got = _VALID_MODELS[id(prof[1])] = (prof[1], valid_models(*prof[1:]))
-    return got[1]
+    """:func:`edge_kernels.valid_models` of a :func:`_profile_bases` tuple (made with it, so
+    once per cached tuple)."""
+    return prof[4]
 
 
 def _edge_profile(extent: float, border: float, margin: float) -> tuple:
@@ -121,7 +113,7 @@ def _edge_offsets(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, prof: tu
     each stretch's fitted blur width (px, NaN without a step); ``levels`` (n, 2), when
     given, its fitted face and background levels (NaN without a step).
     """
-    u, bases_t, ata_inv, valid = prof
+    u, bases_t, ata_inv, valid = prof[:4]
     length = float(np.hypot(*(segs[0, 1] - segs[0, 0])))
     ts = _unit_steps(max(3, int(length) + 1))
     n = segs.shape[0]
@@ -153,7 +145,7 @@ def _edge_offsets_numpy(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, pr
     """:func:`_edge_offsets` in numpy and OpenCV (one stretch, an image of another type than
     float32, or a sample point that is not a number); ``ts``: the sample positions along a
     stretch."""
-    u, bases_t, ata_inv, valid = prof
+    u, bases_t, ata_inv, valid = prof[:4]
     # the sample points ``s0 + t (s1 - s0) + u n`` (n, t, u): the part along the stretch
     # (n, t) and the part along the normal (n, u) each once, then summed per point in that
     # order (the same sums as over the broadcast (n, t, u, 2) points, at a fraction of the

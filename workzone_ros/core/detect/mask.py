@@ -35,11 +35,9 @@ def _clipped_growth(bgr: np.ndarray, weak: np.ndarray, strong: np.ndarray, bound
     width or height (plus 2 px) is left out (a surface of that colour, not the face).
     ``near``: pixels the face has already (nothing to do when they hold every clipped one)."""
     out = np.zeros(weak.shape, np.uint8)
-    if near is not None and not clipped_outside(bgr, weak, near):
+    if not clipped_outside(bgr, weak, np.zeros_like(weak) if near is None else near):
         return out                  # (compiled: most blobs have no such pixel)
     clip = (weak > 0) & (bgr[..., 2] >= 250) & (bgr[..., 1] < bgr[..., 2])
-    if near is None and not clip.any():
-        return out
     joined = (clip | (strong > 0)).astype(np.uint8)
     n, lab, st = components_with_stats(joined)
     keep = np.zeros(n, bool)

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from workzone_ros.tools.outputs import json_default, tile_grid, write_contact_sheet
+from workzone_ros.tools.outputs import json_default, print_json, tile_grid, write_contact_sheet
 
 
 def test_json_default_writes_numpy_values_and_rejects_others():
@@ -14,6 +14,15 @@ def test_json_default_writes_numpy_values_and_rejects_others():
     assert json.loads(text) == {'a': [0, 1, 2], 'b': 0.5, 'c': 7}
     with pytest.raises(TypeError):
         json.dumps({'x': object()}, default=json_default)
+
+
+def test_print_json_prints_and_writes_the_same_report(tmp_path, capsys):
+    out = tmp_path / 'report.json'
+    text = print_json({'share': np.float64(0.5), 'frames': np.arange(2)}, str(out))
+    assert capsys.readouterr().out.strip() == text
+    assert json.loads(out.read_text()) == {'share': 0.5, 'frames': [0, 1]}
+    print_json({'p': tmp_path}, None, default=str)
+    assert json.loads(capsys.readouterr().out) == {'p': str(tmp_path)}
 
 
 def test_tile_grid_pads_the_last_row():

@@ -25,7 +25,6 @@ Usage (docs/classifier.md)::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -38,7 +37,7 @@ from workzone_ros.core import classifier as clf_mod
 from workzone_ros.core import features as ft
 from workzone_ros.core import signs
 from workzone_ros.tools import train_classifier as tc
-from workzone_ros.tools.outputs import json_default
+from workzone_ros.tools.outputs import print_json
 
 __all__ = ['main', 'grouped_splits', 'scores', 'mirror_separation', 'background_fp',
            'score_thresholds', 'draw_confusion', 'contact_sheet']
@@ -419,10 +418,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         out['leave_one_clip_out'] = leave_one_clip_out(
             renders, Path(args.real), classes, args.features, args.seed)
     out['sources'] = tc.describe_sources(args, data)
-    text = json.dumps(out, indent=2, default=json_default)
-    print(text)
+    print_json(out, args.json)
     if args.json:
-        Path(args.json).write_text(text)
         _say(f'figures written to {args.json}')
     return 0
 

@@ -38,7 +38,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections import defaultdict
@@ -54,7 +53,7 @@ from workzone_ros.core import detect as dt
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import Box
 from workzone_ros.resources import config_path
-from workzone_ros.tools.outputs import write_contact_sheet
+from workzone_ros.tools.outputs import print_json, write_contact_sheet
 
 __all__ = ['main', 'match_frame', 'TableI', 'REAL_CLIPS', 'draw']
 
@@ -525,10 +524,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         report['real'] = evaluate_real(Path(args.real), real_dets, args_real, tiles)
         if args.real_sheet:
             write_contact_sheet(tiles, args.real_sheet, width=480)
-    text = json.dumps(report, indent=2, default=float)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text)
+    print_json(report, args.json, default=float)
     return 0
 
 

@@ -55,7 +55,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from collections import defaultdict
@@ -68,7 +67,7 @@ import numpy as np
 
 from workzone_ros.core import signs as catalogue
 from workzone_ros.core.general import GENERAL_CLASSES, GeneralConfig, GeneralSignDetector
-from workzone_ros.tools.outputs import seed_list
+from workzone_ros.tools.outputs import print_json, seed_list
 
 __all__ = ['main', 'make_specs', 'Table', 'iou', 'REAL_TARGETS', 'frame_size', 'hd_camera']
 
@@ -496,10 +495,7 @@ def main(argv: Optional[list[str]] = None) -> int:
             tiles += pick[:: max(1, len(pick) // 9)][:9]
     if args.sheet and tiles:
         sheet(tiles, args.sheet)
-    text = json.dumps(report, indent=2, default=float)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text)
+    print_json(report, args.json, default=float)
     return 0
 
 

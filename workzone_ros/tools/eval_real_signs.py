@@ -26,7 +26,7 @@ from typing import Optional
 
 from workzone_ros.resources import config_path
 from workzone_ros.tools.eval_color import REAL_LABELS, load_sign_labels
-from workzone_ros.tools.outputs import write_contact_sheet
+from workzone_ros.tools.outputs import print_json, write_contact_sheet
 
 __all__ = ['evaluate_clip', 'main']
 
@@ -145,7 +145,6 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
 
 def main(argv: Optional[list[str]] = None) -> int:
     """Entry point; prints one line per clip and the JSON figures."""
-    import json
 
     from workzone_ros.core.classifier import DEFAULT_MODEL, ModelError, load_model
     p = argparse.ArgumentParser(prog='workzone-ros evaluate real_signs', description=__doc__,
@@ -216,10 +215,7 @@ def main(argv: Optional[list[str]] = None) -> int:
               f"{r['free_frames']} frames", file=sys.stderr, flush=True)
     if args.sheet and write_contact_sheet(tiles, args.sheet, scale=0.5):
         print(f'contact sheet: {args.sheet}', file=sys.stderr)
-    text = json.dumps(out, indent=2, default=str)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text)
+    print_json(out, args.json, default=str)
     return 0
 
 

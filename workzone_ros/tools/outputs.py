@@ -1,13 +1,14 @@
 """Helpers shared by the evaluation and training tools: JSON, contact sheets, seed lists."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import cv2
 import numpy as np
 
-__all__ = ['json_default', 'tile_grid', 'write_contact_sheet', 'seed_list']
+__all__ = ['json_default', 'print_json', 'tile_grid', 'write_contact_sheet', 'seed_list']
 
 
 def json_default(o):
@@ -23,6 +24,17 @@ def json_default(o):
         return o.item()
     raise TypeError(type(o).__name__)
 
+
+
+def print_json(report: Any, path: Optional[str] = None,
+               default: Callable[[Any], Any] = json_default) -> str:
+    """Prints ``report`` as indented JSON, also writes it to ``path`` when one is given, and
+    returns the text (a tool's ``--json OUT``)."""
+    text = json.dumps(report, indent=2, default=default)
+    print(text)
+    if path:
+        Path(path).write_text(text)
+    return text
 
 def tile_grid(tiles: Sequence[np.ndarray], cols: int, fill: int = 0) -> np.ndarray:
     """Equal-sized tiles in rows of ``cols``, the last row padded with ``fill`` tiles.

@@ -187,3 +187,25 @@ def test_color_detector_ranges_are_enforced_on_a_live_set(ros):
     want = dataclasses.replace(DetectorConfig(), threshold=0.99, scale=1, grow_level=0.0,
                                colors=('orange',), method='hsv')
     assert node._detector.config == want
+
+
+NODE_MODULES = (classifier, color_detector, fusion, lidar_cluster, projector, tracker)
+
+
+@pytest.mark.parametrize('module', NODE_MODULES, ids=lambda m: m.__name__.rsplit('.', 1)[-1])
+def test_topics_are_fixed_at_start_up(module):
+    # a node subscribes and advertises once: a live topic change would be accepted and
+    # silently do nothing, so every topic parameter refuses it
+    topics = [p.name for p in module.NODE_CLASS.PARAMS if p.name.endswith('_topic')]
+    assert topics
+    assert [t for t in topics
+            if not next(p for p in module.NODE_CLASS.PARAMS if p.name == t).read_only] == []
+
+
+def test_a_live_topic_change_is_refused_with_the_reason(ros):
+    node = ros.add(tracker.NODE_CLASS(context=ros.context))
+    for name, value in (('image_topic', '/other/image'), ('image_buffer', 20)):
+        result = node.set_parameters([Parameter(name, value=value)])[0]
+        assert not result.successful and 'read-only' in result.reason
+    assert node.params.image_topic == '/camera/image_raw'
+    assert node.set_parameters([Parameter('min_similarity', value=0.5)])[0].successful

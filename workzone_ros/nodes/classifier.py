@@ -77,7 +77,7 @@ class ClassifierNode(WorkzoneNode):
         Param('assumed_hfov_deg', 60.0, 'horizontal field of view used for distances until a '
               'CameraInfo arrives', min=1.0, max=179.0),
         Param('image_buffer', 10, 'images kept while waiting for their boxes', min=1,
-              max=100),
+              max=100, read_only=True),
         Param('rois_buffer', 30, 'ROIs payloads kept for stamp matching', min=1, max=1000),
     )
     INPUT_TOPICS = ('image_topic', 'input_topic', 'rois_topic', 'camera_info_topic')

@@ -53,10 +53,13 @@ class LidarClusterNode(WorkzoneNode):
     """PointCloud2 in, sign candidates out (Cahail et al. s1.3 + persistence)."""
 
     PARAMS = (
-        Param('points_topic', '/lidar/points', 'input cloud (x, y, z, intensity)'),
-        Param('candidates_topic', '/workzone/lidar/candidates', 'output candidates'),
-        Param('clustered_topic', '', 'optional clustered points for RViz ("" = off)'),
-        Param('odom_topic', '/odom', 'odometry for persistence while moving ("" = off)'),
+        Param('points_topic', '/lidar/points', 'input cloud (x, y, z, intensity)', read_only=True),
+        Param('candidates_topic', '/workzone/lidar/candidates', 'output candidates',
+              read_only=True),
+        Param('clustered_topic', '', 'optional clustered points for RViz ("" = off)',
+              read_only=True),
+        Param('odom_topic', '/odom', 'odometry for persistence while moving ("" = off)',
+              read_only=True),
         Param('persistence_k', 2, 'a candidate is published when seen in k ... (1 publishes '
               'single scans)', min=1, max=50),
         Param('persistence_n', 3, '... of the last n scans', min=1, max=50),

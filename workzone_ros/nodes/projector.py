@@ -82,15 +82,17 @@ class ProjectorNode(WorkzoneNode):
     """Synchronise, compensate, project, crop (Cahail et al. s2 and its future work)."""
 
     PARAMS = (
-        Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates'),
-        Param('image_topic', '/camera/image_raw', 'input image'),
+        Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates',
+              read_only=True),
+        Param('image_topic', '/camera/image_raw', 'input image', read_only=True),
         Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
               'while no raw image arrives; the size '
               'then comes from CameraInfo)', read_only=True),
-        Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo'),
-        Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)'),
-        Param('rois_topic', '/workzone/rois', 'output Rois payload'),
-        Param('crops_topic', '', 'optional crops for viewing ("" = off)'),
+        Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo', read_only=True),
+        Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)',
+              read_only=True),
+        Param('rois_topic', '/workzone/rois', 'output Rois payload', read_only=True),
+        Param('crops_topic', '', 'optional crops for viewing ("" = off)', read_only=True),
         Param('lidar_to_camera', _SIM_EXTRINSICS,
               'LiDAR -> camera, row-major 4x4 (or top 3x4): X_cam = T @ X_lidar'),
         Param('lidar_in_base', [1.0, 0.0, 1.95, 0.0, 0.0, 0.0],

@@ -62,16 +62,18 @@ class TrackerNode(WorkzoneNode):
     """Kernel-based sign tracking (Lee et al.): detections + image -> tracks."""
 
     PARAMS = (
-        Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)'),
+        Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)',
+              read_only=True),
         Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
               'while no raw image arrives)',
               read_only=True),
-        Param('detections_topic', '/workzone/detections', 'input Detections payloads'),
-        Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads'),
+        Param('detections_topic', '/workzone/detections', 'input Detections payloads',
+              read_only=True),
+        Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads', read_only=True),
         Param('signs_topic', '/workzone/signs', "the classifier's Signs: its answers confirm or "
               'reject tracks (needs_confirmation; empty: no confirmation)', read_only=True),
         Param('image_buffer', 10, 'images kept while waiting for their detections', min=1,
-              max=100),
+              max=100, read_only=True),
     ) + _CORE_PARAMS
     INPUT_TOPICS = ('image_topic', 'detections_topic')
 

@@ -7,7 +7,8 @@ Every workzone_ros node subclasses :class:`WorkzoneNode` and declares a ``PARAMS
   reads them into the frozen ``self.params`` and logs the effective configuration in one block;
 * warns about parameters given to this node (params file section, ``/**`` wildcard, ``-p``,
   ``parameter_overrides``) that no ``Param`` declares -- ROS ignores them silently;
-* validates live changes (``ros2 param set``) and rejects them with a reason;
+* validates live changes (``ros2 param set``) and rejects them with a reason (a parameter
+  used only at start-up, such as a topic, is declared ``read_only``);
 * wraps every subscription made through its QoS helpers so a bad message is counted, logged
   once per reason per 5 s and dropped, and the node never dies on input (DESIGN.md,
   principle 4);
@@ -24,7 +25,7 @@ Every workzone_ros node subclasses :class:`WorkzoneNode` and declares a ``PARAMS
 Usage::
 
     class Detector(WorkzoneNode):
-        PARAMS = (Param('image_topic', '/camera/image_raw', 'input image'),
+        PARAMS = (Param('image_topic', '/camera/image_raw', 'input image', read_only=True),
                   Param('threshold', 0.5, 'score threshold', min=0.0, max=1.0))
         INPUT_TOPICS = ('image_topic',)
 

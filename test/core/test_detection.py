@@ -21,9 +21,6 @@ from detection_helpers import (
     _one,
     _regulatory,
 )
-from detection_helpers import _foliage as _foliage  # for test_detection_frames.py
-from detection_helpers import _plain as _plain  # for test_detection_frames.py
-from detection_helpers import _render_art_sign as _render_art_sign  # for test_detection_frames
 
 from workzone_ros.core import color_model as cm
 from workzone_ros.core.detect import (
@@ -338,11 +335,6 @@ def test_saturation_norm_finds_hazy_signs_and_ignores_warm_grey():
     vivid = _background(4)                                        # blue sky, grass, asphalt
     vivid[300:420, 100:500] = (95, 130, 165)                     # dry lawn, S ~ 108
     assert ColorDetector(normed, cfg).detect(vivid) == []
-
-
-def replace_cfg(cfg, **kw):
-    from dataclasses import replace
-    return replace(cfg, **kw)
 
 
 def test_other_camera_does_not_get_the_fixed_camera_prior(model):

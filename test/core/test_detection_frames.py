@@ -6,7 +6,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from test_detection import _default_detector, _foliage, _plain, _render_art_sign
+from detection_helpers import _default_detector, _foliage, _plain, _render_art_sign
 
 from workzone_ros.interfaces import Box
 from workzone_ros.sim.lens import Lens

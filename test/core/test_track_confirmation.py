@@ -9,7 +9,7 @@ it as background.  The drawings come from ``test_tracking``.
 from __future__ import annotations
 
 import pytest
-from test_tracking import (
+from tracking_helpers import (
     ORANGE,
     SLOW,
     _banded,

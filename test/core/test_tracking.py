@@ -10,7 +10,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from tracking_helpers import ORANGE as ORANGE  # for test_track_confirmation.py
 from tracking_helpers import (
     SLOW,
     H,
@@ -22,7 +21,6 @@ from tracking_helpers import (
     draw_regulatory,
     path,
 )
-from tracking_helpers import _banded as _banded  # for test_track_confirmation.py
 
 from workzone_ros.core.profiles import open_background_rows
 from workzone_ros.core.track import (

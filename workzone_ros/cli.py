@@ -23,6 +23,8 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     'bag-from-video': ('workzone_ros.tools.bag_from_video', 'a video file -> camera-only bag'),
     'mine-background': ('workzone_ros.tools.mine_background',
                         'hard-negative crops for the classifier from real video'),
+    'make-crops': ('workzone_ros.tools.make_crops',
+                   'classifier training crops from signs labelled in videos'),
     'real-pixels': ('workzone_ros.tools.real_pixels',
                     'colour-training images and masks from labelled video frames'),
     'inventory': ('workzone_ros.tools.inventory',

@@ -60,3 +60,33 @@ def test_unreadable_labels_are_a_one_line_error(tmp_path, capsys):
         assert ers.main(['--labels', str(path)]) == 2
         err = capsys.readouterr().err.strip()
         assert '\n' not in err and path.name in err
+
+
+def test_a_make_crops_labels_file_measures_its_signs_not_its_background(tmp_path):
+    from workzone_ros.tools.eval_color import load_sign_labels
+    csv = tmp_path / 'my_labels.csv'
+    csv.write_text('clip,frame,x,y,w,h,visible,sign,class_key,shape\n'
+                   'mine,0,10,10,20,20,1,1,road_work_ahead,diamond\n'
+                   'mine,4,14,10,20,20,1,1,road_work_ahead,diamond\n'
+                   'mine,0,200,50,60,30,1,2,background,\n'
+                   'mine,4,200,50,60,30,1,2,background,\n')
+    frames = load_sign_labels(csv)['mine']
+    assert sorted(frames) == [0, 1, 2, 3, 4]
+    assert all(len(boxes) == 1 and boxes[0][0].x < 20 for boxes in frames.values())
+
+
+def test_missing_ranges_are_a_one_line_error(tmp_path, capsys):
+    assert ers.main(['--ranges', str(tmp_path / 'none.csv')]) == 2
+    err = capsys.readouterr().err.strip()
+    assert '\n' not in err and 'none.csv' in err
+
+
+def test_a_clip_is_found_by_its_name_with_any_video_extension(tmp_path):
+    from workzone_ros.tools.clips import find_video, list_videos
+    for name in ('a.mp4', 'b.AVI', 'c.txt', 'd.mkv'):
+        (tmp_path / name).write_bytes(b'')
+    assert [p.name for p in list_videos(tmp_path)] == ['a.mp4', 'b.AVI', 'd.mkv']
+    assert find_video(tmp_path, 'b').name == 'b.AVI'
+    assert find_video(tmp_path, 'a.mp4').name == 'a.mp4'
+    with pytest.raises(FileNotFoundError, match='no video c'):
+        find_video(tmp_path, 'c')

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from workzone_ros.tools import mine_background as mb
+from workzone_ros.tools import clips
 from workzone_ros.tools import real_pixels as rp
 from workzone_ros.tools import train_color as tc
 
@@ -45,15 +45,25 @@ def test_train_color_leaves_ignored_pixels_out(tmp_path):
 
 def test_crops_are_grown_and_bounded():
     img = np.zeros((400, 700, 3), np.uint8)
-    assert mb.crop_box(img, 100, 100, 40, 20).shape[:2] == (30, 60)
-    assert max(mb.crop_box(img, 100, 100, 200, 100).shape[:2]) == mb.MAX_SIDE
-    assert mb.crop_box(img, 680, 380, 40, 40).shape[:2] == (30, 30)     # clipped at the edge
+    assert clips.crop_box(img, 100, 100, 40, 20).shape[:2] == (30, 60)
+    assert max(clips.crop_box(img, 100, 100, 200, 100).shape[:2]) == clips.MAX_SIDE
+    assert clips.crop_box(img, 680, 380, 40, 40).shape[:2] == (30, 30)     # clipped at the edge
 
 
 def test_missing_index_is_a_one_line_error(tmp_path, capsys):
     assert rp.main(['-o', str(tmp_path / 'o'), '--index', str(tmp_path / 'no.csv')]) == 2
     err = capsys.readouterr().err.strip()
     assert '\n' not in err and 'no.csv' in err
+
+
+def test_an_orange_sign_without_its_shape_is_a_one_line_error(tmp_path, capsys):
+    index = tmp_path / 'index.csv'
+    index.write_text('path,class_key,clip,frame,x,y,w,h,source,shape\n'
+                     'background/a_0000_0.png,background,a,0,1,2,3,4,hand,\n'
+                     'other_workzone/a_0000_1.png,other_workzone,a,0,5,6,7,8,hand,\n')
+    assert rp.main(['-o', str(tmp_path / 'o'), '--index', str(index)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert '\n' not in err and 'index.csv line 3: an orange other_workzone needs its shape' in err
 
 
 @pytest.mark.skipif(not (REAL / 'charlotte.mp4').exists(), reason=f'no clips in {REAL}')

@@ -53,6 +53,7 @@ from workzone_ros.core import detect as dt
 from workzone_ros.core import signs as catalogue
 from workzone_ros.interfaces import Box
 from workzone_ros.resources import config_path
+from workzone_ros.tools.clips import interpolate_keyframes
 from workzone_ros.tools.outputs import print_json, write_contact_sheet
 
 __all__ = ['main', 'match_frame', 'TableI', 'REAL_CLIPS', 'draw']
@@ -342,7 +343,8 @@ def evaluate_pixels(model: cm.ColorModel, folder: str, threshold: float) -> dict
 def load_sign_labels(path: Path = REAL_LABELS) -> dict:
     """clip -> {frame: [(box, visible), ...]}: every labelled sign of the hand-made keyframe
     CSV, each linearly interpolated between its own keyframes (column ``sign``, 1 when the
-    file has none; a sign's box is never interpolated towards another sign's).
+    file has none; a sign's box is never interpolated towards another sign's).  Rows of
+    class ``background`` (a ``make-crops`` labels file) are left out.
 
     The boxes are approximate (labelled by eye) and for evaluation only.
     """
@@ -350,19 +352,14 @@ def load_sign_labels(path: Path = REAL_LABELS) -> dict:
     keys: dict = defaultdict(list)
     with open(path) as fh:
         for row in csv.DictReader(line for line in fh if not line.startswith('#')):
+            if (row.get('class_key') or '').strip() == 'background':
+                continue            # a make-crops labels file also holds what is no sign
             keys[(row['clip'], int(row.get('sign') or 1))].append(
                 (int(row['frame']), *(float(row[k]) for k in 'xywh'), int(row['visible'])))
     out: dict = defaultdict(lambda: defaultdict(list))
     for (clip, _), ks in sorted(keys.items()):
-        ks.sort()
-        for a, b in zip(ks, ks[1:]):
-            for f in range(a[0], b[0]):         # (each keyframe once: the last one below)
-                u = (f - a[0]) / max(b[0] - a[0], 1)
-                box = Box(*(float((1 - u) * a[i] + u * b[i]) for i in range(1, 5)))
-                vis = bool(a[5] and b[5]) or (f == a[0] and a[5])
-                out[clip][f].append((box, bool(vis)))
-        last = ks[-1]
-        out[clip][last[0]].append((Box(*last[1:5]), bool(last[5])))
+        for f, box, vis in interpolate_keyframes(ks):
+            out[clip][f].append((Box(*box), vis))
     return {clip: dict(frames) for clip, frames in out.items()}
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Optional
 
 from workzone_ros.resources import config_path
+from workzone_ros.tools.clips import find_video
 from workzone_ros.tools.eval_color import REAL_LABELS, load_sign_labels
 from workzone_ros.tools.outputs import print_json, write_contact_sheet
 
@@ -76,7 +77,7 @@ def _draw(img, labels, dets, items, signs, text: str):
 def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
                   tile_every: int = 15, rules: str = 'auto',
-                  labels: Optional[dict] = None) -> dict:
+                  labels: Optional[dict] = None, ranges: Optional[dict] = None) -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
@@ -86,7 +87,9 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     ``rules``: the rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
     (with proposals, only on frames of the colour model's own camera).  ``labels``: the
     signs, :func:`~workzone_ros.tools.eval_color.load_sign_labels` of a keyframe CSV (None:
-    ``tools/data/real_sign_boxes.csv``; a frame with two visible signs counts twice).
+    ``tools/data/real_sign_boxes.csv``; a frame with two visible signs counts twice), keyed
+    by the clip's file name or its name without the extension.  ``ranges``: the work-zone
+    sign ranges, :func:`sign_ranges` of a CSV (None: ``tools/data/real_clip_ranges.csv``).
 
     ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
     the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
@@ -100,8 +103,10 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.core.track.confirmation import classifier_verdicts
     from workzone_ros.tools.eval_tracker import _ColorDetector
-    frames = (load_sign_labels() if labels is None else labels).get(path.name, {})
-    ranges = sign_ranges().get(path.name, [])
+    labels = load_sign_labels() if labels is None else labels
+    frames = labels.get(path.name) or labels.get(path.stem, {})
+    ranges = sign_ranges() if ranges is None else ranges
+    ranges = ranges.get(path.name) or ranges.get(path.stem, [])
     det, tracker = _ColorDetector(None), MultiTracker(TrackerConfig())
     recognizer = SignRecognizer(model)
     cap = cv2.VideoCapture(str(path))
@@ -168,13 +173,18 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--labels', metavar='CSV', default=str(REAL_LABELS),
                    help='keyframe boxes of the signs (default: tools/data/real_sign_boxes.csv; '
                         'tools/data/real_sign_boxes_more.csv holds more signs)')
+    p.add_argument('--ranges', metavar='CSV', default=str(RANGES),
+                   help='frame ranges of each clip that hold a work-zone sign (content '
+                        'workzone_sign), left out of the false signs (default: '
+                        'tools/data/real_clip_ranges.csv)')
     p.add_argument('--json', metavar='OUT')
     args = p.parse_args(argv)
     try:
         labels = load_sign_labels(Path(args.labels))
+        ranges = sign_ranges(Path(args.ranges))
     except (OSError, KeyError, ValueError) as exc:
-        print(f'workzone-ros evaluate real_signs: cannot read the labels {args.labels}: '
-              f'{exc!r}', file=sys.stderr)
+        print(f'workzone-ros evaluate real_signs: cannot read the labels {args.labels} or '
+              f'the ranges {args.ranges}: {exc!r}', file=sys.stderr)
         return 2
     folder = Path(args.real)
     if not folder.is_dir():
@@ -201,13 +211,14 @@ def main(argv: Optional[list[str]] = None) -> int:
            'tracker': not args.no_tracker, 'rules': args.rules, 'clips': {}}
     tiles: list = []
     for name in args.clips:
-        path = folder / f'{name}.mp4'
-        if not path.exists():
-            print(f'{name}: {path} not found, skipped', file=sys.stderr)
+        try:
+            path = find_video(folder, name)
+        except FileNotFoundError as exc:
+            print(f'{name}: {exc}, skipped', file=sys.stderr)
             continue
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
                           not args.no_tracker, tiles if args.sheet else None,
-                          rules=args.rules, labels=labels)
+                          rules=args.rules, labels=labels, ranges=ranges)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "

@@ -37,13 +37,13 @@ import cv2
 import numpy as np
 
 from workzone_ros.core.general import shapes as sh
+from workzone_ros.tools.clips import GROW
 
 __all__ = ['scores_of', 'table3', 'table4', 'veto', 'main']
 
 REPO = Path(__file__).resolve().parents[2]
 REAL = REPO / 'test' / 'data' / 'real_crops'
 REAL_FRAME = (722, 406)       # the real clips' frame size (test/data/real_crops/README.md)
-REAL_GROW = 0.25              # a real crop is its box grown by 25 % per side
 
 
 def scores_of(model: sh.ShapeCascade, crops: Sequence[np.ndarray],
@@ -111,9 +111,9 @@ def _real_crops(root: Path):
         if img is None:
             continue
         x, y, w, h = (float(r[k]) for k in ('x', 'y', 'w', 'h'))
-        x0, y0 = max(0.0, x - REAL_GROW * w), max(0.0, y - REAL_GROW * h)
-        x1 = min(REAL_FRAME[0], x + w + REAL_GROW * w)
-        y1 = min(REAL_FRAME[1], y + h + REAL_GROW * h)
+        x0, y0 = max(0.0, x - GROW * w), max(0.0, y - GROW * h)
+        x1 = min(REAL_FRAME[0], x + w + GROW * w)
+        y1 = min(REAL_FRAME[1], y + h + GROW * h)
         fx, fy = img.shape[1] / (x1 - x0), img.shape[0] / (y1 - y0)
         box = ((x - x0) * fx, (y - y0) * fy, w * fx, h * fy)
         shape = r.get('shape') or sh.NONE

@@ -24,35 +24,14 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
+from workzone_ros.tools.clips import crop_box, frames_of, list_videos
 
-__all__ = ['GROW', 'MAX_SIDE', 'crop_box', 'main']
+__all__ = ['mine_clip', 'main']
 
 REPO = Path(__file__).resolve().parents[2]
 INDEX = REPO / 'test' / 'data' / 'real_crops' / 'index.csv'
 RANGES = Path(__file__).resolve().parent / 'data' / 'real_clip_ranges.csv'
 VIDEOS = REPO.parent / 'shared' / 'realdata' / 'us_workzone_video'
-GROW = 0.25       # share of the box size added on each side of a stored crop
-MAX_SIDE = 64     # longer side of a stored crop, pixels
-
-
-def crop_box(img: np.ndarray, x: float, y: float, w: float, h: float) -> np.ndarray:
-    """The box grown by GROW on each side, clipped to the image, longer side <= MAX_SIDE."""
-    import cv2
-    height, width = img.shape[:2]
-    x0 = int(round(max(0.0, x - GROW * w)))
-    y0 = int(round(max(0.0, y - GROW * h)))
-    x1 = int(round(min(float(width), x + w + GROW * w)))
-    y1 = int(round(min(float(height), y + h + GROW * h)))
-    crop = img[y0:y1, x0:x1]
-    scale = MAX_SIDE / max(crop.shape[:2])
-    if scale < 1.0:
-        size = (max(1, int(round(crop.shape[1] * scale))),
-                max(1, int(round(crop.shape[0] * scale))))
-        crop = cv2.resize(crop, size, interpolation=cv2.INTER_AREA)
-    return crop
-
-
 def _sign_boxes(index: Path) -> dict:
     """clip -> frame -> labelled sign boxes, each held over the 3 frames around its label."""
     out: dict = defaultdict(lambda: defaultdict(list))
@@ -82,15 +61,8 @@ def mine_clip(video: Path, proposer, signs: dict, ranges: list, step: int, min_s
     import cv2
 
     from workzone_ros.core.proposals import candidate_labels
-    cap = cv2.VideoCapture(str(video))
-    if not cap.isOpened():
-        raise ValueError(f'cannot read {video}')
-    k, n = -1, 0
-    while True:
-        ok, img = cap.read()
-        if not ok:
-            break
-        k += 1
+    n = 0
+    for k, img in frames_of(video):
         if k % step or any(a <= k <= b for a, b in ranges):
             continue
         props = [p for p in proposer.propose(img) if max(p.box[2:]) >= min_size]
@@ -103,7 +75,6 @@ def mine_clip(video: Path, proposer, signs: dict, ranges: list, step: int, min_s
             writer.writerow([name, 'background', video.stem, k,
                              *(f'{v:.1f}' for v in p.box), 'proposal', ''])
             n += 1
-    cap.release()
     return n
 
 
@@ -136,7 +107,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         return 2
     out = Path(args.output)
     (out / 'background').mkdir(parents=True, exist_ok=True)
-    videos = sorted(v for v in args.videos.glob('*.mp4') if v.stem not in args.exclude_clip)
+    videos = [v for v in list_videos(args.videos) if v.stem not in args.exclude_clip]
     if not videos:
         print(f'workzone-ros mine-background: no clips in {args.videos}', file=sys.stderr)
         return 2

@@ -29,6 +29,8 @@ from typing import Optional
 
 import numpy as np
 
+from workzone_ros.tools.clips import find_video, frames_of
+
 __all__ = ['IGNORE', 'FACE', 'face_polygon', 'frame_mask', 'main']
 
 REPO = Path(__file__).resolve().parents[2]
@@ -74,13 +76,16 @@ def _orange_classes() -> set[str]:
     return keys | {'other_workzone'}
 
 
-def _by_frame(index: Path, exclude: set[str], step: int) -> dict:
+def _by_frame(index: Path, exclude: set[str], step: int, orange: set[str]) -> dict:
     with open(index) as fh:
         rows = list(csv.DictReader(fh))
     if rows and 'shape' not in rows[0]:
         raise ValueError(f'{index} has no shape column')
     out: dict = defaultdict(lambda: defaultdict(list))
-    for r in rows:
+    for n, r in enumerate(rows, 2):
+        if r['class_key'] in orange and r['shape'] not in ('diamond', 'rectangle', 'octagon'):
+            raise ValueError(f'{index} line {n}: an orange {r["class_key"]} needs its shape '
+                             f'(diamond, rectangle or octagon), not {r["shape"]!r}')
         if r['clip'] not in exclude and int(r['frame']) % step == 0:
             out[r['clip']][int(r['frame'])].append(r)
     return out
@@ -89,22 +94,13 @@ def _by_frame(index: Path, exclude: set[str], step: int) -> dict:
 def write_clip(video: Path, frames: dict, out: Path, orange: set[str]) -> int:
     """Write the labelled frames of one clip; returns how many were written."""
     import cv2
-    cap = cv2.VideoCapture(str(video))
-    if not cap.isOpened():
-        raise ValueError(f'cannot read {video}')
-    n, k, last = 0, -1, max(frames)
-    while k < last:
-        ok, img = cap.read()
-        if not ok:
-            break
-        k += 1
-        if k in frames:
-            mask = frame_mask((img.shape[1], img.shape[0]), frames[k], orange)
-            name = f'{video.stem}_{k:04d}.png'
-            cv2.imwrite(str(out / 'images' / name), img)
-            cv2.imwrite(str(out / 'masks' / name), mask)
-            n += 1
-    cap.release()
+    n = 0
+    for k, img in frames_of(video, frames, max(frames)):
+        mask = frame_mask((img.shape[1], img.shape[0]), frames[k], orange)
+        name = f'{video.stem}_{k:04d}.png'
+        cv2.imwrite(str(out / 'images' / name), img)
+        cv2.imwrite(str(out / 'masks' / name), mask)
+        n += 1
     return n
 
 
@@ -121,19 +117,20 @@ def main(argv: Optional[list[str]] = None) -> int:
     args = p.parse_args(argv)
     if args.step < 1:
         p.error('--step must be >= 1')
+    orange = _orange_classes()
     try:
-        frames = _by_frame(args.index, set(args.exclude_clip), args.step)
+        frames = _by_frame(args.index, set(args.exclude_clip), args.step, orange)
     except (OSError, ValueError, KeyError) as exc:
         print(f'workzone-ros real-pixels: {exc}', file=sys.stderr)
         return 2
     out = Path(args.output)
     (out / 'images').mkdir(parents=True, exist_ok=True)
     (out / 'masks').mkdir(parents=True, exist_ok=True)
-    orange = _orange_classes()
     for clip, fr in sorted(frames.items()):
-        video = args.videos / f'{clip}.mp4'
-        if not video.exists():
-            print(f'{clip}: {video} not found, skipped', file=sys.stderr)
+        try:
+            video = find_video(args.videos, clip)
+        except FileNotFoundError as exc:
+            print(f'{clip}: {exc}, skipped', file=sys.stderr)
             continue
         n = write_clip(video, fr, out, orange)
         print(f'{clip}: {n} frames', file=sys.stderr)

@@ -79,6 +79,7 @@ import numpy as np
 
 from workzone_ros.core import cnn_classifier as cnn
 from workzone_ros.tools import train_classifier as tc
+from workzone_ros.tools.clips import GROW, MAX_SIDE
 from workzone_ros.tools.cnn_augment import RUN_MARGIN, augment, composite, cutout
 from workzone_ros.tools.outputs import json_default
 
@@ -86,9 +87,6 @@ __all__ = ['Sample', 'TrainConfig', 'load_samples', 'augment', 'composite', 'cut
            'build_net', 'train', 'export', 'bias_table', 'runtime_crop', 'main']
 
 DEFAULT_OUTPUT = Path(__file__).resolve().parents[2] / 'config' / cnn.DEFAULT_MODEL
-#: How ``test/data/real_crops/make_crops.py`` cut the real crops (share added per side).
-REAL_GROW = 0.25
-REAL_MAX_SIDE = 64
 #: Mirror pictograms: a flipped crop of one is a crop of the other.
 FLIP_SWAP = {'lane_shift_left': 'lane_shift_right', 'lane_shift_right': 'lane_shift_left',
              'left_lane_ends': 'right_lane_ends', 'right_lane_ends': 'left_lane_ends'}
@@ -161,7 +159,7 @@ def folder_boxes(root: Path, exclude: Sequence[str], only: Optional[Sequence[str
     """The object's box inside every crop :func:`train_classifier.load_folder` returns.
 
     From ``root/index.csv`` columns ``x, y, w, h`` (the box in the frame) for crops cut as
-    ``test/data/real_crops/make_crops.py`` does (the box grown by 25 %, clipped, shrunk);
+    ``workzone-ros make-crops`` does (the box grown by 25 %, clipped, shrunk);
     ``None`` for crops without an index row.  Also the crops' scales (frame px per crop
     px: 1 unless the crop was shrunk to 64 px).
     """
@@ -187,7 +185,7 @@ def folder_boxes(root: Path, exclude: Sequence[str], only: Optional[Sequence[str
                 out.append(None)
                 continue
             x, y, w, h = (float(r[k]) for k in ('x', 'y', 'w', 'h'))
-            x0, y0 = round(max(0.0, x - REAL_GROW * w)), round(max(0.0, y - REAL_GROW * h))
+            x0, y0 = round(max(0.0, x - GROW * w)), round(max(0.0, y - GROW * h))
             out.append([x - x0, y - y0, w, h])             # native pixels; scaled below
     if len(out) != len(shapes):
         raise tc.DataError(f'{root}: {len(out)} index boxes for {len(shapes)} crops')
@@ -197,11 +195,11 @@ def folder_boxes(root: Path, exclude: Sequence[str], only: Optional[Sequence[str
             continue
         x, y, w, h = b
         s = 1.0                                # stored at native size unless shrunk to 64
-        if max(shape[:2]) >= REAL_MAX_SIDE:
-            # the native crop reaches REAL_GROW past the box on the right / bottom unless
+        if max(shape[:2]) >= MAX_SIDE:
+            # the native crop reaches GROW past the box on the right / bottom unless
             # the frame edge cut it (smaller), so the larger of the two ratios is the shrink
-            s = min(1.0, max(shape[1] / (x + w * (1 + REAL_GROW)),
-                             shape[0] / (y + h * (1 + REAL_GROW))))
+            s = min(1.0, max(shape[1] / (x + w * (1 + GROW)),
+                             shape[0] / (y + h * (1 + GROW))))
         out[k] = (x * s, y * s, w * s, h * s)
         scales[k] = 1.0 / s
     return out, scales

@@ -35,6 +35,7 @@ from workzone_ros.core.sign_distance import focal_from_fov
 from workzone_ros.core.sync import ExactStampPairs
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, InputError, Param, WorkzoneNode, run_node
+from workzone_ros.nodes.params import image_params
 from workzone_ros.resources import config_path
 
 __all__ = ['ClassifierNode', 'NODE_CLASS', 'main']
@@ -44,11 +45,7 @@ class ClassifierNode(WorkzoneNode):
     """Sign classification node (see the module docstring)."""
 
     PARAMS = (
-        Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
-              read_only=True),
-        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
-              'while no raw image arrives)',
-              read_only=True),
+        *image_params(),
         Param('input_topic', '/workzone/tracks', 'boxes to classify: Tracks (or Detections '
               'when tracking is off)', read_only=True),
         Param('rois_topic', '/workzone/rois', "LiDAR ROIs: a sign's distance is its ROI's "

@@ -33,7 +33,7 @@ from workzone_ros.core.detect import ColorDetector, DetectorConfig, RgbLpModel
 from workzone_ros.core.proposals import ProposalConfig, SignProposer, proposals_as_detections
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
-from workzone_ros.nodes.params import params_from_dataclass
+from workzone_ros.nodes.params import image_params, params_from_dataclass
 from workzone_ros.resources import config_path
 
 __all__ = ['ColorDetectorNode', 'NODE_CLASS', 'main', 'DEFAULT_MODEL']
@@ -62,11 +62,7 @@ class ColorDetectorNode(WorkzoneNode):
     """Colour sign detector node (see the module docstring)."""
 
     PARAMS = (
-        Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
-              read_only=True),
-        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
-              'while no raw image arrives)',
-              read_only=True),
+        *image_params(),
         Param('image_queue', 5, 'images queued while the detector is busy (sensor QoS keep '
               'last, as deep as the other image subscriptions): 1 = the newest frame wins and '
               'every frame that arrives during a slow one is skipped; 5 absorbs a slow frame '

@@ -14,8 +14,8 @@ from typing import Any, Collection, Mapping, Optional, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 
-__all__ = ['ConfigError', 'Param', 'params_from_dataclass', 'params_files', 'yaml_sections',
-           'section_matches']
+__all__ = ['ConfigError', 'Param', 'image_params', 'params_from_dataclass', 'params_files',
+           'yaml_sections', 'section_matches']
 
 _INT_MIN, _INT_MAX = -2 ** 63, 2 ** 63 - 1
 
@@ -122,6 +122,16 @@ class Param:
                     to_value=float(self.max) if self.max is not None else math.inf,
                     step=0.0)]
         return desc
+
+
+def image_params(compressed_note: str = '') -> tuple[Param, Param]:
+    """``image_topic`` and ``compressed``: the parameters of a node that reads camera images
+    through ``WorkzoneNode.image_subscription`` (raw, or compressed as image_transport
+    publishes it); ``compressed_note`` ends the ``compressed`` description."""
+    return (Param('image_topic', '/camera/image_raw', 'input camera image (sensor QoS)',
+                  read_only=True),
+            Param('compressed', False, 'only <image_topic>/compressed (false: raw, or '
+                  f'compressed while no raw image arrives{compressed_note})', read_only=True))
 
 
 def _scalar_kind(value: Any, strict: bool = True) -> str:

@@ -65,6 +65,7 @@ from workzone_ros.nodes.conversions import (
     pointcloud2_to_array,
     stamp_to_time,
 )
+from workzone_ros.nodes.params import image_params
 
 __all__ = ['ProjectorNode', 'NODE_CLASS', 'main']
 
@@ -84,10 +85,7 @@ class ProjectorNode(WorkzoneNode):
     PARAMS = (
         Param('candidates_topic', '/workzone/lidar/candidates', 'input candidates',
               read_only=True),
-        Param('image_topic', '/camera/image_raw', 'input image', read_only=True),
-        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
-              'while no raw image arrives; the size '
-              'then comes from CameraInfo)', read_only=True),
+        *image_params('; the size then comes from CameraInfo'),
         Param('camera_info_topic', '/camera/camera_info', 'input CameraInfo', read_only=True),
         Param('odom_topic', '/odom', 'odometry for ego-motion compensation ("" = off)',
               read_only=True),

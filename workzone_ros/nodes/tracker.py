@@ -32,7 +32,7 @@ from workzone_ros.nodes.conversions import (
     stamp_to_time,
     string_to_payload,
 )
-from workzone_ros.nodes.params import params_from_dataclass
+from workzone_ros.nodes.params import image_params, params_from_dataclass
 
 __all__ = ['TrackerNode', 'NODE_CLASS', 'main']
 
@@ -62,11 +62,7 @@ class TrackerNode(WorkzoneNode):
     """Kernel-based sign tracking (Lee et al.): detections + image -> tracks."""
 
     PARAMS = (
-        Param('image_topic', '/camera/image_raw', 'input camera image (bgr8/rgb8/...)',
-              read_only=True),
-        Param('compressed', False, 'only <image_topic>/compressed (false: raw, or compressed '
-              'while no raw image arrives)',
-              read_only=True),
+        *image_params(),
         Param('detections_topic', '/workzone/detections', 'input Detections payloads',
               read_only=True),
         Param('tracks_topic', '/workzone/tracks', 'output Tracks payloads', read_only=True),

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from workzone_ros.interfaces import Box, Detection
+from workzone_ros.tools.bench_tracker import textured_background
 
 W, H = 640, 480
 ORANGE = (0, 110, 245)
@@ -18,13 +19,7 @@ WHITE = (235, 238, 238)
 
 def background(seed: int = 0) -> np.ndarray:
     """Muted, blurred colour texture with pixel noise (road / vegetation / sky like)."""
-    rng = np.random.default_rng(seed)
-    small = rng.integers(40, 200, (H // 8, W // 8, 3)).astype(np.uint8)
-    bg = cv2.GaussianBlur(cv2.resize(small, (W, H)), (0, 0), 3)
-    hsv = cv2.cvtColor(bg, cv2.COLOR_BGR2HSV)
-    hsv[..., 1] //= 3
-    bg = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).astype(np.float64)
-    return np.clip(bg + rng.normal(0, 6, bg.shape), 0, 255).astype(np.uint8)
+    return textured_background(np.random.default_rng(seed), W, H)
 
 
 _MASTER = 512

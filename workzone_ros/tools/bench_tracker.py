@@ -31,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='time with the thread CPU clock (for a loaded machine)')
 
 
-def _background(rng: np.random.Generator, w: int = 640, h: int = 480) -> np.ndarray:
+def textured_background(rng: np.random.Generator, w: int = 640, h: int = 480) -> np.ndarray:
+    """Muted, blurred colour texture with pixel noise (road / vegetation / sky like)."""
     small = rng.integers(40, 200, (h // 8, w // 8, 3)).astype(np.uint8)
     bg = cv2.GaussianBlur(cv2.resize(small, (w, h)), (0, 0), 3)
     hsv = cv2.cvtColor(bg, cv2.COLOR_BGR2HSV)
@@ -59,7 +60,7 @@ def make_sequence(frames: int, signs: int, seed: int = 0):
         ``(images, boxes)``: lists per frame; ``boxes[i]`` has one ``(x, y, w, h)`` per sign.
     """
     rng = np.random.default_rng(seed)
-    bg = _background(rng)
+    bg = textured_background(rng)
     starts = []
     for k in range(signs):
         size = 24 + 70 * k / max(1, signs - 1)       # 24 .. 94 px at the start

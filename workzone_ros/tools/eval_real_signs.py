@@ -150,7 +150,6 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
 
 def main(argv: Optional[list[str]] = None) -> int:
     """Entry point; prints one line per clip and the JSON figures."""
-
     from workzone_ros.core.classifier import DEFAULT_MODEL, ModelError, load_model
     p = argparse.ArgumentParser(prog='workzone-ros evaluate real_signs', description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -164,7 +164,11 @@ class Detections(msgspec.Struct, frozen=True, tag='workzone_ros/Detections/1',
 
 
 class Track(msgspec.Struct, frozen=True, **_STRUCT):
-    """One tracked sign (Lee et al.)."""
+    """One tracked sign (Lee et al.).
+
+    ``proposal``: the track follows recall-first colour proposals (``Detection.proposal``)
+    that no shape rule checked; the classifier weighs it by their lower share of signs.
+    """
 
     track_id: int
     box: Box
@@ -175,6 +179,7 @@ class Track(msgspec.Struct, frozen=True, **_STRUCT):
     confidence: Unit = 0.0
     kind: Kind = 'unknown'
     color: Color = 'orange'
+    proposal: bool = False
 
 
 class Tracks(msgspec.Struct, frozen=True, tag='workzone_ros/Tracks/1', tag_field='schema',

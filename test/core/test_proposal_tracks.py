@@ -55,6 +55,7 @@ def test_the_tracker_publishes_a_proposal_only_once_repeated():
     assert first == []                       # one frame: never a track
     second = tracker.step(_frame(), [prop], stamp=1 / 30)
     assert len(second) == 1 and second[0].track_id > 0 and second[0].source == 'detection'
+    assert second[0].proposal               # the classifier weighs it by the proposals' prior
     third = tracker.step(_frame(), [prop], stamp=2 / 30)
     assert third[0].track_id == second[0].track_id
 
@@ -67,4 +68,4 @@ def test_a_proposal_on_a_tracked_sign_is_not_repeated():
     prop = Detection(box=Box(201, 41, 39, 39), confidence=0.4, proposal=True)
     for k in range(4):
         out = tracker.step(_frame(), [det, prop], stamp=k / 30)
-    assert len(out) == 1
+    assert len(out) == 1 and not out[0].proposal

@@ -2,8 +2,13 @@
 import numpy as np
 
 from workzone_ros.core.classifier import Prediction
-from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer, unclassifiable
-from workzone_ros.interfaces import Box, Roi, Track
+from workzone_ros.core.recognition import (
+    RecognitionConfig,
+    SignRecognizer,
+    unclassifiable,
+    weigh_prior,
+)
+from workzone_ros.interfaces import Box, Detection, Roi, Track
 
 
 class _Model:
@@ -40,6 +45,37 @@ def test_small_and_outside_boxes_are_unknown_background_is_rejected_signs_get_a_
     assert 2 not in by_id and rejected == [items[1].box]
     assert by_id[3].category == 'unknown' and 'min_size' in by_id[3].reason
     assert by_id[4].category == 'unknown' and 'inside the image' in by_id[4].reason
+
+
+def test_a_box_only_the_proposals_found_needs_stronger_evidence_to_be_a_sign():
+    """The same answer (road_work_ahead 0.9 against background 0.1) is a sign on a rule-
+    checked detection or track, and background on a proposal at the default prior (e^2.9
+    ~ 18: background 1.8 against 0.9); a prior of 0 weighs both alike."""
+    frame = np.zeros((480, 640, 3), np.uint8)
+    box = Box(x=100, y=100, w=40, h=40)
+    items = [Detection(box=box, confidence=0.9), Detection(box=box, confidence=0.4,
+                                                            proposal=True),
+             Track(track_id=7, box=box, source='detection', age=3, hits=3, similarity=0.0,
+                   proposal=True)]
+    rec = SignRecognizer(_Model(['road_work_ahead'] * 3), RecognitionConfig(read_speed=False))
+    signs, rejected = rec.recognize(frame, items, 554.0)
+    assert [s.class_key for s in signs] == ['road_work_ahead'] and len(rejected) == 2
+    rec.config = RecognitionConfig(read_speed=False, proposal_prior=0.0)
+    signs, rejected = rec.recognize(frame, items, 554.0)
+    assert len(signs) == 3 and not rejected
+
+
+def test_the_prior_is_bayes_rule_on_background():
+    pred = Prediction('road_work_ahead', 0.6, {'road_work_ahead': 0.6, 'background': 0.1,
+                                               'lane_closed': 0.3})
+    out = weigh_prior(pred, np.log(2.0))      # background's odds doubled: 0.2 / 1.1
+    assert out.class_key == 'road_work_ahead'
+    assert abs(out.probabilities['background'] - 0.2 / 1.1) < 1e-9
+    assert abs(sum(out.probabilities.values()) - 1.0) < 1e-9
+    assert weigh_prior(pred, np.log(10.0)).class_key == 'background'
+    assert weigh_prior(pred, 0.0) is pred
+    no_bg = Prediction('stop', 0.7, {'stop': 0.7, 'yield': 0.3})
+    assert weigh_prior(no_bg, 5.0) is no_bg
 
 
 def test_unclassifiable_reasons():

@@ -227,10 +227,11 @@ def test_camera_info_decides_whether_the_model_prior_applies(ros, tmp_path):
 
 
 def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_path):
-    """With proposals on, a frame of another camera than the colour model's gets the recall-
-    first candidates (flagged ``proposal``) and no rule-checked detections; the payload's
-    channelizer count is then unknown (None), not a stale number."""
-    _node(ros, model_path, image_topic='p/image', detections_topic='p/dets', proposals=True)
+    """With proposals on and ``rules: auto``, a frame of another camera than the colour
+    model's gets the recall-first candidates (flagged ``proposal``) and no rule-checked
+    detections; the payload's channelizer count is then unknown (None), not a stale number."""
+    _node(ros, model_path, image_topic='p/image', detections_topic='p/dets', proposals=True,
+          rules='auto')
     peer = ros.add(rclpy.create_node('peer', context=ros.context))
     pub = peer.create_publisher(Image, 'p/image', QoSProfile(
         depth=5, reliability=ReliabilityPolicy.RELIABLE))
@@ -243,6 +244,26 @@ def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_pat
     assert d.detections and all(x.proposal for x in d.detections)
     assert max(x.box.iou(Box(429, 93, 90, 68)) for x in d.detections) > 0.5
     assert d.channelizers is None
+
+
+def test_by_default_proposals_join_the_rule_checked_detections(ros, model_path):
+    """``rules`` defaults to on: with proposals on, another camera's frame gets the rule-
+    checked detection of its sign (not flagged) and proposals elsewhere, never a proposal
+    repeating the detection's box."""
+    _node(ros, model_path, image_topic='q/image', detections_topic='q/dets', proposals=True)
+    peer = ros.add(rclpy.create_node('peer', context=ros.context))
+    pub = peer.create_publisher(Image, 'q/image', QoSProfile(
+        depth=5, reliability=ReliabilityPolicy.RELIABLE))
+    got = []
+    peer.create_subscription(String, 'q/dets', got.append, 10)
+    img = cv2.resize(_frame(), (722, 406))
+    msg = numpy_to_image(img, 'bgr8', make_header(stamp=interfaces.Time(sec=3, nanosec=0)))
+    assert ros.spin_until(lambda: got, each=lambda: pub.publish(msg))
+    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    rules = [x for x in d.detections if not x.proposal]
+    assert len(rules) == 1 and rules[0].box.iou(Box(429, 93, 90, 68)) > 0.5
+    assert all(x.box.iou(rules[0].box) < 0.5 for x in d.detections if x.proposal)
+    assert d.channelizers is not None
 
 
 def test_a_camera_that_publishes_only_jpeg_works_without_configuration(ros, model_path):

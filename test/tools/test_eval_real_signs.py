@@ -2,6 +2,7 @@
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from workzone_ros.tools import eval_real_signs as ers
@@ -32,6 +33,17 @@ def test_a_few_frames_of_a_real_clip_give_the_figures():
     r = ers.evaluate_clip(REAL / 'charlotte.mp4', load_model(config_path(DEFAULT_MODEL)), 60.0,
                           max_frames=6)
     assert r['frames'] == 6 and r['sign_frames'] == 6 and 0.0 <= r['sign_share'] <= 1.0
+    assert r['boxes']['proposal'] == 0 and r['sign_boxes']['rule'] <= r['boxes']['rule']
+
+
+def test_the_measured_prior_is_the_log_odds_ratio_of_the_two_box_sources():
+    """Rule boxes 1 sign in 3 (odds 1/2), proposals 1 in 21 (odds 1/20): ln 10; a source
+    without signs (or all signs) has no finite prior."""
+    clips = {'a': {'boxes': {'rule': 2, 'proposal': 11}, 'sign_boxes': {'rule': 1, 'proposal': 0}},
+             'b': {'boxes': {'rule': 1, 'proposal': 10}, 'sign_boxes': {'rule': 0, 'proposal': 1}}}
+    assert ers.proposal_prior(clips) == round(float(np.log(10.0)), 2)
+    clips['b']['sign_boxes']['proposal'] = 0
+    assert ers.proposal_prior(clips) is None
 
 
 def test_signs_of_one_clip_are_interpolated_each_between_its_own_keyframes(tmp_path):

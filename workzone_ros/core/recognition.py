@@ -8,6 +8,9 @@ The rules a consumer of ``/workzone/signs`` relies on, shared by the node and by
 * every other box of the frame is classified in one batch
   (:meth:`~workzone_ros.core.classifier.SignClassifier.classify_boxes`); ``background``
   answers are rejected (returned separately, not published);
+* a box that only the recall-first colour proposals found (``proposal`` set on the detection
+  or track) is weighed by its lower prior: ``proposal_prior`` is added to the log-odds of
+  ``background`` before the most probable class is taken (:func:`weigh_prior`);
 * a work-zone speed limit gets its value from :func:`workzone_ros.core.digits.
   read_speed_limit` when it can be read;
 * every sign gets a distance: its LiDAR ROI's range, else its apparent size
@@ -24,11 +27,17 @@ from dataclasses import dataclass
 from typing import Any, Optional, Sequence
 
 from workzone_ros.core import signs as catalogue
+from workzone_ros.core.classifier import Prediction
 from workzone_ros.core.sign_distance import estimate_distance
 from workzone_ros.interfaces import Box, Roi, Sign
 
-__all__ = ['RecognitionConfig', 'SignRecognizer', 'unclassifiable', 'general_signs',
-           'GENERAL_OVERLAP']
+__all__ = ['RecognitionConfig', 'SignRecognizer', 'unclassifiable', 'weigh_prior',
+           'general_signs', 'GENERAL_OVERLAP', 'PROPOSAL_PRIOR']
+
+#: :attr:`RecognitionConfig.proposal_prior`'s default: ln(odds that a rule-checked box is a
+#: labelled sign / odds that a proposal is), 2.88 over the six labelled real clips
+#: (``evaluate real_signs --rules on --proposals``; docs/real_cameras.md).
+PROPOSAL_PRIOR = 2.9
 
 #: A general sign whose box overlaps a published sign's by this IoU or more is not added.
 GENERAL_OVERLAP = 0.3
@@ -42,6 +51,9 @@ class RecognitionConfig:
     min_size: int = 12           # px; smaller boxes are unknown
     min_visible: float = 0.5     # share of the box inside the image
     read_speed: bool = True      # read the work-zone speed limit's value
+    #: log of (odds that a rule-checked box is a sign) / (odds that a proposal is); measured
+    #: on the labelled real clips by ``evaluate real_signs`` (``prior``)
+    proposal_prior: float = PROPOSAL_PRIOR
 
 
 def unclassifiable(box: Box, width: int, height: int, min_size: int,
@@ -55,6 +67,21 @@ def unclassifiable(box: Box, width: int, height: int, min_size: int,
     if visible < min_visible:
         return f'only {visible:.0%} of the box is inside the image'
     return ''
+
+
+def weigh_prior(pred: Prediction, prior: float) -> Prediction:
+    """``pred`` with ``background``'s probability multiplied by ``exp(prior)`` and the
+    probabilities renormalised: Bayes' rule for a box whose source holds fewer signs than
+    the classifier's training assumed.  Unchanged when ``prior`` is 0 or the model has no
+    ``background`` class."""
+    probs = pred.probabilities
+    if not prior or 'background' not in probs:
+        return pred
+    scaled = {k: v * math.exp(prior) if k == 'background' else v for k, v in probs.items()}
+    total = sum(scaled.values()) or 1.0
+    scaled = {k: v / total for k, v in scaled.items()}
+    key = max(scaled, key=scaled.get)
+    return Prediction(class_key=key, score=scaled[key], probabilities=scaled)
 
 
 def _unit(x: float) -> float:
@@ -95,6 +122,8 @@ class SignRecognizer:
         preds = self.model.classify_boxes(frame, boxes, margin=cfg.margin) if boxes else []
         rejected = []
         for item, pred in zip(ok, preds):
+            if pred is not None and getattr(item, 'proposal', False):
+                pred = weigh_prior(pred, cfg.proposal_prior)
             if pred is None:
                 signs.append(_unknown(item, 'nothing of the box is inside the image'))
             elif pred.class_key == 'background' or pred.class_key not in catalogue.BY_KEY:

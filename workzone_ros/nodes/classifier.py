@@ -30,7 +30,12 @@ from std_msgs.msg import String
 
 from workzone_ros import interfaces as I
 from workzone_ros.core.overlay import draw_debug
-from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer, general_signs
+from workzone_ros.core.recognition import (
+    PROPOSAL_PRIOR,
+    RecognitionConfig,
+    SignRecognizer,
+    general_signs,
+)
 from workzone_ros.core.sign_distance import focal_from_fov
 from workzone_ros.core.sync import ExactStampPairs
 from workzone_ros.nodes import conversions as conv
@@ -67,6 +72,11 @@ class ClassifierNode(WorkzoneNode):
         Param('min_visible', 0.5, 'boxes with less than this share inside the image are '
               'published as unknown', min=0.0, max=1.0),
         Param('read_speed', True, 'read the value of work-zone speed limit signs'),
+        Param('proposal_prior', PROPOSAL_PRIOR, 'added to the log-odds of background on a box '
+              'only the colour proposals found (a Detection or Track with proposal true): '
+              "ln of the odds that a rule-checked box is a sign over a proposal's, measured on "
+              "your camera's labelled clips by 'workzone-ros evaluate real_signs' (0: weigh "
+              'proposals like rule-checked boxes)', min=0.0, max=20.0),
         Param('general_signs', True, 'also recognise general signs (stop, yield, '
               'do-not-enter, warning, speed limit, guide, mile markers) on the whole frame'),
         Param('general_every', 3, 'search every n-th frame for general signs (they never '
@@ -113,10 +123,12 @@ class ClassifierNode(WorkzoneNode):
     def _recognition_config(self) -> RecognitionConfig:
         p = self.params
         return RecognitionConfig(margin=p.margin, min_size=p.min_size,
-                                 min_visible=p.min_visible, read_speed=p.read_speed)
+                                 min_visible=p.min_visible, read_speed=p.read_speed,
+                                 proposal_prior=p.proposal_prior)
 
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
-        """Apply live changes of margin, min_size, min_visible, read_speed, general_signs."""
+        """Apply live changes of margin, min_size, min_visible, read_speed, proposal_prior,
+        general_signs."""
         self._recognizer.config = self._recognition_config()
         if not self.params.general_signs:
             self._general = None

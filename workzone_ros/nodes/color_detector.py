@@ -80,14 +80,15 @@ class ColorDetectorNode(WorkzoneNode):
         Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
               'the Cahail et al. HSV ranges if that file does not exist)', read_only=True),
         Param('proposals', False, 'also publish the recall-first colour candidates '
-              '(core.proposals, Detection.proposal true) for the classifier to decide; off '
-              'by default: with the shipped classifier they add more false work-zone signs on '
-              'real clips than they find signs (docs/real_cameras.md)'),
-        Param('rules', 'auto', "the rule-based detector (shape tests and refinements tuned on "
+              '(core.proposals, Detection.proposal true) for the classifier to decide, which '
+              'weighs them by their lower share of signs (its proposal_prior); off by default: '
+              'held out, they add false work-zone signs on real clips and no sign the rules '
+              'miss on them (docs/real_cameras.md)'),
+        Param('rules', 'on', "the rule-based detector (shape tests and refinements tuned on "
               "the colour model's own camera): on, off, or auto = only on frames of the "
-              "model's camera (its size and intrinsics); on any other camera the proposals "
-              "and the classifier decide, and the rules' refinement loops cannot stall a "
-              'frame', choices=('auto', 'on', 'off')),
+              "model's camera (its size and intrinsics) when proposals are on, so that on any "
+              'other camera the proposals and the classifier alone decide (measured worse on '
+              'the real clips than on: docs/real_cameras.md)', choices=('auto', 'on', 'off')),
         Param('proposals_model', '', 'colour model with a candidate ranker for the proposals '
               '(empty: config/models/color_proposals.npz)', read_only=True),
         Param('max_candidates', 12, 'proposals per frame at most, best ranked first', min=1,

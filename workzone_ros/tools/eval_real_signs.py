@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
+from workzone_ros.core.recognition import PROPOSAL_PRIOR
 from workzone_ros.resources import config_path
 from workzone_ros.tools.clips import find_video
 from workzone_ros.tools.eval_color import REAL_LABELS, load_sign_labels
@@ -76,8 +77,9 @@ def _draw(img, labels, dets, items, signs, text: str):
 
 def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
-                  tile_every: int = 15, rules: str = 'auto',
-                  labels: Optional[dict] = None, ranges: Optional[dict] = None) -> dict:
+                  tile_every: int = 15, rules: str = 'on',
+                  labels: Optional[dict] = None, ranges: Optional[dict] = None,
+                  prior: float = PROPOSAL_PRIOR) -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
@@ -90,15 +92,18 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     ``tools/data/real_sign_boxes.csv``; a frame with two visible signs counts twice), keyed
     by the clip's file name or its name without the extension.  ``ranges``: the work-zone
     sign ranges, :func:`sign_ranges` of a CSV (None: ``tools/data/real_clip_ranges.csv``).
+    ``prior``: the classifier's ``proposal_prior``.
 
     ``candidate_recall``: of the visible labelled sign frames where the sign is at least 20 px,
     the share where a box given to the classifier (detection, proposal or track) has IoU >= 0.3
-    with the label, before any classification.
+    with the label, before any classification.  ``boxes`` / ``sign_boxes``: the rule
+    detections and the proposals, and of them those with IoU >= 0.3 with a visible label
+    (:func:`proposal_prior`).
     """
     import cv2
 
     from workzone_ros.core.proposals import proposals_as_detections
-    from workzone_ros.core.recognition import SignRecognizer
+    from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
     from workzone_ros.core.sign_distance import focal_from_fov
     from workzone_ros.core.track import MultiTracker, TrackerConfig
     from workzone_ros.core.track.confirmation import classifier_verdicts
@@ -108,10 +113,11 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     ranges = sign_ranges() if ranges is None else ranges
     ranges = ranges.get(path.name) or ranges.get(path.stem, [])
     det, tracker = _ColorDetector(None), MultiTracker(TrackerConfig())
-    recognizer = SignRecognizer(model)
+    recognizer = SignRecognizer(model, RecognitionConfig(proposal_prior=prior))
     cap = cv2.VideoCapture(str(path))
     fps = cap.get(cv2.CAP_PROP_FPS) or 30.0
     n = hits = free = false = k = cands = big = big_hit = 0
+    boxes, signs_in = {'rule': 0, 'proposal': 0}, {'rule': 0, 'proposal': 0}
     while not max_frames or k < max_frames:
         ok, img = cap.read()
         if not ok:
@@ -122,12 +128,16 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         if proposer is not None:
             dets += proposals_as_detections(proposer.propose(img), dets)
         cands += len(dets)
+        shown = [box for box, visible in frames.get(k, ()) if visible]
+        for d in dets:
+            source = 'proposal' if d.proposal else 'rule'
+            boxes[source] += 1
+            signs_in[source] += any(d.box.iou(box) >= 0.3 for box in shown)
         items = tracker.step(img, dets, stamp=k / fps) if track else dets
         signs, _ = recognizer.recognize(img, items, focal_from_fov(img.shape[1], hfov_deg))
         if track:      # the answers go back to the tracker, as /workzone/signs to the node
             tracker.confirm(*classifier_verdicts([t.track_id for t in items], signs))
         wz = [s for s in signs if s.category == 'workzone']
-        shown = [box for box, visible in frames.get(k, ()) if visible]
         for box in shown:
             n += 1
             hits += any(s.box.iou(box) >= 0.3 for s in wz)
@@ -145,7 +155,22 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     return {'frames': k, 'sign_frames': n, 'boxes_per_frame': round(cands / max(k, 1), 2),
             'sign_share': round(hits / n, 3) if n else None,
             'candidate_recall': round(big_hit / big, 3) if big else None,
-            'free_frames': free, 'false_per_frame': round(false / free, 3) if free else None}
+            'free_frames': free, 'false_per_frame': round(false / free, 3) if free else None,
+            'boxes': boxes, 'sign_boxes': signs_in}
+
+
+def proposal_prior(results: dict) -> Optional[float]:
+    """ln(odds that a rule detection is a labelled sign / odds that a proposal is), pooled
+    over ``results`` (clip -> :func:`evaluate_clip` figures): the classifier's
+    ``proposal_prior`` for this camera and these labels.  None without both kinds of box
+    and signs among each."""
+    import math
+    n = {k: sum(r['boxes'][k] for r in results.values()) for k in ('rule', 'proposal')}
+    s = {k: sum(r['sign_boxes'][k] for r in results.values()) for k in ('rule', 'proposal')}
+    if any(not 0 < s[k] < n[k] for k in n):
+        return None
+    odds = {k: s[k] / (n[k] - s[k]) for k in n}
+    return round(math.log(odds['rule'] / odds['proposal']), 2)
 
 
 def main(argv: Optional[list[str]] = None) -> int:
@@ -165,7 +190,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--sheet', metavar='PNG', help='contact sheet of the labelled sign frames '
                    '(label white, proposals grey, detections green, tracks blue, work-zone '
                    'signs orange with their class, rejected red)')
-    p.add_argument('--rules', choices=('auto', 'on', 'off'), default='auto',
+    p.add_argument('--rules', choices=('auto', 'on', 'off'), default='on',
                    help="the rule-based detector, as color_detector's rules parameter")
     p.add_argument('--no-tracker', action='store_true',
                    help='classify the detections themselves (the graph without the tracker)')
@@ -176,6 +201,8 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='frame ranges of each clip that hold a work-zone sign (content '
                         'workzone_sign), left out of the false signs (default: '
                         'tools/data/real_clip_ranges.csv)')
+    p.add_argument('--proposal-prior', type=float, default=PROPOSAL_PRIOR,
+                   help="the classifier's proposal_prior (default %(default)s)")
     p.add_argument('--json', metavar='OUT')
     args = p.parse_args(argv)
     try:
@@ -207,7 +234,8 @@ def main(argv: Optional[list[str]] = None) -> int:
             return 2
     out = {'model': args.model, 'trained_on': model.metadata.get('sources'),
            'proposals': None if proposer is None else args.proposals or 'default',
-           'tracker': not args.no_tracker, 'rules': args.rules, 'clips': {}}
+           'tracker': not args.no_tracker, 'rules': args.rules,
+           'proposal_prior': args.proposal_prior, 'clips': {}}
     tiles: list = []
     for name in args.clips:
         try:
@@ -217,12 +245,17 @@ def main(argv: Optional[list[str]] = None) -> int:
             continue
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
                           not args.no_tracker, tiles if args.sheet else None,
-                          rules=args.rules, labels=labels, ranges=ranges)
+                          rules=args.rules, labels=labels, ranges=ranges,
+                          prior=args.proposal_prior)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "
               f"false work-zone signs / frame {r['false_per_frame']} over "
               f"{r['free_frames']} frames", file=sys.stderr, flush=True)
+    out['measured_proposal_prior'] = proposal_prior(out['clips'])
+    if out['measured_proposal_prior'] is not None:
+        print(f"proposal_prior measured on these clips' labels: "
+              f"{out['measured_proposal_prior']}", file=sys.stderr)
     if args.sheet and write_contact_sheet(tiles, args.sheet, scale=0.5):
         print(f'contact sheet: {args.sheet}', file=sys.stderr)
     print_json(out, args.json, default=str)

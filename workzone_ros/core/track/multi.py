@@ -217,7 +217,7 @@ class MultiTracker:
                 [d.confidence for d in free]):
             out.append(Track(track_id=tid, box=Box(*box), source='detection', age=age,
                              hits=hits, similarity=0.0, confidence=conf, kind='unknown',
-                             color='orange'))
+                             color='orange', proposal=True))
         return out
 
     def _step_rules(self, frame: np.ndarray, detections: Sequence[Detection] = (),

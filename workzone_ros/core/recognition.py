@@ -51,8 +51,8 @@ class RecognitionConfig:
     min_size: int = 12           # px; smaller boxes are unknown
     min_visible: float = 0.5     # share of the box inside the image
     read_speed: bool = True      # read the work-zone speed limit's value
-    #: log of (odds that a rule-checked box is a sign) / (odds that a proposal is); measured
-    #: on the labelled real clips by ``evaluate real_signs`` (``prior``)
+    #: ln(odds that a rule-checked box is a sign / odds that a proposal is); measured on
+    #: labelled clips by ``evaluate real_signs`` (``measured_proposal_prior``)
     proposal_prior: float = PROPOSAL_PRIOR
 
 

@@ -28,3 +28,22 @@ def test_optics_blurs_some_crops_and_adds_noise_to_all(monkeypatch):
         changed += not np.array_equal(out, img)
     assert 0.35 * n < gaussians[0] < 0.55 * n
     assert changed > 0.95 * n
+
+
+def test_a_real_sign_is_transplanted_whole_onto_another_background():
+    """``transplant`` copies the sign's box pixel for pixel into a canvas 1.4-2.2 times its
+    size filled from the other background, and returns where it put it."""
+    crop = np.zeros((40, 50, 3), np.uint8)
+    crop[10:30, 12:36] = (0, 128, 255)                         # the sign's box
+    crop[12:28, 14:34] = (20, 20, 20)                          # its legend
+    backdrop = np.full((30, 30, 3), (90, 160, 60), np.uint8)  # a lawn
+    for seed in range(20):
+        canvas, (x, y, w, h) = cnn_augment.transplant(crop, (12, 10, 24, 20), backdrop,
+                                                     np.random.default_rng(seed))
+        assert (w, h) == (24, 20)
+        assert 1.4 * 24 - 1 <= canvas.shape[1] <= 2.2 * 24 + 1
+        xi, yi, w, h = int(x), int(y), int(w), int(h)
+        assert np.array_equal(canvas[yi:yi + h, xi:xi + w], crop[10:30, 12:36])
+        outside = np.ones(canvas.shape[:2], bool)
+        outside[yi:yi + h, xi:xi + w] = False
+        assert np.all(canvas[outside] == (90, 160, 60))

@@ -219,6 +219,32 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     return np.clip(canvas, 0, 255).astype(np.uint8), (float(x), float(y), float(w), float(h))
 
 
+def transplant(crop: np.ndarray, box, backdrop: np.ndarray,
+               rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
+    """A real sign's box (its face with the corners of its own surroundings) cut from
+    ``crop`` and put on part of another real background crop, 1.4-2.2 times its size, a
+    little off-centre; returns the canvas (at the crop's pixel scale) and the box.
+
+    A real sign seen only before its own clip's houses or brick teaches a network that the
+    sign is that street; on other clips' backgrounds the sign itself is what stays the same.
+    """
+    H, W = crop.shape[:2]
+    x, y = (max(0, int(round(v))) for v in box[:2])
+    w = max(2, min(int(round(box[2])), W - x))
+    h = max(2, min(int(round(box[3])), H - y))
+    f = rng.uniform(1.4, 2.2)
+    cw, ch = int(round(w * f)), int(round(h * f))
+    bh_, bw_ = backdrop.shape[:2]
+    g = rng.uniform(0.5, 1.0)
+    sw, sh = max(4, int(bw_ * g)), max(4, int(bh_ * g))
+    x0, y0 = int(rng.integers(0, bw_ - sw + 1)), int(rng.integers(0, bh_ - sh + 1))
+    canvas = cv2.resize(backdrop[y0:y0 + sh, x0:x0 + sw], (cw, ch))
+    px = int(np.clip((cw - w) / 2 + rng.uniform(-0.15, 0.15) * cw, 0, cw - w))
+    py = int(np.clip((ch - h) / 2 + rng.uniform(-0.15, 0.15) * ch, 0, ch - h))
+    canvas[py:py + h, px:px + w] = crop[y:y + h, x:x + w]
+    return canvas, (float(px), float(py), float(w), float(h))
+
+
 def cutout(key: str, crop: np.ndarray, box, scale: float, backdrop: np.ndarray,
            rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
     """A rendered sign cut out along its outline (the class's shape in its box) and put

@@ -29,6 +29,10 @@ network does not learn the renderer:
   itself cut out along its class's outline.  Without it the network learns that busy real
   surroundings (houses, brick, traffic) mean ``background``: with them blurred, a real
   UTILITY WORK AHEAD diamond it called background at 0.9 became a sign;
+* real signs' surroundings: half of the real sign draws (``--real-composite``) are the
+  sign's labelled box put on another real background crop (``cnn_augment.transplant``), so
+  that the few real signs are not learned together with their own street.  Leave one clip
+  out over three seeds it named more of the held-out clip's sign (docs/classifier.md);
 * colour: white balance, exposure, gamma, contrast, saturation, hue (+-6 deg), haze,
   sensor noise; JPEG quality 30-95 at the crop's size; Gaussian blur;
 * partial occlusion from a border (a pole, a car, foliage: a flat or textured band);
@@ -80,7 +84,7 @@ import numpy as np
 from workzone_ros.core import cnn_classifier as cnn
 from workzone_ros.tools import train_classifier as tc
 from workzone_ros.tools.clips import GROW, MAX_SIDE
-from workzone_ros.tools.cnn_augment import RUN_MARGIN, augment, composite, cutout
+from workzone_ros.tools.cnn_augment import RUN_MARGIN, augment, composite, cutout, transplant
 from workzone_ros.tools.outputs import json_default
 
 __all__ = ['Sample', 'TrainConfig', 'load_samples', 'augment', 'composite', 'cutout',
@@ -267,6 +271,7 @@ class TrainConfig:
     dropout: float = 0.2
     real_share: float = 0.4
     composite: float = 0.5
+    real_composite: float = 0.5
     min_sign_side: float = 12.0
     background_share: float = 0.3
     class_power: float = 0.5
@@ -345,6 +350,12 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
                         canvas, box = cutout(lab, crops[i], boxes[i], scales[i], backdrop,
                                              rng)
                     img = augment(canvas, box, rng, 1.0, tex, cfg.min_sign_side)
+                elif (lab != 'background' and real[i] and boxes[i] is not None
+                      and len(real_bg) and cfg.real_composite > 0
+                      and rng.random() < cfg.real_composite):
+                    backdrop = crops[int(real_bg[rng.integers(len(real_bg))])]
+                    canvas, box = transplant(crops[i], boxes[i], backdrop, rng)
+                    img = augment(canvas, box, rng, scales[i], tex, cfg.min_sign_side)
                 else:
                     img = augment(crops[i], boxes[i], rng, scales[i], tex,
                                   0.0 if lab == 'background' else cfg.min_sign_side)
@@ -487,6 +498,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--composite', type=float, default=d.composite,
                    help='share of the rendered sign draws replaced by the sign art pasted on a '
                         f'training background crop (default {d.composite:g})')
+    p.add_argument('--real-composite', type=float, default=d.real_composite,
+                   help='share of the real sign draws whose box is put on another real '
+                        f'background crop (default {d.real_composite:g})')
     p.add_argument('--background-share', type=float, default=d.background_share,
                    help='share of the draws that are background crops (0: balanced like '
                         f'the other classes; default {d.background_share:g})')
@@ -591,6 +605,7 @@ def _train_config(args: argparse.Namespace) -> TrainConfig:
     return TrainConfig(input_size=args.input_size, width=args.width, epochs=args.epochs,
                        samples_per_epoch=args.samples_per_epoch, batch=args.batch, lr=args.lr,
                        real_share=args.real_share, composite=args.composite,
+                       real_composite=args.real_composite,
                        min_sign_side=args.min_sign_side,
                        background_share=args.background_share,
                        max_minutes=args.max_minutes, seed=args.seed)
@@ -619,7 +634,8 @@ def _model_metadata(args: argparse.Namespace, cfg: TrainConfig, net, run: dict,
                            'macs_per_crop': macs(cfg.width, cfg.input_size, len(classes))},
           'training': {**{k: getattr(cfg, k) for k in (
               'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
-              'dropout', 'real_share', 'composite', 'min_sign_side', 'background_share',
+              'dropout', 'real_share', 'composite', 'real_composite', 'min_sign_side',
+              'background_share',
               'class_power', 'seed')}, **run,
               'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
               'augmentation': 'renders at their size in the frame, shrunk up to 2x, '

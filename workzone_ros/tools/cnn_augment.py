@@ -188,11 +188,7 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     """
     from workzone_ros.sim import signart
     n = int(rng.integers(20, 65))
-    H, W = backdrop.shape[:2]
-    f = rng.uniform(0.5, 1.0)
-    bw, bh = max(4, int(W * f)), max(4, int(H * f))
-    x0, y0 = int(rng.integers(0, W - bw + 1)), int(rng.integers(0, H - bh + 1))
-    canvas = _resize(backdrop[y0:y0 + bh, x0:x0 + bw], n, n).astype(np.float32)
+    canvas = _resize(_backdrop_part(backdrop, rng), n, n).astype(np.float32)
     speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
     variant = str(rng.choice(signart.OTHER_VARIANTS)) if key == 'other_workzone' else None
     orange = signart.sheeting_orange(int(rng.integers(8)), 7)
@@ -219,6 +215,15 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     return np.clip(canvas, 0, 255).astype(np.uint8), (float(x), float(y), float(w), float(h))
 
 
+def _backdrop_part(backdrop: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A random window of ``backdrop``, 50-100 % of its size on both sides."""
+    H, W = backdrop.shape[:2]
+    f = rng.uniform(0.5, 1.0)
+    w, h = max(4, int(W * f)), max(4, int(H * f))
+    x0, y0 = int(rng.integers(0, W - w + 1)), int(rng.integers(0, H - h + 1))
+    return backdrop[y0:y0 + h, x0:x0 + w]
+
+
 def transplant(crop: np.ndarray, box, backdrop: np.ndarray,
                rng: np.random.Generator) -> tuple[np.ndarray, tuple]:
     """A real sign's box (its face with the corners of its own surroundings) cut from
@@ -234,11 +239,7 @@ def transplant(crop: np.ndarray, box, backdrop: np.ndarray,
     h = max(2, min(int(round(box[3])), H - y))
     f = rng.uniform(1.4, 2.2)
     cw, ch = int(round(w * f)), int(round(h * f))
-    bh_, bw_ = backdrop.shape[:2]
-    g = rng.uniform(0.5, 1.0)
-    sw, sh = max(4, int(bw_ * g)), max(4, int(bh_ * g))
-    x0, y0 = int(rng.integers(0, bw_ - sw + 1)), int(rng.integers(0, bh_ - sh + 1))
-    canvas = cv2.resize(backdrop[y0:y0 + sh, x0:x0 + sw], (cw, ch))
+    canvas = cv2.resize(_backdrop_part(backdrop, rng), (cw, ch))
     px = int(np.clip((cw - w) / 2 + rng.uniform(-0.15, 0.15) * cw, 0, cw - w))
     py = int(np.clip((ch - h) / 2 + rng.uniform(-0.15, 0.15) * ch, 0, ch - h))
     canvas[py:py + h, px:px + w] = crop[y:y + h, x:x + w]
@@ -269,11 +270,7 @@ def cutout(key: str, crop: np.ndarray, box, scale: float, backdrop: np.ndarray,
     mask[:, :m] = mask[:, m + cw:] = 0
     a = (mask.astype(np.float32) / 255.0)[..., None]
     crop = cv2.copyMakeBorder(crop, m, m, m, m, cv2.BORDER_CONSTANT)
-    bh_, bw_ = backdrop.shape[:2]
-    f = rng.uniform(0.5, 1.0)
-    sw, sh = max(4, int(bw_ * f)), max(4, int(bh_ * f))
-    x0, y0 = int(rng.integers(0, bw_ - sw + 1)), int(rng.integers(0, bh_ - sh + 1))
-    canvas = _resize(backdrop[y0:y0 + sh, x0:x0 + sw], W, H).astype(np.float32)
+    canvas = _resize(_backdrop_part(backdrop, rng), W, H).astype(np.float32)
     if rng.random() < 0.6 and y + h < H:            # a post below the face
         pw = max(1, int(round(w * 0.06)))
         px = int(round(x + w / 2 - pw / 2))

@@ -60,14 +60,25 @@ def test_bilinear_is_cv2_remap():
             assert _close(_remap_all(img, mx, my), want)
 
 
-@pytest.mark.parametrize('nt', [1, 2, 3, 4, 5, 16, 17, 31, 48])
+@pytest.mark.parametrize('n', [1, 2, 3, 5, 8, 13, 31, 32, 33, 48, 70])
+def test_sort_columns_is_numpys_sort(n):
+    rng = np.random.default_rng(n)
+    for x in (rng.normal(100, 40, (n, 21)).astype(np.float32),
+              rng.integers(0, 3, (n, 32)).astype(np.float32)):       # many ties
+        want = np.sort(x, axis=0)
+        ek.sort_columns(x)
+        assert np.array_equal(x, want)
+
+
+@pytest.mark.parametrize('nt', range(1, 49))
 def test_column_medians_are_numpys(nt):
     rng = np.random.default_rng(nt)
     for x in (rng.normal(100, 40, (nt, 37)).astype(np.float32),
               rng.integers(0, 4, (nt, 16)).astype(np.float32)):      # many ties
+        want = np.median(x, axis=0)
         out = np.empty(x.shape[1])
         ek.column_medians(x, out)
-        assert np.array_equal(out, np.median(x, axis=0))
+        assert np.array_equal(out, want)
 
 
 def _points(rng, img, n, u):
@@ -81,6 +92,61 @@ def _points(rng, img, n, u):
     s0 = np.stack([rng.uniform(reach, w - reach, n), rng.uniform(reach, h - reach, n)], 1)
     segs = np.stack([s0, s0 + length * d], 1)
     return segs, nv, _unit_steps(max(3, int(length) + 1))
+
+
+def _first_bad_point(img, segs, nv, u, ts):
+    """The code of the first sample point (stretch by stretch, along, then across) that is
+    not a number (-2) or outside ``img`` (-1), from every point computed as numpy does."""
+    h, w = img.shape
+    with np.errstate(invalid='ignore', over='ignore'):
+        along = segs[:, None, 0, :] + ts[None, :, None] * (segs[:, 1] - segs[:, 0])[:, None]
+        across = u[None, :, None] * nv[:, None, :]
+        pts = (along[:, :, None] + across[:, None] - 0.5).astype(np.float32)
+    for p in pts.reshape(len(segs), -1, 2):
+        nan = np.isnan(p).any(axis=1)
+        with np.errstate(invalid='ignore'):
+            out = (p < 0).any(axis=1) | (p[:, 0] > w - 1) | (p[:, 1] > h - 1)
+        bad = np.flatnonzero(nan | out)
+        if bad.size:
+            return -2 if nan[bad[0]] else -1
+    return 0
+
+
+def test_points_code_is_the_point_by_point_check():
+    rng = np.random.default_rng(9)
+    img = np.zeros((60, 70), np.float32)
+    u = _edge_profile(20.0, 1.0, 0.4)[0]
+    codes = set()
+    for trial in range(600):
+        n = int(rng.integers(1, 9))
+        length = rng.uniform(3, 30)
+        ang = rng.uniform(0, 2 * np.pi, n)
+        d = np.stack([np.cos(ang), np.sin(ang)], 1)
+        nv = np.stack([-d[:, 1], d[:, 0]], 1)
+        s0 = np.stack([rng.uniform(-5, 75, n), rng.uniform(-5, 65, n)], 1)
+        segs = np.stack([s0, s0 + length * d], 1)
+        ts = _unit_steps(max(3, int(length) + 1))
+        if trial % 3 == 1:
+            # a stretch moved so that its extreme point lands on the image's edge (within
+            # rounding: either side)
+            k = int(rng.integers(n))
+            along = segs[k, 0] + ts[:, None] * (segs[k, 1] - segs[k, 0])
+            pts = (along[:, None] + u[None, :, None] * nv[k] - 0.5).astype(np.float32)
+            axis = int(rng.integers(2))
+            edge = (0.0, (70.0, 60.0)[axis] - 1)[int(rng.integers(2))]
+            far = pts[..., axis].min() if edge == 0.0 else pts[..., axis].max()
+            segs[k, :, axis] += edge - float(far) + rng.choice([0.0, 1e-7, -1e-7, 1e-12])
+        if trial % 7 == 2:
+            segs[int(rng.integers(n)), int(rng.integers(2)), int(rng.integers(2))] = \
+                rng.choice([np.nan, np.inf, -np.inf])
+        if trial % 11 == 3:
+            nv[int(rng.integers(n)), int(rng.integers(2))] = np.nan
+        want = _first_bad_point(img, segs, nv, u, ts)
+        codes.add(want)
+        assert ek.points_code(img.shape, segs, nv, u, ts) == want
+        mx, my, code = ek.sample_points(img, segs, nv, u, ts)
+        assert code == want
+    assert codes == {0, -1, -2}
 
 
 def test_edge_profiles_are_remap_and_numpys_medians():

@@ -11,11 +11,17 @@ stretch (it stops once more stretches show no step than its caller accepts: on a
 frame more than half of a diamond's refinement rounds fail so, half of those after three of
 their eight stretches):
 
-* the sample points as numpy's broadcast sums (float64, then float32);
+* the sample points as numpy's broadcast sums (float64, then float32), made stretch by
+  stretch as it is measured; whether any lies outside the image is decided before, from
+  each stretch's four corner points (:func:`points_code`), so a stretch that is never
+  measured costs four points, not a few thousand;
 * the bilinear samples as ``cv2.remap`` (``INTER_LINEAR``, a constant zero border) computes
   them: ``p00 + ax (p01 - p00)`` per row, then the same between the rows, each a fused
   multiply-add in float32 (OpenCV's AVX2 kernel);
-* the medians as np.median's (:func:`~workzone_ros.core.kernels.median_inplace`);
+* the medians as np.median's: the middle value, or the mean of the middle two in float32,
+  of each column sorted by a sorting network (the same exchanges on every column, in
+  vectors: a sixth of the time of ranking every value against every other), by selection
+  (:func:`~workzone_ros.core.kernels.median_inplace`) for long stretches;
 * the two matrix products as OpenBLAS's AVX2 kernels sum them: per element a chain of fused
   multiply-adds over the inner dimension from zero, in order; only the models whose offset
   the grid allows (``valid``) are computed, the others are never read;
@@ -36,8 +42,9 @@ from numba.extending import intrinsic
 
 from workzone_ros.core.kernels import edge_choice, median_inplace
 
-__all__ = ['fma', 'bilinear', 'column_medians', 'sample_points', 'stretch_profile',
-           'edge_profiles', 'model_fits', 'edge_fit', 'valid_models', 'warm']
+__all__ = ['fma', 'bilinear', 'sort_columns', 'column_medians', 'points_code',
+           'stretch_points', 'sample_points', 'stretch_profile', 'edge_profiles',
+           'model_fits', 'edge_fit', 'valid_models', 'warm']
 
 
 @intrinsic
@@ -76,39 +83,146 @@ def bilinear(img: np.ndarray, x: np.float32, y: np.float32) -> np.float32:
 #: :func:`edge_profiles` pads a stretch's profile to a multiple of this many samples (a
 #: vector of float32)
 _LANES = 16
-#: :func:`edge_profiles` takes its medians by rank up to this many profiles a stretch
-#: (n^2 comparisons, in vectors), by selection beyond
-_RANK_MAX = 48
+#: :func:`edge_profiles` takes its medians by a sorting network up to this many profiles a
+#: stretch (the same exchanges on every column, in vectors), by selection beyond
+_NETWORK_MAX = 48
+
+
+@njit(cache=True)
+def _exchange(x: np.ndarray, i: int, j: int) -> None:
+    """Each column of ``x``: the smaller of rows ``i`` and ``j`` to row ``i``, the larger to
+    row ``j``."""
+    xi, xj = x[i], x[j]
+    for c in range(xi.size):
+        lo, hi = xi[c], xj[c]
+        if hi < lo:
+            lo, hi = hi, lo
+        xi[c], xj[c] = lo, hi
+
+
+@njit(cache=True)
+def sort_columns(x: np.ndarray) -> None:
+    """Sort each column of ``x`` (n, m) (NaN-free) in place, all columns at once: Batcher's
+    merge exchange (Knuth, TAOCP 3, 5.2.2, algorithm M), a sorting network for any n of
+    about n/4 lg^2 n exchanges."""
+    n = x.shape[0]
+    if n < 2:
+        return
+    top = 1                 # the largest power of two below n
+    while 2 * top < n:
+        top *= 2
+    p = top
+    while p > 0:
+        q, r, d = top, 0, p
+        while True:
+            for i in range(n - d):
+                if i & p == r:
+                    _exchange(x, i, i + d)
+            if q == p:
+                break
+            d, q, r = q - p, q // 2, p
+        p //= 2
 
 
 @njit(cache=True)
 def column_medians(x: np.ndarray, out: np.ndarray) -> None:
     """np.median of each column of float32 ``x`` (nt, m) (NaN-free) into ``out`` (m,): the
     middle value, or the mean of the middle two in float32 (as
-    :func:`~workzone_ros.core.kernels.median_inplace`), each found by its rank (how many
-    values lie below it and how many not above it), every column at once."""
+    :func:`~workzone_ros.core.kernels.median_inplace`), from the columns sorted in place
+    (:func:`sort_columns`)."""
     nt, m = x.shape
+    sort_columns(x)
     k = nt // 2
-    mid = np.zeros(m, np.float32)
-    below = np.zeros(m, np.float32)
-    lt = np.empty(m, np.int32)
-    le = np.empty(m, np.int32)
-    for i in range(nt):
-        xi = x[i]
-        lt[:] = 0
-        le[:] = 0
-        for t in range(nt):
-            xt = x[t]
-            for j in range(m):
-                lt[j] += np.int32(xt[j] < xi[j])
-                le[j] += np.int32(xt[j] <= xi[j])
-        for j in range(m):
-            if lt[j] <= k < le[j]:
-                mid[j] = xi[j]
-            if lt[j] <= k - 1 < le[j]:
-                below[j] = xi[j]
     for j in range(m):
-        out[j] = mid[j] if nt % 2 else (below[j] + mid[j]) / 2
+        out[j] = x[k, j] if nt % 2 else (x[k - 1, j] + x[k, j]) / 2
+
+
+@njit(cache=True)
+def _point(s0: float, d: float, t: float, uj: float, nv: float) -> np.float32:
+    """One coordinate of a sample point: ``s0 + t d + uj nv - 0.5`` in float64, then
+    float32 (numpy's broadcast sums' order)."""
+    return np.float32(s0 + t * d + uj * nv - 0.5)
+
+
+@njit(cache=True)
+def stretch_points(segs: np.ndarray, nvecs: np.ndarray, s: int, u: np.ndarray,
+                   ts: np.ndarray, mx: np.ndarray, my: np.ndarray) -> None:
+    """Edge stretch ``s``'s sample points (:func:`sample_points`) into ``mx``, ``my``
+    (len(ts), len(u)) float32."""
+    dx = segs[s, 1, 0] - segs[s, 0, 0]
+    dy = segs[s, 1, 1] - segs[s, 0, 1]
+    for t in range(ts.size):
+        for j in range(u.size):
+            mx[t, j] = _point(segs[s, 0, 0], dx, ts[t], u[j], nvecs[s, 0])
+            my[t, j] = _point(segs[s, 0, 1], dy, ts[t], u[j], nvecs[s, 1])
+
+
+@njit(cache=True)
+def _outside(x: np.float32, y: np.float32, h: int, w: int) -> int:
+    """-2 when the point ``(x, y)`` is not a number, -1 when it lies outside an ``h`` x
+    ``w`` image (pixel centres from 0 to ``w - 1``, ``h - 1``), else 0."""
+    if math.isnan(x) or math.isnan(y):
+        return -2
+    if x < 0 or y < 0 or x > w - 1 or y > h - 1:
+        return -1
+    return 0
+
+
+@njit(cache=True)
+def _stretch_code(segs: np.ndarray, nvecs: np.ndarray, s: int, u: np.ndarray,
+                  ts: np.ndarray, h: int, w: int) -> int:
+    """:func:`_outside` of stretch ``s``'s first sample point that is not a number or lies
+    outside the image, point by point (0: none)."""
+    dx = segs[s, 1, 0] - segs[s, 0, 0]
+    dy = segs[s, 1, 1] - segs[s, 0, 1]
+    for t in range(ts.size):
+        for j in range(u.size):
+            code = _outside(_point(segs[s, 0, 0], dx, ts[t], u[j], nvecs[s, 0]),
+                            _point(segs[s, 0, 1], dy, ts[t], u[j], nvecs[s, 1]), h, w)
+            if code != 0:
+                return code
+    return 0
+
+
+@njit(cache=True)
+def _corner_code(segs: np.ndarray, nvecs: np.ndarray, s: int, t_ends: tuple,
+                 u_ends: tuple, h: int, w: int) -> int:
+    """-1 when one of stretch ``s``'s sample points at the extreme steps ``t_ends`` and
+    offsets ``u_ends`` lies outside the image, else 0 (all of them finite)."""
+    dx = segs[s, 1, 0] - segs[s, 0, 0]
+    dy = segs[s, 1, 1] - segs[s, 0, 1]
+    for t in t_ends:
+        for uj in u_ends:
+            if _outside(_point(segs[s, 0, 0], dx, t, uj, nvecs[s, 0]),
+                        _point(segs[s, 0, 1], dy, t, uj, nvecs[s, 1]), h, w) != 0:
+                return -1
+    return 0
+
+
+@njit(cache=True)
+def points_code(shape: tuple, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray,
+                ts: np.ndarray) -> int:
+    """:func:`sample_points`' code without the points: 0 when every sample point lies in
+    an image of ``shape`` (h, w), else the first stretch's with one outside (-1) or not a
+    number (-2).  A stretch with finite end points and normal (and finite ``ts``, ``u``)
+    is decided by its four corner points: each coordinate is a chain of sums and products,
+    each rounded, with one term varying along the stretch and one across it, so it is
+    monotone in ``t`` and in ``u`` and its extremes lie at their extreme values.  Others
+    are checked point by point."""
+    h, w = shape[0], shape[1]
+    steps_finite = np.all(np.isfinite(ts)) and np.all(np.isfinite(u))
+    t_ends = (ts.min(), ts.max()) if ts.size else (0.0, 0.0)
+    u_ends = (u.min(), u.max()) if u.size else (0.0, 0.0)
+    for s in range(segs.shape[0]):
+        if ts.size == 0 or u.size == 0:
+            continue
+        if steps_finite and np.all(np.isfinite(segs[s])) and np.all(np.isfinite(nvecs[s])):
+            code = _corner_code(segs, nvecs, s, t_ends, u_ends, h, w)
+        else:
+            code = _stretch_code(segs, nvecs, s, u, ts, h, w)
+        if code != 0:
+            return code
+    return 0
 
 
 @njit(cache=True)
@@ -118,27 +232,16 @@ def sample_points(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.nd
     stretch (``segs`` (n, 2, 2) its end points, ``nvecs`` (n, 2) its inward normal) for each
     ``t`` of ``ts`` and ``u`` of ``u``: ``(x, y, code)``, x and y (n, len(ts), len(u))
     float32 and code 0; -1 when a point lies outside the ``img.shape`` image, -2 when one is
-    not a number (whichever comes first, stretch by stretch)."""
+    not a number (whichever comes first, stretch by stretch; the points are then not
+    filled)."""
     n, nt, nu = segs.shape[0], ts.size, u.size
-    h, w = img.shape
     mx = np.empty((n, nt, nu), np.float32)
     my = np.empty((n, nt, nu), np.float32)
-    for s in range(n):
-        dx = segs[s, 1, 0] - segs[s, 0, 0]
-        dy = segs[s, 1, 1] - segs[s, 0, 1]
-        for t in range(nt):
-            ax = segs[s, 0, 0] + ts[t] * dx
-            ay = segs[s, 0, 1] + ts[t] * dy
-            for j in range(nu):
-                x = np.float32(ax + u[j] * nvecs[s, 0] - 0.5)
-                y = np.float32(ay + u[j] * nvecs[s, 1] - 0.5)
-                if math.isnan(x) or math.isnan(y):
-                    return mx, my, -2
-                if x < 0 or y < 0 or x > w - 1 or y > h - 1:
-                    return mx, my, -1
-                mx[s, t, j] = x
-                my[s, t, j] = y
-    return mx, my, 0
+    code = points_code(img.shape, segs, nvecs, u, ts)
+    if code == 0:
+        for s in range(n):
+            stretch_points(segs, nvecs, s, u, ts, mx[s], my[s])
+    return mx, my, code
 
 
 @njit(cache=True)
@@ -153,7 +256,7 @@ def stretch_profile(img: np.ndarray, mx: np.ndarray, my: np.ndarray, out: np.nda
     for t in range(nt):
         for j in range(nu):
             samples[t, j] = bilinear(img, mx[t, j], my[t, j])
-    if nt <= _RANK_MAX:
+    if nt <= _NETWORK_MAX:
         col = np.empty(nup)
         column_medians(samples, col)
         out[:] = col[:nu]
@@ -228,17 +331,21 @@ def edge_fit(img: np.ndarray, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray
     face and background levels (NaN without a step); returns how many stretches show a
     step; -1 when a sample point lies outside ``img``, -2 when one is not a number, -3 as
     soon as more than ``max_lost`` stretches show none (the later ones not measured)."""
-    mx, my, code = sample_points(img, segs, nvecs, u, ts)
+    code = points_code(img.shape, segs, nvecs, u, ts)
     if code < 0:
         return code
     n, nu, nk = segs.shape[0], u.size, valid.size
+    # one stretch's sample points at a time: a stretch that is not measured costs none
+    mx = np.empty((ts.size, nu), np.float32)
+    my = np.empty((ts.size, nu), np.float32)
     prof = np.empty((1, nu))
     # the models' A^T p and coefficients of one stretch (the invalid ones stay zero)
     atb = np.zeros((nk, 3, 1))
     coef = np.zeros((nk, 3, 1))
     seen = 0
     for c in range(n):
-        stretch_profile(img, mx[c], my[c], prof[0])
+        stretch_points(segs, nvecs, c, u, ts, mx, my)
+        stretch_profile(img, mx, my, prof[0])
         fit_atb, fit_coef = model_fits(prof, bases_vt, ata_inv_v)
         for m in range(models.size):
             k = models[m]

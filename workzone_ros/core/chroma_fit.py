@@ -17,7 +17,12 @@ of 3 frames of 627 moved by 1-5 px.
 
 An edge's blurred half-plane is within 1e-16 of 0 or 1 more than 8.5 blur widths away,
 and the model's derivatives through it vanish there: the error function is evaluated only
-for the edges a pixel is near, so most of a window costs a few multiplications.
+for the edges a pixel is near, so most of a window costs a few multiplications; there the
+cdf and density come from one exponential and Cody's rational approximation
+(:func:`~workzone_ros.core.normal_cdf.normal_cdf_pdf`, relative error below 1e-11), not
+``math.erfc`` and ``math.exp`` (up to three exponentials).  Numba's cache knows a compiled
+function by its own file's source alone: a change to :mod:`~workzone_ros.core.normal_cdf`
+takes effect here once this file changes too (or its cache is cleared).
 
 ``test/core/test_chroma_fit.py`` compares the fit with SciPy's on blurred test signs.
 """
@@ -28,12 +33,12 @@ import math
 import numpy as np
 from numba import njit
 
+from workzone_ros.core.normal_cdf import normal_cdf_pdf
+
 __all__ = ['lm_fit', 'normal_equations', 'warm']
 
 #: beyond this many blur widths an edge's blurred half-plane is 0 or 1 to float64 precision
 _Z_FAR = 8.5
-_SQRT1_2 = 1.0 / math.sqrt(2.0)
-_INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 #: the four edges' signs ``(sx, sy)``: the edge ``sx u + sy v = 1``
 _SX = np.array([-1.0, 1.0, 1.0, -1.0])
 _SY = np.array([-1.0, -1.0, 1.0, 1.0])
@@ -75,8 +80,7 @@ def normal_equations(p: np.ndarray, xs: np.ndarray, ys: np.ndarray, vals: np.nda
                 if z[i] > _Z_FAR:
                     cdf[i], pdf[i] = 1.0, 0.0
                 else:
-                    cdf[i] = 0.5 * math.erfc(-z[i] * _SQRT1_2)
-                    pdf[i] = math.exp(-0.5 * z[i] * z[i]) * _INV_SQRT_2PI
+                    cdf[i], pdf[i] = normal_cdf_pdf(z[i])
                 prod *= cdf[i]
             for i in range(4):
                 if pdf[i] == 0.0:

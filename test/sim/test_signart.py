@@ -52,11 +52,27 @@ def test_classes_pairwise_different_at_64px():
         assert local > 30.0, f'{a} and {b}: no 8x8 block differs clearly ({local:.1f})'
 
 
-def test_other_workzone_variants_differ():
-    faces = [_on_grey(signart.sign_face('other_workzone', 64, variant=v))
-             for v in signart.OTHER_VARIANTS]
+@pytest.mark.parametrize('key', sorted(signart.VARIANTS))
+def test_variants_differ_and_the_first_is_the_default(key):
+    variants = signart.VARIANTS[key]
+    faces = [_on_grey(signart.sign_face(key, 64, variant=v)) for v in variants]
     for a, b in itertools.combinations(faces, 2):
         assert np.abs(a - b).mean() > 6.0
+    assert np.array_equal(faces[0], _on_grey(signart.sign_face(key, 64)))
+
+
+def _red_share(face: np.ndarray) -> float:
+    hsv = cv2.cvtColor(np.ascontiguousarray(face[..., :3]), cv2.COLOR_BGR2HSV)
+    red = ((hsv[..., 0] < 8) | (hsv[..., 0] > 170)) & (hsv[..., 1] > 120)
+    return float(np.count_nonzero(red & (face[..., 3] > 250))) / face[..., 3].size
+
+
+def test_stop_ahead_is_a_yellow_diamond_with_a_red_octagon():
+    """Cahail et al., Fig. 3.8: a red symbol on a warning sign (W3-1 STOP AHEAD)."""
+    face = signart.sign_face('warning_diamond', 128, variant='stop_ahead')
+    assert 0.03 < _red_share(face) < 0.15
+    assert _red_share(signart.sign_face('warning_diamond', 128)) == 0.0
+    assert signart.sign_face('warning_diamond', 128, variant='stop_ahead')[0, 0, 3] == 0
 
 
 @pytest.mark.parametrize('left,right', signart.MIRROR_PAIRS)
@@ -142,6 +158,8 @@ def test_unknown_class_raises():
         signart.sign_face('background')
     with pytest.raises(ValueError):
         signart.sign_face('other_workzone', variant='nope')
+    with pytest.raises(ValueError, match='warning_diamond variant'):
+        signart.sign_face('warning_diamond', variant='flagger')
 
 
 def test_drum_texture():

@@ -47,3 +47,29 @@ def test_a_real_sign_is_transplanted_whole_onto_another_background():
         outside = np.ones(canvas.shape[:2], bool)
         outside[yi:yi + h, xi:xi + w] = False
         assert np.all(canvas[outside] == (90, 160, 60))
+
+
+def _plaque_crop() -> np.ndarray:
+    """A white panel under an orange top band (a work-zone speed limit) on grey."""
+    crop = np.full((64, 64, 3), 110, np.uint8)
+    crop[12:52, 20:44] = 240
+    crop[12:20, 20:44] = (0, 110, 245)
+    return crop
+
+
+def test_keep_top_never_frames_or_covers_the_top_of_the_sign_away():
+    """The WORK ZONE plaque tells a work-zone speed limit from a speed limit: with
+    ``keep_top`` neither the framing nor the occluder hides it; without, some draws do."""
+    crop, box = _plaque_crop(), (20, 12, 24, 40)
+    lost = {True: 0, False: 0}
+    for keep in (True, False):
+        for seed in range(300):
+            rng = np.random.default_rng(seed)
+            win = cnn_augment._window(crop, box, rng, keep)
+            img = win.astype(np.float32)
+            if rng.random() < 0.5:
+                cnn_augment._occlude(img, rng, None, keep)
+            orange = (img[..., 2] > 200) & (img[..., 0] < 60)
+            lost[keep] += np.count_nonzero(orange) < 0.4 * 8 * 24     # most of it hidden
+    assert lost[True] == 0
+    assert lost[False] > 10

@@ -23,7 +23,8 @@ import numpy as np
 from workzone_ros.core import signs
 
 __all__ = [
-    'ORANGE', 'YELLOW', 'RED', 'GREEN', 'WHITE', 'BLACK', 'OTHER_VARIANTS', 'MIRROR_PAIRS',
+    'ORANGE', 'YELLOW', 'RED', 'GREEN', 'WHITE', 'BLACK', 'OTHER_VARIANTS', 'WARNING_VARIANTS',
+    'VARIANTS', 'MIRROR_PAIRS',
     'face_aspect', 'face_size', 'sign_face', 'outline', 'drum_texture', 'ORANGE_HSV',
     'ORANGE_VARIATION', 'sheeting_orange', 'uses_orange', 'over',
 ]
@@ -43,6 +44,11 @@ ORANGE_VARIATION = {'hue': 4, 'saturation': (0.70, 1.0), 'value': (0.80, 1.03)}
 
 #: Variants of ``other_workzone`` (W20-7 flagger, W20-4 one lane road, W21-5 shoulder work).
 OTHER_VARIANTS = ('flagger', 'one_lane', 'shoulder_work')
+#: Symbols of the yellow ``warning_diamond`` (W1-2 curve, W3-1 stop ahead: a red octagon,
+#: W3-3 signal ahead: red, yellow and green lamps, W2-1 cross road).
+WARNING_VARIANTS = ('curve', 'stop_ahead', 'signal_ahead', 'cross_road')
+#: The classes drawn in several variants; the first is the default.
+VARIANTS = {'other_workzone': OTHER_VARIANTS, 'warning_diamond': WARNING_VARIANTS}
 #: Class pairs whose faces are mirror images (left, right).
 MIRROR_PAIRS = (('lane_shift_left', 'lane_shift_right'), ('left_lane_ends', 'right_lane_ends'))
 
@@ -247,6 +253,28 @@ def _sym_curve(img, S: float, color) -> None:
     _arrow_path(img, pts, color, 0.09 * S, 0.14 * S)
 
 
+def _sym_warning(f: '_Face') -> None:
+    """The yellow warning diamond's symbol in its variant (:data:`WARNING_VARIANTS`)."""
+    img, S = f.img, f.S
+    if f.variant == 'stop_ahead':              # W3-1: an octagon, an arrow up to it
+        t = np.arange(8) * np.pi / 4 + np.pi / 8
+        ring = np.column_stack([np.cos(t), np.sin(t)])
+        _poly(img, (np.array([0.5, 0.40]) + 0.19 * ring) * S, WHITE)
+        _poly(img, (np.array([0.5, 0.40]) + 0.165 * ring) * S, RED)
+        _arrow_path(img, np.array([[0.5, 0.84], [0.5, 0.62]]) * S, BLACK, 0.07 * S, 0.11 * S)
+    elif f.variant == 'signal_ahead':          # W3-3: a signal head, three lamps
+        _poly(img, np.array([[0.40, 0.20], [0.60, 0.20], [0.60, 0.80], [0.40, 0.80]]) * S,
+              BLACK)
+        for y, lamp in ((0.31, RED), (0.50, (0, 190, 245)), (0.69, (90, 170, 0))):
+            cv2.circle(img, (int(0.5 * S * 16), int(y * S * 16)), int(0.065 * S * 16), lamp,
+                       -1, cv2.LINE_AA, shift=4)
+    elif f.variant == 'cross_road':            # W2-1: a cross
+        for a, b in (([0.44, 0.20], [0.56, 0.80]), ([0.20, 0.44], [0.80, 0.56])):
+            _poly(img, np.array([a, [b[0], a[1]], b, [a[0], b[1]]]) * S, BLACK)
+    else:                                      # W1-2: a curve
+        _sym_curve(img, S, BLACK)
+
+
 def _sym_flagger(img, S: float, color) -> None:
     """W20-7 flagger symbol: a person holding a flag on a staff (thick strokes)."""
     def L(p, q, t):
@@ -343,7 +371,7 @@ _DIAMOND_LEGENDS = {
     'lane_shift': lambda f: _sym_double_reverse(f.img, f.S, BLACK),
     'left_lane_ends': lambda f: _sym_lane_ends(f.img, f.S, -1, BLACK),
     'right_lane_ends': lambda f: _sym_lane_ends(f.img, f.S, +1, BLACK),
-    'warning_diamond': lambda f: _sym_curve(f.img, f.S, BLACK),
+    'warning_diamond': _sym_warning,
     'other_workzone': _legend_other_workzone,
 }
 
@@ -544,7 +572,9 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
         size_px: pixels of the longer side of the face's bounding rectangle.
         speed_value: number on speed-limit faces (default 45 for the work-zone limit, 65 for
             the general limit) or the mile of a mile marker (default 123).
-        variant: ``other_workzone`` only: one of :data:`OTHER_VARIANTS` (default flagger).
+        variant: for the classes of :data:`VARIANTS` (``other_workzone``,
+            ``warning_diamond``) one of their variants (default the first); ignored for the
+            others.
         orange: BGR of the orange sheeting (e.g. :func:`sheeting_orange`); default
             :data:`ORANGE`.  Ignored for classes without orange.
 
@@ -563,12 +593,13 @@ def sign_face(class_key: str, size_px: int = 256, speed_value: int | None = None
     if speed_value is None:
         speed_value = {'work_zone_speed_limit': 45, 'speed_limit': 65,
                        'mile_marker': 123}.get(class_key, 0)
-    if class_key != 'other_workzone':
+    known = VARIANTS.get(class_key)
+    if not known:
         variant = ''
     elif variant is None:
-        variant = OTHER_VARIANTS[0]
-    elif variant not in OTHER_VARIANTS:
-        raise ValueError(f'unknown other_workzone variant {variant!r}; known: {OTHER_VARIANTS}')
+        variant = known[0]
+    elif variant not in known:
+        raise ValueError(f'unknown {class_key} variant {variant!r}; known: {known}')
     if orange is None or not uses_orange(class_key):
         orange = ORANGE
     return _cached(class_key, int(max(8, size_px)), int(speed_value), variant,

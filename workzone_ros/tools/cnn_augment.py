@@ -21,8 +21,10 @@ __all__ = ['RUN_MARGIN', 'augment', 'composite', 'cutout']
 #: The margin and squaring of ``classify_boxes`` (the node's default margin).
 RUN_MARGIN = 0.1
 
-def _window(crop: np.ndarray, box, rng: np.random.Generator) -> np.ndarray:
-    """A detector-like, run-time-like square cut around the object (see module doc)."""
+def _window(crop: np.ndarray, box, rng: np.random.Generator, keep_top: bool = False
+            ) -> np.ndarray:
+    """A detector-like, run-time-like square cut around the object (see module doc); with
+    ``keep_top`` its top edge is never cut off."""
     H, W = crop.shape[:2]
     if box is None:
         box = (0.1 * W / 1.2, 0.1 * H / 1.2, W / 1.2, H / 1.2)
@@ -31,6 +33,8 @@ def _window(crop: np.ndarray, box, rng: np.random.Generator) -> np.ndarray:
     cx = x + w / 2 + rng.uniform(-0.12, 0.12) * side
     cy = y + h / 2 + rng.uniform(-0.12, 0.12) * side
     x0, y0 = int(round(cx - side / 2)), int(round(cy - side / 2))
+    if keep_top:
+        y0 = min(y0, int(math.floor(y)))
     n = max(2, int(round(side)))
     x1, y1 = x0 + n, y0 + n
     if rng.random() < 0.5:                   # clip to what exists (an image border)
@@ -50,7 +54,8 @@ def _resize(img: np.ndarray, w: int, h: int) -> np.ndarray:
 
 
 def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
-            texture: Optional[np.ndarray] = None, min_side: float = 0.0) -> np.ndarray:
+            texture: Optional[np.ndarray] = None, min_side: float = 0.0,
+            keep_top: bool = False) -> np.ndarray:
     """One camera-like variant of a training crop (BGR ``uint8``, about the size the object
     had in the frame or smaller; the network's input resize then enlarges it smoothly, as
     at run time).
@@ -64,16 +69,19 @@ def augment(crop: np.ndarray, box, rng: np.random.Generator, scale: float = 1.0,
         texture: another crop, pasted as an occluder sometimes.
         min_side: never shrink the object's box below this (px): the node publishes
             smaller boxes as ``unknown`` and never classifies them.
+        keep_top: neither the framing nor the occluder hides the object's top (a class
+            told from another by its top: the WORK ZONE plaque above a speed-limit panel;
+            hidden, the crop would be the other class under this one's label).
     """
     crop, box = _to_frame_scale(crop, box, scale)
     if rng.random() < 0.4:          # a tilted post, camera roll, a sign seen at an angle
         crop = _tilt(crop, rng)
-    win = _window(crop, box, rng)
+    win = _window(crop, box, rng, keep_top)
     img = _distance_resize(win, box, rng, min_side).astype(np.float32)
     img = _colour_jitter(img, rng)
     # occlusion from a border
     if rng.random() < 0.25:
-        _occlude(img, rng, texture)
+        _occlude(img, rng, texture, keep_top)
     img = _optics(img, rng)
     return jpeg_degrade(np.clip(img, 0, 255).astype(np.uint8), rng, *CAMERA_JPEG)
 
@@ -137,11 +145,12 @@ def _colour_jitter(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return img
 
 
-def _occlude(img: np.ndarray, rng: np.random.Generator, texture: Optional[np.ndarray]) -> None:
+def _occlude(img: np.ndarray, rng: np.random.Generator, texture: Optional[np.ndarray],
+             keep_top: bool = False) -> None:
     """:func:`augment`'s occluder (``texture`` or noisy flat colour) over 10-35 % of
-    ``img`` from a random side, in place."""
+    ``img`` from a random side (not the top with ``keep_top``), in place."""
     h, w = img.shape[:2]
-    side = int(rng.integers(4))
+    side = int(rng.integers(3 if keep_top else 4))
     depth = rng.uniform(0.1, 0.35)
     if texture is not None and rng.random() < 0.5:
         fill = _resize(texture, w, h).astype(np.float32)
@@ -190,7 +199,8 @@ def composite(key: str, backdrop: np.ndarray, rng: np.random.Generator
     n = int(rng.integers(20, 65))
     canvas = _resize(_backdrop_part(backdrop, rng), n, n).astype(np.float32)
     speed = int(rng.choice([25, 35, 45, 55, 65])) if 'speed' in key else None
-    variant = str(rng.choice(signart.OTHER_VARIANTS)) if key == 'other_workzone' else None
+    variants = signart.VARIANTS.get(key)
+    variant = str(rng.choice(variants)) if variants else None
     orange = signart.sheeting_orange(int(rng.integers(8)), 7)
     side = max(12, int(round(n * rng.uniform(0.45, 0.8) / 2)) * 2)  # few cached sizes
     face = signart.sign_face(key, side, speed, variant, orange)

@@ -95,6 +95,8 @@ DEFAULT_OUTPUT = Path(__file__).resolve().parents[2] / 'config' / cnn.DEFAULT_MO
 FLIP_SWAP = {'lane_shift_left': 'lane_shift_right', 'lane_shift_right': 'lane_shift_left',
              'left_lane_ends': 'right_lane_ends', 'right_lane_ends': 'left_lane_ends'}
 OPSET = 17
+#: Classes told from another only by their top: hidden, a crop of one is the other's.
+TOP_DEFINED = frozenset({'work_zone_speed_limit'})
 
 
 def _say(line: str) -> None:
@@ -340,6 +342,7 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
             for i in ids:
                 tex = crops[int(bg[rng.integers(len(bg))])] if len(bg) else None
                 lab = labels[i]
+                top = lab in TOP_DEFINED
                 if lab != 'background' and not real[i] and len(bg) \
                         and rng.random() < cfg.composite:
                     pool = real_bg if len(real_bg) and rng.random() < 0.6 else bg
@@ -349,16 +352,16 @@ def train(sample: Sample, labels: Sequence[str], classes: Sequence[str], cfg: Tr
                     else:
                         canvas, box = cutout(lab, crops[i], boxes[i], scales[i], backdrop,
                                              rng)
-                    img = augment(canvas, box, rng, 1.0, tex, cfg.min_sign_side)
+                    img = augment(canvas, box, rng, 1.0, tex, cfg.min_sign_side, top)
                 elif (lab != 'background' and real[i] and boxes[i] is not None
                       and len(real_bg) and cfg.real_composite > 0
                       and rng.random() < cfg.real_composite):
                     backdrop = crops[int(real_bg[rng.integers(len(real_bg))])]
                     canvas, box = transplant(crops[i], boxes[i], backdrop, rng)
-                    img = augment(canvas, box, rng, scales[i], tex, cfg.min_sign_side)
+                    img = augment(canvas, box, rng, scales[i], tex, cfg.min_sign_side, top)
                 else:
                     img = augment(crops[i], boxes[i], rng, scales[i], tex,
-                                  0.0 if lab == 'background' else cfg.min_sign_side)
+                                  0.0 if lab == 'background' else cfg.min_sign_side, top)
                 if lab in flip_ok and rng.random() < 0.5:
                     img = img[:, ::-1]
                     lab = FLIP_SWAP.get(lab, lab)
@@ -635,8 +638,7 @@ def _model_metadata(args: argparse.Namespace, cfg: TrainConfig, net, run: dict,
           'training': {**{k: getattr(cfg, k) for k in (
               'epochs', 'samples_per_epoch', 'batch', 'lr', 'weight_decay', 'label_smoothing',
               'dropout', 'real_share', 'composite', 'real_composite', 'min_sign_side',
-              'background_share',
-              'class_power', 'seed')}, **run,
+              'background_share', 'class_power', 'seed')}, **run,
               'optimiser': 'AdamW, cosine schedule, 1 warm-up epoch',
               'augmentation': 'renders at their size in the frame, shrunk up to 2x, '
                               'signs >= min_sign_side; run-time framing +-12 % shift, '

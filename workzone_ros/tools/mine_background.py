@@ -10,6 +10,12 @@ that is not a sign:
 * a candidate overlapping a labelled sign box of the crop index (``--index``, any class, the
   box interpolated between labelled frames) is skipped.
 
+With ``--general-red`` it also keeps the general sign detector's red candidates (the boxes
+its CNN mode hands the classifier as possible STOP, YIELD or DO NOT ENTER signs: drums,
+cones, red cars, brick), in every frame outside the ``--red-ranges`` (frames where a red or
+orange sign a candidate could be is in view, by eye) and not on a labelled sign box: the
+negatives that teach the classifier's red classes what is not a red sign.
+
 It writes crops in the format of ``test/data/real_crops`` (the box grown by 25 % per side,
 longer side at most 64 px, ``index.csv`` with ``path,class_key,clip,frame,x,y,w,h,source``),
 so ``workzone-ros train classifier --data DIR`` and ``--exclude-clip`` read them as they read
@@ -31,6 +37,7 @@ __all__ = ['mine_clip', 'main']
 REPO = Path(__file__).resolve().parents[2]
 INDEX = REPO / 'test' / 'data' / 'real_crops' / 'index.csv'
 RANGES = Path(__file__).resolve().parent / 'data' / 'real_clip_ranges.csv'
+RED_RANGES = Path(__file__).resolve().parent / 'data' / 'red_sign_frames.csv'
 VIDEOS = REPO.parent / 'shared' / 'realdata' / 'us_workzone_video'
 def _sign_boxes(index: Path) -> dict:
     """clip -> frame -> labelled sign boxes, each held over the 3 frames around its label."""
@@ -45,36 +52,53 @@ def _sign_boxes(index: Path) -> dict:
     return out
 
 
-def _sign_ranges(path: Path) -> dict:
+def _sign_ranges(path: Path, content: str = 'workzone_sign') -> dict:
+    """clip -> [(first, last)] frame ranges of ``content`` in a ranges file."""
     out: dict = defaultdict(list)
     with open(path) as fh:
         for r in csv.DictReader(line for line in fh if not line.startswith('#')):
-            if r['content'] == 'workzone_sign':
+            if r['content'] == content:
                 out[r['clip'].removesuffix('.mp4')].append(
                     (int(r['first_frame']), int(r['last_frame'])))
     return out
 
 
 def mine_clip(video: Path, proposer, signs: dict, ranges: list, step: int, min_size: int,
-              out: Path, writer) -> int:
-    """Write one clip's background crops; returns how many."""
+              out: Path, writer, general=None, red_ranges: tuple = ()) -> int:
+    """Write one clip's background crops (and, with a ``general`` sign detector, its red
+    candidates outside ``red_ranges``); returns how many."""
+    n = 0
+    for k, img in frames_of(video):
+        if k % step:
+            continue
+        if not any(a <= k <= b for a, b in ranges):
+            boxes = [p.box for p in proposer.propose(img)]
+            n += _keep(img, video.stem, k, boxes, signs.get(k, []), min_size, 'proposal',
+                       out, writer)
+        if general is not None and not any(a <= k <= b for a, b in red_ranges):
+            boxes = [b for b, c in general.candidate_boxes(img) if c == 'red']
+            n += _keep(img, video.stem, k, boxes, signs.get(k, []), min_size, 'general_red',
+                       out, writer)
+    return n
+
+
+def _keep(img, clip: str, k: int, boxes: list, signs: list, min_size: int, source: str,
+          out: Path, writer) -> int:
+    """Write the ``boxes`` at least ``min_size`` px that touch no labelled sign box as
+    background crops of frame ``k``; returns how many."""
     import cv2
 
     from workzone_ros.core.proposals import candidate_labels
+    boxes = [b for b in boxes if max(b[2:]) >= min_size]
+    hit = candidate_labels(boxes, signs, iou=0.05)
     n = 0
-    for k, img in frames_of(video):
-        if k % step or any(a <= k <= b for a, b in ranges):
+    for j, (box, h) in enumerate(zip(boxes, hit)):
+        if h:
             continue
-        props = [p for p in proposer.propose(img) if max(p.box[2:]) >= min_size]
-        hit = candidate_labels([p.box for p in props], signs.get(k, []), iou=0.05)
-        for j, (p, h) in enumerate(zip(props, hit)):
-            if h:
-                continue
-            name = f'background/{video.stem}_{k:04d}_{j}.png'
-            cv2.imwrite(str(out / name), crop_box(img, *p.box))
-            writer.writerow([name, 'background', video.stem, k,
-                             *(f'{v:.1f}' for v in p.box), 'proposal', ''])
-            n += 1
+        name = f'background/{clip}_{k:04d}_{source}_{j}.png'
+        cv2.imwrite(str(out / name), crop_box(img, *box))
+        writer.writerow([name, 'background', clip, k, *(f'{v:.1f}' for v in box), source, ''])
+        n += 1
     return n
 
 
@@ -95,6 +119,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--step', type=int, default=6, help='every this many frames (6)')
     p.add_argument('--min-size', type=int, default=16, help='smallest candidate, px (16)')
     p.add_argument('--max-candidates', type=int, default=12, help='proposals per frame (12)')
+    p.add_argument('--general-red', action='store_true',
+                   help="also keep the general sign detector's red candidates")
+    p.add_argument('--red-ranges', type=Path, default=RED_RANGES,
+                   help='frames where a red or orange sign is in view (red_sign rows)')
     args = p.parse_args(argv)
     if args.step < 1:
         p.error('--step must be >= 1')
@@ -102,6 +130,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         proposer = SignProposer(cm.load_model(args.model),
                                 ProposalConfig(max_candidates=args.max_candidates))
         signs, ranges = _sign_boxes(args.index), _sign_ranges(args.ranges)
+        red = _sign_ranges(args.red_ranges, 'red_sign') if args.general_red else {}
+        general = _general_detector() if args.general_red else None
     except (cm.ModelError, OSError, KeyError, ValueError) as exc:
         print(f'workzone-ros mine-background: {exc}', file=sys.stderr)
         return 2
@@ -117,9 +147,15 @@ def main(argv: Optional[list[str]] = None) -> int:
                          'shape'])
         for v in videos:
             n = mine_clip(v, proposer, signs[v.stem], ranges.get(v.stem, []), args.step,
-                          args.min_size, out, writer)
+                          args.min_size, out, writer, general, tuple(red.get(v.stem, ())))
             print(f'{v.stem}: {n} background crops', file=sys.stderr, flush=True)
     return 0
+
+
+def _general_detector():
+    """The general sign detector in its CNN mode (its candidates need no classifier)."""
+    from workzone_ros.core.general import GeneralSignDetector
+    return GeneralSignDetector()
 
 
 if __name__ == '__main__':

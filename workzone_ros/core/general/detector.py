@@ -249,11 +249,9 @@ class GeneralSignDetector:
         when the CNN's background probability is low); overlapping acceptances: the
         likelier; a small red sign on a warning sign is its symbol (the paper's rule)."""
         cfg = self.config
-        s = work.scale
-        cands = candidates.propose(work, cfg, rois, keep=lambda c: self._colour_ok(work, c))
+        cands, boxes = self._candidates(work, rois)
         if not cands:
             return []
-        boxes = [self._full(c.box, s) for c in cands]
         preds = self.classifier.classify_boxes(img, boxes)
         found = []
         for c, box, p in zip(cands, boxes, preds):
@@ -294,6 +292,24 @@ class GeneralSignDetector:
                                 mile=mile, mile_confidence=conf)
             out.append(g)
         return sorted(out, key=lambda g: (g.box[0], g.box[1]))
+
+    def candidate_boxes(self, bgr: np.ndarray) -> list[tuple[Box, str]]:
+        """The boxes (full-image px) and colours the CNN mode hands its classifier in one
+        frame: what a hard-negative miner collects where no sign is in view.
+
+        Raises:
+            GeneralSignError: (a ValueError) a bad image.
+        """
+        img = check_image(bgr)
+        cands, boxes = self._candidates(colour.working_image(img, self.config), None)
+        return [(b, c.colour) for c, b in zip(cands, boxes)]
+
+    def _candidates(self, work: colour.Working, rois: Optional[list]
+                    ) -> tuple[list[candidates.Candidate], list[Box]]:
+        """The CNN mode's candidates that pass the colour checks, and their full boxes."""
+        cands = candidates.propose(work, self.config, rois,
+                                   keep=lambda c: self._colour_ok(work, c))
+        return cands, [self._full(c.box, work.scale) for c in cands]
 
     def _colour_ok(self, work: colour.Working, c: candidates.Candidate) -> bool:
         """The colour checks of the template pipeline, on the candidate's box: red and

@@ -39,6 +39,8 @@ INDEX = REPO / 'test' / 'data' / 'real_crops' / 'index.csv'
 RANGES = Path(__file__).resolve().parent / 'data' / 'real_clip_ranges.csv'
 RED_RANGES = Path(__file__).resolve().parent / 'data' / 'red_sign_frames.csv'
 VIDEOS = REPO.parent / 'shared' / 'realdata' / 'us_workzone_video'
+
+
 def _sign_boxes(index: Path) -> dict:
     """clip -> frame -> labelled sign boxes, each held over the 3 frames around its label."""
     out: dict = defaultdict(lambda: defaultdict(list))

@@ -5,6 +5,7 @@ from types import SimpleNamespace
 
 import cv2
 import numpy as np
+import pytest
 
 from workzone_ros.tools import mine_background as mb
 
@@ -60,3 +61,10 @@ def test_red_ranges_are_read_by_content(tmp_path):
                     'a.mp4,0,9,red_sign\na.mp4,20,30,workzone_sign\n')
     assert mb._sign_ranges(path, 'red_sign') == {'a': [(0, 9)]}
     assert mb._sign_ranges(mb.RED_RANGES, 'red_sign')['houston'] == [(0, 208)]
+
+
+def test_a_ranges_file_without_its_columns_is_a_clear_error(tmp_path):
+    path = tmp_path / 'r.csv'
+    path.write_text('a,b\n1,2\n')
+    with pytest.raises(ValueError, match='needs the columns'):
+        mb._sign_ranges(path, 'red_sign')

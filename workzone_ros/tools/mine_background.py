@@ -58,7 +58,11 @@ def _sign_ranges(path: Path, content: str = 'workzone_sign') -> dict:
     """clip -> [(first, last)] frame ranges of ``content`` in a ranges file."""
     out: dict = defaultdict(list)
     with open(path) as fh:
-        for r in csv.DictReader(line for line in fh if not line.startswith('#')):
+        rows = csv.DictReader(line for line in fh if not line.startswith('#'))
+        need = {'clip', 'first_frame', 'last_frame', 'content'}
+        if not need <= set(rows.fieldnames or ()):
+            raise ValueError(f'{path}: a ranges file needs the columns {sorted(need)}')
+        for r in rows:
             if r['content'] == content:
                 out[r['clip'].removesuffix('.mp4')].append(
                     (int(r['first_frame']), int(r['last_frame'])))

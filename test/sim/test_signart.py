@@ -72,7 +72,7 @@ def test_stop_ahead_is_a_yellow_diamond_with_a_red_octagon():
     face = signart.sign_face('warning_diamond', 128, variant='stop_ahead')
     assert 0.03 < _red_share(face) < 0.15
     assert _red_share(signart.sign_face('warning_diamond', 128)) == 0.0
-    assert signart.sign_face('warning_diamond', 128, variant='stop_ahead')[0, 0, 3] == 0
+    assert face[0, 0, 3] == 0
 
 
 @pytest.mark.parametrize('left,right', signart.MIRROR_PAIRS)

@@ -209,13 +209,13 @@ def points_code(shape: tuple, segs: np.ndarray, nvecs: np.ndarray, u: np.ndarray
     each rounded, with one term varying along the stretch and one across it, so it is
     monotone in ``t`` and in ``u`` and its extremes lie at their extreme values.  Others
     are checked point by point."""
+    if ts.size == 0 or u.size == 0:
+        return 0                               # no sample points
     h, w = shape[0], shape[1]
     steps_finite = np.all(np.isfinite(ts)) and np.all(np.isfinite(u))
-    t_ends = (ts.min(), ts.max()) if ts.size else (0.0, 0.0)
-    u_ends = (u.min(), u.max()) if u.size else (0.0, 0.0)
+    t_ends = (ts.min(), ts.max())
+    u_ends = (u.min(), u.max())
     for s in range(segs.shape[0]):
-        if ts.size == 0 or u.size == 0:
-            continue
         if steps_finite and np.all(np.isfinite(segs[s])) and np.all(np.isfinite(nvecs[s])):
             code = _corner_code(segs, nvecs, s, t_ends, u_ends, h, w)
         else:

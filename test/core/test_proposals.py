@@ -15,6 +15,7 @@ from workzone_ros.core.proposals import (
     candidate_labels,
     fit_ranker,
     proposals_as_detections,
+    stage_plan,
 )
 from workzone_ros.interfaces import Box, Detection
 from workzone_ros.resources import config_path
@@ -143,3 +144,22 @@ def test_proposals_already_detected_are_not_repeated():
     out = proposals_as_detections(props, [det])
     assert len(out) == 1 and out[0].proposal and out[0].box.x == 300
     assert out[0].confidence == pytest.approx(0.6)
+
+
+@pytest.mark.parametrize('proposals,rules,own,expected', [
+    ('auto', 'on', True, (True, False)),      # the model's camera: the rules alone
+    ('auto', 'on', False, (True, True)),      # any other camera: the proposals beside them
+    ('auto', 'auto', False, (False, True)),   # ... or instead of them
+    ('auto', 'auto', True, (True, False)),
+    ('on', 'auto', True, (True, True)),
+    ('on', 'auto', False, (False, True)),
+    ('off', 'auto', False, (True, False)),    # nothing proposes: the rules run
+    ('off', 'off', False, (False, False)),
+])
+def test_which_stages_see_a_frame(proposals, rules, own, expected):
+    assert stage_plan(proposals, rules, own) == expected
+
+
+def test_an_unknown_stage_mode_is_a_one_line_error():
+    with pytest.raises(ValueError, match="proposals must be one of auto, on, off, got 'yes'"):
+        stage_plan('yes', 'on', True)

@@ -534,7 +534,11 @@ class ColorModel:
         gains = self.balance_gains(bgr)
         if gains is not None:
             bgr = apply_gains(bgr, gains)
-        hsv = cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV)
+        return self.normalise_saturation(cv2.cvtColor(bgr, cv2.COLOR_BGR2HSV), color)
+
+    def normalise_saturation(self, hsv: np.ndarray, color: str = 'orange') -> np.ndarray:
+        """The saturation normalisation of :meth:`normalised_hsv` on an already balanced
+        HSV frame, in place (returns ``hsv``)."""
         norm = self.sat_norm
         if norm is not None and color == 'orange':     # the learned table only
             g = saturation_gain(hsv, norm, self.v_min[self.index(color)])

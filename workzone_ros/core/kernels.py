@@ -694,15 +694,17 @@ def warm() -> None:
     ``python -m workzone_ros.core.kernels`` after an install, so that no node's first frame
     waits for the compiler."""
     # (the chroma fit's solver, the edge measurement, the blob helpers, the diamond's
-    # rounds and the band tests' row profiles: their own modules)
+    # rounds, the band tests' row profiles and the proposals' sums: their own modules)
     from workzone_ros.core import (
         blob_kernels,
         chroma_fit,
         diamond_kernels,
         edge_kernels,
         profile_kernels,
+        proposal_kernels,
     )
     chroma_fit.warm()
+    proposal_kernels.warm()
     profile_kernels.warm()
     edge_kernels.warm()
     blob_kernels.warm()

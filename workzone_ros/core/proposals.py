@@ -35,15 +35,36 @@ share, position), learned from the same images and masks as the colour table
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, Optional
 
 import cv2
 import numpy as np
 
 from workzone_ros.core.kernels import components_with_stats
+from workzone_ros.core.proposal_kernels import component_sums
 
 __all__ = ['ProposalConfig', 'Proposal', 'SignProposer', 'FEATURES', 'Ranker', 'fit_ranker',
-           'candidate_labels', 'proposals_as_detections']
+           'candidate_labels', 'proposals_as_detections', 'MODES', 'stage_plan']
+
+#: The values of the colour detector's ``proposals`` and ``rules`` parameters.
+MODES = ('auto', 'on', 'off')
+
+
+def stage_plan(proposals: str, rules: str, own_camera: bool) -> tuple[bool, bool]:
+    """Whether a frame goes through the rule-based detector and the proposals: ``(rules,
+    proposals)``.
+
+    ``proposals`` ``auto`` runs them on frames of any camera other than the colour model's
+    own (``own_camera`` false), where the rules, built and measured on that camera, miss real
+    signs; ``rules`` ``auto`` runs the rules only where the proposals do not run or on the
+    model's own camera.  ``on`` and ``off`` are always and never.
+    """
+    for name, mode in (('proposals', proposals), ('rules', rules)):
+        if mode not in MODES:
+            raise ValueError(f'{name} must be one of {", ".join(MODES)}, got {mode!r}')
+    props = proposals == 'on' or (proposals == 'auto' and not own_camera)
+    use_rules = rules == 'on' or (rules == 'auto' and (own_camera or not props))
+    return use_rules, props
 
 
 @dataclass(frozen=True)
@@ -185,12 +206,32 @@ class SignProposer:
             out.append(low & (edges == 0).astype(np.uint8))
         return out
 
-    def candidates(self, bgr: np.ndarray) -> tuple[list, np.ndarray]:
-        """Every candidate box (full resolution) and its :data:`FEATURES` row, unranked."""
+    def view_of(self, detector) -> Optional[tuple[np.ndarray, np.ndarray]]:
+        """The rule-based detector's last frame view (``ColorDetector.frame_view``: the
+        shrunk frame and its white-balanced HSV) when it is what :meth:`candidates` would
+        compute (the same scale and white balance), else None."""
+        view = getattr(detector, 'frame_view', None)
+        if view is None or detector.config.scale != self.config.scale \
+                or detector.model.white_balance != self.model.white_balance:
+            return None
+        return view
+
+    def candidates(self, bgr: np.ndarray, view: Optional[tuple] = None
+                   ) -> tuple[list, np.ndarray]:
+        """Every candidate box (full resolution) and its :data:`FEATURES` row, unranked.
+
+        ``view``: the frame already shrunk and white-balanced (:meth:`view_of`), reused when
+        its size is this frame's shrunk size."""
         if bgr is None or bgr.ndim != 3 or bgr.shape[0] < 2 or bgr.shape[1] < 2:
             raise ValueError('proposals need a BGR image of at least 2x2 pixels')
-        small = self._small(bgr)
-        hsv = self.model.normalised_hsv(small, self.color)
+        s = self.config.scale
+        size = (max(bgr.shape[0] // s, 1), max(bgr.shape[1] // s, 1))
+        if view is not None and view[0].shape[:2] == size:
+            small = view[0]
+            hsv = self.model.normalise_saturation(view[1].copy(), self.color)
+        else:
+            small = self._small(bgr)
+            hsv = self.model.normalised_hsv(small, self.color)
         prob = self.model.lookup(hsv, self.color)                # the model's likelihood
         edges = cv2.Canny(cv2.cvtColor(small, cv2.COLOR_BGR2GRAY), 60, 150)
         maps = _Maps(prob, hsv, edges)
@@ -205,9 +246,9 @@ class SignProposer:
         feats = np.concatenate(rows) if rows else np.zeros((0, len(FEATURES)))
         return boxes, feats
 
-    def propose(self, bgr: np.ndarray) -> list[Proposal]:
-        """The ranked, bounded candidates of one BGR frame."""
-        boxes, feats = self.candidates(bgr)
+    def propose(self, bgr: np.ndarray, view: Optional[tuple] = None) -> list[Proposal]:
+        """The ranked, bounded candidates of one BGR frame (``view``: :meth:`candidates`)."""
+        boxes, feats = self.candidates(bgr, view)
         if not boxes:
             return []
         if self.ranker is not None:
@@ -245,11 +286,9 @@ class _Maps:
     """Per-frame maps and integral images the candidate features are read from."""
 
     def __init__(self, prob: np.ndarray, hsv: np.ndarray, edges: np.ndarray) -> None:
-        # no float64 copies: np.bincount widens its weights to float64 exactly
-        self.prob = prob.ravel()
-        self.sat = hsv[..., 1].ravel()
-        self.val = hsv[..., 2].ravel()
-        self.val2 = np.square(self.val, dtype=np.float32)       # <= 255^2: exact in float32
+        self.prob = prob
+        self.sat = hsv[..., 1]
+        self.val = hsv[..., 2]
         self.shape = prob.shape
         self.edge_ii = cv2.integral((edges > 0).astype(np.uint8))
         self.dark_ii = cv2.integral((hsv[..., 2] < 80).astype(np.uint8))
@@ -261,17 +300,11 @@ class _Maps:
     def features(self, labels: np.ndarray, mask: np.ndarray, n: int, st: np.ndarray,
                  idx: np.ndarray) -> np.ndarray:
         """The :data:`FEATURES` rows of components ``idx`` (0-based, background excluded)."""
-        xy = cv2.findNonZero(mask)                 # only the mask's pixels are summed
-        xy = np.zeros((0, 2), np.intp) if xy is None else xy.reshape(-1, 2)
-        on = xy[:, 1].astype(np.intp) * mask.shape[1] + xy[:, 0]   # row-major, as scanned
-        lab = labels.ravel()[on]
-        area = np.maximum(st[:, 4], 1).astype(np.float64)
-
-        def mean(v: np.ndarray) -> np.ndarray:
-            return np.bincount(lab, weights=v[on], minlength=n)[1:] / area
-
-        m_p, m_s, m_v = mean(self.prob), mean(self.sat), mean(self.val)
-        m_v2 = mean(self.val2)
+        keep = np.zeros(n, np.bool_)
+        keep[idx + 1] = True                       # only the candidates' pixels are summed
+        sums = component_sums(labels, mask, keep, self.prob, self.sat, self.val)[idx + 1]
+        area = np.maximum(st[idx, 4], 1).astype(np.float64)
+        m_p, m_s, m_v, m_v2 = (sums[:, k] / area for k in range(4))
         spread = np.sqrt(np.maximum(m_v2 - m_v * m_v, 0.0)) / np.maximum(m_v, 1.0)
         x, y, w, h = (st[idx, k] for k in range(4))
         hh, ww = self.shape
@@ -279,8 +312,8 @@ class _Maps:
         longer = np.maximum(w, h).astype(np.float64)
         aspect = longer / np.maximum(np.minimum(w, h), 1)
         return np.column_stack([
-            m_p[idx], st[idx, 4] / np.maximum(w * h, 1), np.log2(longer), np.log(aspect),
-            touch, (y + h / 2) / hh, m_s[idx] / 255.0, m_v[idx] / 255.0, spread[idx],
+            m_p, st[idx, 4] / np.maximum(w * h, 1), np.log2(longer), np.log(aspect),
+            touch, (y + h / 2) / hh, m_s / 255.0, m_v / 255.0, spread,
             self._box_share(self.edge_ii, x, y, w, h), self._box_share(self.dark_ii, x, y, w, h),
         ])
 

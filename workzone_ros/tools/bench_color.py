@@ -130,7 +130,10 @@ def run_real(args: argparse.Namespace, model) -> dict:
                       # as the node measures a frame when it has fallen behind its camera
                       ('detector_lean', lambda f: det.detect(f, lean=True)),
                       ('proposals', prop.propose),
-                      ('detector+proposals', lambda f: (det.detect(f), prop.propose(f)))):
+                      # the default graph on another camera's frames: the proposals
+                      # reuse the detector's shrunk, white-balanced frame
+                      ('detector+proposals',
+                       lambda f: (det.detect(f), prop.propose(f, prop.view_of(det))))):
         ms, cpu = _time(fn, frames, len(frames))
         out[f'frame_ms_{label}'] = _stats(ms)
         out[f'cpu_ms_{label}'] = _stats(cpu)

@@ -74,6 +74,9 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
         self._budget = self._frame_budget()
         #: the last frame was measured lean (:meth:`detect`)
         self.lean = False
+        #: the last frame shrunk to the mask's scale and its white-balanced HSV, when its
+        #: colour pass covered the whole frame (the proposals reuse them), else None
+        self.frame_view: Optional[tuple[np.ndarray, np.ndarray]] = None
         if config.method == 'rgb_lp' and rgb_lp is None:
             raise ModelError("method 'rgb_lp' needs the RGB thresholds of Balali and "
                              'Golparvar-Fard (train them with workzone-ros train color '
@@ -221,6 +224,7 @@ class ColorDetector(MaskMixin, BlobMixin, RecoveryMixin, MeasureMixin, FilterMix
             if x1 > x0 and y1 > y0:
                 lboxes.append((x0, y0, x1, y1))
         small = cv2.resize(bgr, (sw, sh), interpolation=cv2.INTER_AREA) if s > 1 else bgr
+        self.frame_view = None
         self._gains = None
         if cfg.method == 'learned' and small.size:
             # colour constancy outside the table (as the model was trained; None: none)

@@ -118,6 +118,8 @@ class MaskMixin:
                 keep[max(0, y0 - cy0):max(0, y1 - cy0), max(0, x0 - cx0):max(0, x1 - cx0)] = 255
         thr = thr_full[cy0:cy1, cx0:cx1]
         hsv = cv2.cvtColor(crop, cv2.COLOR_BGR2HSV)
+        if limit is None and crop.shape[:2] == small.shape[:2]:
+            self.frame_view = (small, hsv)          # the whole frame: others may reuse it
         cands: list[Candidate] = []
         if cfg.method == 'learned':
             h, sat, v = cv2.split(hsv)

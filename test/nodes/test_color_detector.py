@@ -227,11 +227,10 @@ def test_camera_info_decides_whether_the_model_prior_applies(ros, tmp_path):
 
 
 def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_path):
-    """With proposals on and ``rules: auto``, a frame of another camera than the colour
-    model's gets the recall-first candidates (flagged ``proposal``) and no rule-checked
-    detections; the payload's channelizer count is then unknown (None), not a stale number."""
-    _node(ros, model_path, image_topic='p/image', detections_topic='p/dets', proposals=True,
-          rules='auto')
+    """With ``rules: auto``, a frame of another camera than the colour model's gets the
+    recall-first candidates (flagged ``proposal``) and no rule-checked detections; the
+    payload's channelizer count is then unknown (None), not a stale number."""
+    _node(ros, model_path, image_topic='p/image', detections_topic='p/dets', rules='auto')
     peer = ros.add(rclpy.create_node('peer', context=ros.context))
     pub = peer.create_publisher(Image, 'p/image', QoSProfile(
         depth=5, reliability=ReliabilityPolicy.RELIABLE))
@@ -246,24 +245,51 @@ def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_pat
     assert d.channelizers is None
 
 
-def test_by_default_proposals_join_the_rule_checked_detections(ros, model_path):
-    """``rules`` defaults to on: with proposals on, another camera's frame gets the rule-
-    checked detection of its sign (not flagged) and proposals elsewhere, never a proposal
-    repeating the detection's box."""
-    _node(ros, model_path, image_topic='q/image', detections_topic='q/dets', proposals=True)
+def _detections_of(ros, img, **params):
+    """The Detections payload a node with ``params`` publishes for one image."""
+    _node(ros, params.pop('model_path'), image_topic='q/image', detections_topic='q/dets',
+          **params)
     peer = ros.add(rclpy.create_node('peer', context=ros.context))
     pub = peer.create_publisher(Image, 'q/image', QoSProfile(
         depth=5, reliability=ReliabilityPolicy.RELIABLE))
     got = []
     peer.create_subscription(String, 'q/dets', got.append, 10)
-    img = cv2.resize(_frame(), (722, 406))
     msg = numpy_to_image(img, 'bgr8', make_header(stamp=interfaces.Time(sec=3, nanosec=0)))
     assert ros.spin_until(lambda: got, each=lambda: pub.publish(msg))
-    d = interfaces.decode(got[-1].data, interfaces.Detections)
+    return interfaces.decode(got[-1].data, interfaces.Detections)
+
+
+def _patched_frame():
+    frame = _frame()
+    frame[300:360, 80:130] = ORANGE                 # an orange patch no shape rule boxes
+    return frame
+
+
+def test_by_default_another_camera_gets_proposals_beside_the_rule_checked_detections(
+        ros, model_path):
+    """With the defaults, a frame of another camera than the colour model's gets the rule-
+    checked detection of its sign (not flagged) and proposals elsewhere, never a proposal
+    repeating the detection's box."""
+    d = _detections_of(ros, cv2.resize(_patched_frame(), (722, 406)), model_path=model_path)
     rules = [x for x in d.detections if not x.proposal]
     assert len(rules) == 1 and rules[0].box.iou(Box(429, 93, 90, 68)) > 0.5
+    assert any(x.proposal for x in d.detections)
     assert all(x.box.iou(rules[0].box) < 0.5 for x in d.detections if x.proposal)
     assert d.channelizers is not None
+
+
+@pytest.mark.parametrize('mode,flagged', [('auto', False), ('on', True)])
+def test_the_models_own_camera_gets_proposals_only_when_asked(ros, model_path, mode, flagged):
+    """On the colour model's own camera (its frame size here) the rule-based detector alone
+    runs unless ``proposals`` is on."""
+    d = _detections_of(ros, _patched_frame(), model_path=model_path, proposals=mode)
+    assert any(not x.proposal for x in d.detections)
+    assert any(x.proposal for x in d.detections) == flagged
+
+
+def test_a_boolean_proposals_value_is_a_one_line_error_that_says_to_quote_it(ros, model_path):
+    with pytest.raises(ConfigError, match="proposals must be one of 'auto', 'on', 'off'.*quote"):
+        _node(ros, model_path, proposals=True)
 
 
 def test_a_camera_that_publishes_only_jpeg_works_without_configuration(ros, model_path):

@@ -30,7 +30,13 @@ from workzone_ros import interfaces
 from workzone_ros.core import kernels
 from workzone_ros.core.color_model import ModelError, default_model, load_model
 from workzone_ros.core.detect import ColorDetector, DetectorConfig, RgbLpModel
-from workzone_ros.core.proposals import ProposalConfig, SignProposer, proposals_as_detections
+from workzone_ros.core.proposals import (
+    MODES,
+    ProposalConfig,
+    SignProposer,
+    proposals_as_detections,
+    stage_plan,
+)
 from workzone_ros.nodes import conversions as conv
 from workzone_ros.nodes.base import ConfigError, Param, WorkzoneNode, run_node
 from workzone_ros.nodes.params import image_params, params_from_dataclass
@@ -79,16 +85,17 @@ class ColorDetectorNode(WorkzoneNode):
               read_only=True),
         Param('model_path', '', 'colour model .npz (empty: config/models/color_orange.npz; '
               'the Cahail et al. HSV ranges if that file does not exist)', read_only=True),
-        Param('proposals', False, 'also publish the recall-first colour candidates '
-              '(core.proposals, Detection.proposal true) for the classifier to decide, which '
-              'weighs them by their lower share of signs (its proposal_prior); off by default: '
-              'held out, they add false work-zone signs on real clips and no sign the rules '
-              'miss on them (docs/real_cameras.md)'),
+        Param('proposals', 'auto', 'the recall-first colour candidates (core.proposals, '
+              'Detection.proposal true) beside the rule-based detector, for the classifier to '
+              'decide, which weighs them by their lower share of signs (its proposal_prior): '
+              "auto = on frames of any camera other than the colour model's own (its size and "
+              'intrinsics; the rules miss real signs there), on = every frame, off = never '
+              '(docs/real_cameras.md)', choices=MODES),
         Param('rules', 'on', "the rule-based detector (shape tests and refinements tuned on "
-              "the colour model's own camera): on, off, or auto = only on frames of the "
-              "model's camera (its size and intrinsics) when proposals are on, so that on any "
-              'other camera the proposals and the classifier alone decide (measured worse on '
-              'the real clips than on: docs/real_cameras.md)', choices=('auto', 'on', 'off')),
+              "the colour model's own camera): on, off, or auto = only where the proposals do "
+              "not run or on the model's camera, so that on any other camera the proposals "
+              'and the classifier alone decide (measured worse on the real clips than on: '
+              'docs/real_cameras.md)', choices=MODES),
         Param('proposals_model', '', 'colour model with a candidate ranker for the proposals '
               '(empty: config/models/color_proposals.npz)', read_only=True),
         Param('max_candidates', 12, 'proposals per frame at most, best ranked first', min=1,
@@ -122,7 +129,7 @@ class ColorDetectorNode(WorkzoneNode):
                                           "train one with 'workzone-ros train color'")
             self._detector = self._make_detector()
             self._proposal_model = load_model(p.proposals_model or PROPOSALS_MODEL) \
-                if p.proposals else None
+                if p.proposals != 'off' else None
             self._proposer = self._make_proposer()
         except (ModelError, ValueError) as exc:
             self.destroy_node()
@@ -163,16 +170,15 @@ class ColorDetectorNode(WorkzoneNode):
         det.set_camera(self._intrinsics)
         return det
 
-    def _rules_apply(self, bgr) -> bool:
-        mode = self.params.rules
-        if mode == 'auto':
-            return self._proposer is None or self._detector.same_camera(bgr.shape[1],
-                                                                        bgr.shape[0])
-        return mode == 'on'
+    def _plan(self, bgr) -> tuple[bool, bool]:
+        """Whether this frame goes through the rules and the proposals (``stage_plan``)."""
+        own = self._detector.same_camera(bgr.shape[1], bgr.shape[0])
+        rules, props = stage_plan(self.params.proposals, self.params.rules, own)
+        return rules, props and self._proposer is not None
 
     def _make_proposer(self) -> Optional[SignProposer]:
         p = self.params
-        if not p.proposals:
+        if p.proposals == 'off':
             return None
         if self._proposal_model is None:
             self._proposal_model = load_model(p.proposals_model or PROPOSALS_MODEL)
@@ -280,14 +286,16 @@ class ColorDetectorNode(WorkzoneNode):
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
         dets, channelizers = [], None      # None: not counted on this frame
-        if self._rules_apply(bgr):
+        rules, props = self._plan(bgr)
+        if rules:
             dets = self._detector.detect(bgr, rois or (), lean)
             self._lean_frames += lean
             channelizers = len(self._detector.channelizers)
             for kind in self._detector.budget_spent:
                 self._held_counts[f'frames over the {kind} budget'] += 1
-        if self._proposer is not None:
-            dets = dets + proposals_as_detections(self._proposer.propose(bgr), dets)
+        if props:
+            view = self._proposer.view_of(self._detector) if rules else None
+            dets = dets + proposals_as_detections(self._proposer.propose(bgr, view), dets)
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
             header=head, detections=dets, channelizers=channelizers)))
         self._frames += 1

@@ -73,6 +73,10 @@ class Param:
             return f'{self.name} must be a list of {scalar}, got {value!r}'
         for v in values:
             got = _scalar_kind(v, strict=False)
+            if got == 'bool' and scalar == 'str' and self.choices is not None:
+                return (f'{self.name} must be one of {", ".join(map(repr, self.choices))}, got '
+                        f'the boolean {v!r} (YAML reads unquoted on, off, yes, no, true and '
+                        'false as booleans: quote the value)')
             if got != scalar and not (scalar == 'float' and got == 'int'):
                 return f'{self.name} must be {scalar}, got {type(v).__name__} {v!r}'
             if scalar in ('int', 'float'):

@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
+from workzone_ros.core.proposals import MODES
 from workzone_ros.core.recognition import PROPOSAL_PRIOR
 from workzone_ros.resources import config_path
 from workzone_ros.tools.clips import find_video
@@ -79,15 +80,16 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
                   proposer=None, track: bool = True, tiles: Optional[list] = None,
                   tile_every: int = 15, rules: str = 'on',
                   labels: Optional[dict] = None, ranges: Optional[dict] = None,
-                  prior: float = PROPOSAL_PRIOR) -> dict:
+                  prior: float = PROPOSAL_PRIOR, proposals: str = 'auto') -> dict:
     """The figures of one clip (module docstring).
 
     ``proposer``: a :class:`~workzone_ros.core.proposals.SignProposer` whose candidates are
-    added to the detections, as the ``color_detector`` node does with ``proposals`` on;
-    ``track`` false classifies the detections themselves (the graph without the tracker).
-    ``tiles``: every ``tile_every``-th labelled sign frame is drawn into it (contact sheet).
-    ``rules``: the rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
-    (with proposals, only on frames of the colour model's own camera).  ``labels``: the
+    added to the detections where ``proposals`` (the node's parameter: ``auto``, ``on`` or
+    ``off``) runs them, as the ``color_detector`` node does; ``track`` false classifies the
+    detections themselves (the graph without the tracker).  ``tiles``: every
+    ``tile_every``-th labelled sign frame is drawn into it (contact sheet).  ``rules``: the
+    rule-based detector on, off, or ``auto`` as the node's ``rules`` parameter
+    (:func:`~workzone_ros.core.proposals.stage_plan`).  ``labels``: the
     signs, :func:`~workzone_ros.tools.eval_color.load_sign_labels` of a keyframe CSV (None:
     ``tools/data/real_sign_boxes.csv``; a frame with two visible signs counts twice), keyed
     by the clip's file name or its name without the extension.  ``ranges``: the work-zone
@@ -102,7 +104,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     """
     import cv2
 
-    from workzone_ros.core.proposals import proposals_as_detections
+    from workzone_ros.core.proposals import proposals_as_detections, stage_plan
     from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
     from workzone_ros.core.sign_distance import focal_from_fov
     from workzone_ros.core.track import MultiTracker, TrackerConfig
@@ -122,11 +124,12 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         ok, img = cap.read()
         if not ok:
             break
-        use = rules == 'on' or (rules == 'auto' and (
-            proposer is None or det.det.same_camera(img.shape[1], img.shape[0])))
+        use, props = stage_plan(proposals if proposer is not None else 'off', rules,
+                                det.det.same_camera(img.shape[1], img.shape[0]))
         dets = [d for d in det(img, None) if d.color == 'orange'] if use else []
-        if proposer is not None:
-            dets += proposals_as_detections(proposer.propose(img), dets)
+        if props:
+            view = proposer.view_of(det.det) if use else None
+            dets += proposals_as_detections(proposer.propose(img, view), dets)
         cands += len(dets)
         shown = [box for box, visible in frames.get(k, ()) if visible]
         for d in dets:
@@ -183,9 +186,13 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--clips', nargs='*', default=list(CLIPS))
     p.add_argument('--hfov', type=float, default=60.0, help='stated field of view (deg)')
     p.add_argument('--max-frames', type=int, default=0)
-    p.add_argument('--proposals', metavar='MODEL', nargs='?', const='',
-                   help='add the recall-first colour proposals of this colour model (with '
-                        'its ranker; default config/models/color_proposals.npz)')
+    p.add_argument('--proposals', choices=MODES, default='auto',
+                   help="the recall-first colour proposals, as color_detector's proposals "
+                        "parameter (default auto: on a camera other than the colour model's, "
+                        'as the clips are)')
+    p.add_argument('--proposals-model', metavar='MODEL', default='',
+                   help='colour model with the proposal ranker (default '
+                        'config/models/color_proposals.npz)')
     p.add_argument('--max-candidates', type=int, default=12, help='proposals per frame')
     p.add_argument('--sheet', metavar='PNG', help='contact sheet of the labelled sign frames '
                    '(label white, proposals grey, detections green, tracks blue, work-zone '
@@ -222,10 +229,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         print(f'workzone-ros evaluate real_signs: {exc}', file=sys.stderr)
         return 2
     proposer = None
-    if args.proposals is not None:
+    if args.proposals != 'off':
         from workzone_ros.core import color_model as cm
         from workzone_ros.core.proposals import ProposalConfig, SignProposer
-        ppath = args.proposals or str(config_path('models/color_proposals.npz'))
+        ppath = args.proposals_model or str(config_path('models/color_proposals.npz'))
         try:
             proposer = SignProposer(cm.load_model(ppath),
                                     ProposalConfig(max_candidates=args.max_candidates))
@@ -233,7 +240,8 @@ def main(argv: Optional[list[str]] = None) -> int:
             print(f'workzone-ros evaluate real_signs: {exc}', file=sys.stderr)
             return 2
     out = {'model': args.model, 'trained_on': model.metadata.get('sources'),
-           'proposals': None if proposer is None else args.proposals or 'default',
+           'proposals': args.proposals,
+           'proposals_model': None if proposer is None else args.proposals_model or 'default',
            'tracker': not args.no_tracker, 'rules': args.rules,
            'proposal_prior': args.proposal_prior, 'clips': {}}
     tiles: list = []
@@ -246,7 +254,7 @@ def main(argv: Optional[list[str]] = None) -> int:
         r = evaluate_clip(path, model, args.hfov, args.max_frames, proposer,
                           not args.no_tracker, tiles if args.sheet else None,
                           rules=args.rules, labels=labels, ranges=ranges,
-                          prior=args.proposal_prior)
+                          prior=args.proposal_prior, proposals=args.proposals)
         out['clips'][name] = r
         print(f"{name:14s} sign frames {r['sign_frames']:4d} share {r['sign_share']}  "
               f"candidate recall {r['candidate_recall']}  boxes/frame {r['boxes_per_frame']}  "

@@ -3,7 +3,10 @@
 The chain the nodes run, in process and in frame order, from ``workzone_ros.core``:
 
 * the colour detector (``core.detect.ColorDetector`` with the trained orange model,
-  ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it);
+  ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it), and on the frames
+  of any camera other than that model's the recall-first proposals beside it
+  (``core.proposals`` with ``config/models/color_proposals.npz``, as the node's default
+  ``proposals: auto``);
 * the mean-shift tracker (``core.track.MultiTracker``, ``TrackerConfig()`` defaults), told
   the classifier's answers on each frame's tracks before the next frame
   (``MultiTracker.confirm``, as the ``tracker`` node hears ``/workzone/signs``);
@@ -42,6 +45,7 @@ from pathlib import Path
 from typing import Optional
 
 from workzone_ros.interfaces import GtSigns, Sign, Signs, decode, encode
+from workzone_ros.resources import config_path
 
 __all__ = ['PipelineSource', 'CachedSource', 'check_available', 'MIN_SIZE', 'MIN_VISIBLE',
            'MARGIN']
@@ -50,10 +54,11 @@ MIN_SIZE = 12           # classifier node: min_size
 MIN_VISIBLE = 0.5       # classifier node: min_visible
 MARGIN = 0.1            # classifier node: margin
 GENERAL_EVERY = 3       # classifier node: general_every
+PROPOSALS_MODEL = str(config_path('models/color_proposals.npz'))
 # 2: frames carry the colour detector's channelizer count; 3: general signs; 4: general
 # signs every GENERAL_EVERY-th frame; 5: the classifier's answers confirm tracks;
-# 6: the stages' boxes (``last_stages``)
-_CACHE_VERSION = 6
+# 6: the stages' boxes (``last_stages``); 7: the proposals on another camera's frames
+_CACHE_VERSION = 7
 
 
 def _classifier_path(opts) -> str:
@@ -95,7 +100,8 @@ class CachedSource:
         from workzone_ros.tools.eval_tracker import DEFAULT_MODEL
         color = opts.color_model or DEFAULT_MODEL
         key = '_'.join([f'v{_CACHE_VERSION}'] + [_file_key(p) if os.path.exists(p) else 'none'
-                                                 for p in (color, _classifier_path(opts))])
+                                                 for p in (color, _classifier_path(opts),
+                                                           PROPOSALS_MODEL)])
         self.path = Path(folder) / f'{bag_name}_{key}.jsonl'
         self.opts = opts
         self.stored: dict[int, tuple[Signs, Optional[int], Optional[dict]]] = {}
@@ -153,6 +159,9 @@ class PipelineSource:
         from workzone_ros.core.track import MultiTracker, TrackerConfig
         from workzone_ros.tools.eval_tracker import _ColorDetector
         self.detector = _ColorDetector(opts.color_model)
+        from workzone_ros.core.color_model import load_model as load_color
+        from workzone_ros.core.proposals import SignProposer
+        self.proposer = SignProposer(load_color(PROPOSALS_MODEL))
         self.tracker = MultiTracker(TrackerConfig())
         self.model = load_model(_classifier_path(opts))
         self.recognizer = SignRecognizer(self.model, RecognitionConfig(
@@ -174,6 +183,7 @@ class PipelineSource:
         """Signs of one frame (the classifier node's output) and its channelizer count."""
         t0 = time.perf_counter()
         dets = self.detector(image, gt)
+        dets = dets + self._proposals(image, dets)
         t1 = time.perf_counter()
         found = getattr(self.detector.det, 'channelizers', None)
         channel = None if found is None else len(found)
@@ -187,6 +197,16 @@ class PipelineSource:
         self.tracker.confirm(*classifier_verdicts([t.track_id for t in tracks], signs))
         self.last_stages = _stage_boxes(dets, tracks, signs)
         return signs, channel
+
+    def _proposals(self, image, dets: list) -> list:
+        """The proposals the node adds on this frame (none on the colour model's camera)."""
+        from workzone_ros.core.proposals import proposals_as_detections, stage_plan
+        det = getattr(self.detector, 'det', None)
+        own = det is None or det.same_camera(image.shape[1], image.shape[0])
+        if not stage_plan('auto', 'on', own)[1]:
+            return []
+        return proposals_as_detections(self.proposer.propose(image, self.proposer.view_of(det)),
+                                       dets)
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""

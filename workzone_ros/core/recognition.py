@@ -36,7 +36,7 @@ __all__ = ['RecognitionConfig', 'SignRecognizer', 'unclassifiable', 'weigh_prior
 
 #: :attr:`RecognitionConfig.proposal_prior`'s default: ln(odds that a rule-checked box is a
 #: labelled sign / odds that a proposal is), 2.88 over the six labelled real clips
-#: (``evaluate real_signs --rules on --proposals``; docs/real_cameras.md).
+#: (``evaluate real_signs``, rules and proposals; docs/real_cameras.md).
 PROPOSAL_PRIOR = 2.9
 
 #: A general sign whose box overlaps a published sign's by this IoU or more is not added.

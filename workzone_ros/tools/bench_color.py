@@ -2,9 +2,10 @@
 
 With ``--real [DIR]`` also real dashcam frames (every 10th frame of each clip in ``DIR``, at
 their native size): the rule-based detector, the recall-first proposals
-(:mod:`workzone_ros.core.proposals`, the stage that runs on a camera other than the colour
-model's) and both, p50 / p99 / max wall and CPU milliseconds per frame, beside the renders'
-figures of the same run (key ``real``).
+(:mod:`workzone_ros.core.proposals`) and both (``detector+proposals``: what the default
+``color_detector`` does with a frame of a camera other than the colour model's, as these
+are), p50 / p99 / max wall and CPU milliseconds per frame, beside the renders' figures of
+the same run (key ``real``).
 
 Figures (one core: ``cv2.setNumThreads(1)``; run it on a quiet machine):
 

@@ -68,3 +68,40 @@ def test_a_ranges_file_without_its_columns_is_a_clear_error(tmp_path):
     path.write_text('a,b\n1,2\n')
     with pytest.raises(ValueError, match='needs the columns'):
         mb._sign_ranges(path, 'red_sign')
+
+
+@pytest.mark.parametrize('box,on', [
+    ((10, 10, 40, 40), True),          # the sign itself
+    ((20, 20, 8, 6), True),            # a piece of its legend (IoU far under 0.05)
+    ((0, 0, 200, 200), True),          # a flagger's box holding the small sign
+    ((40, 40, 30, 30), True),          # a tenth of the candidate on the sign
+    ((47, 47, 30, 30), False),         # a corner touching it, under a tenth
+    ((100, 100, 20, 20), False),
+])
+def test_a_candidate_on_a_sign_or_a_piece_of_it_is_never_background(box, on):
+    assert mb._on_sign(box, (10, 10, 40, 40)) is on
+
+
+def test_labelled_boxes_keep_candidates_out_before_and_after_their_labels(tmp_path):
+    """``--labels``: a keyframe file's boxes, interpolated, keep candidates out of every
+    frame they cover and ``HOLD`` frames either side (a sign leaving the frame is often
+    unlabelled there), and nowhere else."""
+    path = tmp_path / 'labels.csv'
+    path.write_text('clip,frame,x,y,w,h,visible\nc.mp4,20,5,5,30,30,1\nc.mp4,30,25,5,30,30,1\n')
+    signs = mb._sign_boxes(mb.INDEX)
+    mb._add_labelled_boxes(signs, [path])
+    assert (15.0, 5.0, 30.0, 30.0) in signs['c'][25]                  # interpolated
+    assert signs['c'][30 + mb.HOLD] == [(25.0, 5.0, 30.0, 30.0)]
+    assert signs['c'][20 - mb.HOLD] == [(5.0, 5.0, 30.0, 30.0)]
+    assert not signs['c'][31 + mb.HOLD] and not signs['c'][19 - mb.HOLD]
+    # the clip's proposal (5, 5, 30, 30) on frames 0, 3, 6, 9: 9 is held out (20 - HOLD = 8)
+    assert _mine(tmp_path, None, signs=signs['c']) == [(0, 'proposal'), (3, 'proposal'),
+                                                      (6, 'proposal')]
+
+
+def test_the_shipped_label_files_keep_every_labelled_sign_out():
+    """Every frame of houston's STOP sign as it leaves the frame edge (labelled in
+    real_general_sign_boxes.csv where the crop index stops) is kept out."""
+    signs = mb._sign_boxes(mb.INDEX)
+    mb._add_labelled_boxes(signs, [mb.RANGES.parent / 'real_general_sign_boxes.csv'])
+    assert all(signs['houston'][k] for k in range(180, 208))

@@ -10,6 +10,14 @@ that is not a sign:
 * a candidate overlapping a labelled sign box of the crop index (``--index``, any class, the
   box interpolated between labelled frames) is skipped.
 
+With ``--labels CSV ...`` (keyframe boxes of every orange sign in the clips, the format of
+``tools/data/real_sign_boxes.csv``; the shipped ``real_sign_boxes.csv`` and
+``real_sign_boxes_more.csv`` together label every one of the six clips') the frames inside
+the ranges are mined too, away from those boxes (each held ``HOLD`` frames before and after
+its labels: a sign entering or leaving the frame is often unlabelled there): the negatives in
+a sign's own scene (a yellow regulatory sign beside it, the brick behind it, the drums after
+it) that the ranges left out.
+
 With ``--general-red`` it also keeps the general sign detector's red candidates (the boxes
 its CNN mode hands the classifier as possible STOP, YIELD or DO NOT ENTER signs: drums,
 cones, red cars, brick), in every frame outside the ``--red-ranges`` (frames where a red or
@@ -54,6 +62,23 @@ def _sign_boxes(index: Path) -> dict:
     return out
 
 
+#: frames before and after each labelled box that it still keeps candidates out: a sign
+#: entering or leaving the frame is often left unlabelled on its first and last frames
+HOLD = 12
+
+
+def _add_labelled_boxes(signs: dict, paths: list, hold: int = HOLD) -> None:
+    """Add the boxes of keyframe label files (every frame, interpolated, each held ``hold``
+    frames either side) to ``signs``."""
+    from workzone_ros.tools.eval_color import load_sign_labels
+    for path in paths:
+        for clip, frames in load_sign_labels(Path(path)).items():
+            for k, boxes in frames.items():
+                for f in range(k - hold, k + hold + 1):
+                    signs[clip.removesuffix('.mp4')][f] += [(b.x, b.y, b.w, b.h)
+                                                            for b, _ in boxes]
+
+
 def _sign_ranges(path: Path, content: str = 'workzone_sign') -> dict:
     """clip -> [(first, last)] frame ranges of ``content`` in a ranges file."""
     out: dict = defaultdict(list)
@@ -94,18 +119,30 @@ def _keep(img, clip: str, k: int, boxes: list, signs: list, min_size: int, sourc
     background crops of frame ``k``; returns how many."""
     import cv2
 
-    from workzone_ros.core.proposals import candidate_labels
     boxes = [b for b in boxes if max(b[2:]) >= min_size]
-    hit = candidate_labels(boxes, signs, iou=0.05)
     n = 0
-    for j, (box, h) in enumerate(zip(boxes, hit)):
-        if h:
+    for j, box in enumerate(boxes):
+        if any(_on_sign(box, sign) for sign in signs):
             continue
         name = f'background/{clip}_{k:04d}_{source}_{j}.png'
         cv2.imwrite(str(out / name), crop_box(img, *box))
         writer.writerow([name, 'background', clip, k, *(f'{v:.1f}' for v in box), source, ''])
         n += 1
     return n
+
+
+def _on_sign(box: tuple, sign: tuple) -> bool:
+    """Whether a candidate box touches a labelled sign box: IoU 0.05 or more, a tenth of the
+    candidate inside the sign (a piece of its face or legend) or half the sign inside the
+    candidate (a flagger holding a small paddle)."""
+    x0, y0 = max(box[0], sign[0]), max(box[1], sign[1])
+    x1 = min(box[0] + box[2], sign[0] + sign[2])
+    y1 = min(box[1] + box[3], sign[1] + sign[3])
+    inter = max(0.0, x1 - x0) * max(0.0, y1 - y0)
+    area, sign_area = box[2] * box[3], sign[2] * sign[3]
+    union = area + sign_area - inter
+    return (inter >= 0.1 * area or inter >= 0.5 * sign_area
+            or (union > 0 and inter >= 0.05 * union))
 
 
 def main(argv: Optional[list[str]] = None) -> int:
@@ -120,6 +157,9 @@ def main(argv: Optional[list[str]] = None) -> int:
                    help='colour model with the proposal ranker')
     p.add_argument('--index', type=Path, default=INDEX, help='labelled crops (their sign boxes)')
     p.add_argument('--ranges', type=Path, default=RANGES, help='work-zone sign frame ranges')
+    p.add_argument('--labels', type=Path, nargs='+', metavar='CSV',
+                   help='keyframe boxes of every orange sign (real_sign_boxes.csv format): '
+                        'mine inside the ranges too, away from these boxes')
     p.add_argument('--videos', type=Path, default=VIDEOS, help='folder of the clips')
     p.add_argument('--exclude-clip', nargs='*', default=[], metavar='CLIP')
     p.add_argument('--step', type=int, default=6, help='every this many frames (6)')
@@ -136,6 +176,9 @@ def main(argv: Optional[list[str]] = None) -> int:
         proposer = SignProposer(cm.load_model(args.model),
                                 ProposalConfig(max_candidates=args.max_candidates))
         signs, ranges = _sign_boxes(args.index), _sign_ranges(args.ranges)
+        if args.labels:
+            ranges = {}
+            _add_labelled_boxes(signs, args.labels)
         red = _sign_ranges(args.red_ranges, 'red_sign') if args.general_red else {}
         general = _general_detector() if args.general_red else None
     except (cm.ModelError, OSError, KeyError, ValueError) as exc:

@@ -246,9 +246,9 @@ def test_proposals_on_another_camera_reach_the_classifier_flagged(ros, model_pat
 
 
 def _detections_of(ros, img, **params):
-    """The Detections payload a node with ``params`` publishes for one image."""
-    _node(ros, params.pop('model_path'), image_topic='q/image', detections_topic='q/dets',
-          **params)
+    """A node with ``params`` and the Detections payload it publishes for one image."""
+    node = _node(ros, params.pop('model_path'), image_topic='q/image',
+                 detections_topic='q/dets', **params)
     peer = ros.add(rclpy.create_node('peer', context=ros.context))
     pub = peer.create_publisher(Image, 'q/image', QoSProfile(
         depth=5, reliability=ReliabilityPolicy.RELIABLE))
@@ -256,7 +256,7 @@ def _detections_of(ros, img, **params):
     peer.create_subscription(String, 'q/dets', got.append, 10)
     msg = numpy_to_image(img, 'bgr8', make_header(stamp=interfaces.Time(sec=3, nanosec=0)))
     assert ros.spin_until(lambda: got, each=lambda: pub.publish(msg))
-    return interfaces.decode(got[-1].data, interfaces.Detections)
+    return node, interfaces.decode(got[-1].data, interfaces.Detections)
 
 
 def _patched_frame():
@@ -268,9 +268,12 @@ def _patched_frame():
 def test_by_default_another_camera_gets_proposals_beside_the_rule_checked_detections(
         ros, model_path):
     """With the defaults, a frame of another camera than the colour model's gets the rule-
-    checked detection of its sign (not flagged) and proposals elsewhere, never a proposal
+    checked detection of its sign (not flagged; the rules measured lean beside the proposals,
+    which is not counted as falling behind) and proposals elsewhere, never a proposal
     repeating the detection's box."""
-    d = _detections_of(ros, cv2.resize(_patched_frame(), (722, 406)), model_path=model_path)
+    node, d = _detections_of(ros, cv2.resize(_patched_frame(), (722, 406)),
+                             model_path=model_path)
+    assert dict(node.extra_diagnostics())[LEAN_KEY] == '0' and node._detector.lean
     rules = [x for x in d.detections if not x.proposal]
     assert len(rules) == 1 and rules[0].box.iou(Box(429, 93, 90, 68)) > 0.5
     assert any(x.proposal for x in d.detections)
@@ -282,7 +285,7 @@ def test_by_default_another_camera_gets_proposals_beside_the_rule_checked_detect
 def test_the_models_own_camera_gets_proposals_only_when_asked(ros, model_path, mode, flagged):
     """On the colour model's own camera (its frame size here) the rule-based detector alone
     runs unless ``proposals`` is on."""
-    d = _detections_of(ros, _patched_frame(), model_path=model_path, proposals=mode)
+    _, d = _detections_of(ros, _patched_frame(), model_path=model_path, proposals=mode)
     assert any(not x.proposal for x in d.detections)
     assert any(x.proposal for x in d.detections) == flagged
 

@@ -4,8 +4,9 @@ With ``--real [DIR]`` also real dashcam frames (every 10th frame of each clip in
 their native size): the rule-based detector, the recall-first proposals
 (:mod:`workzone_ros.core.proposals`) and both (``detector+proposals``: what the default
 ``color_detector`` does with a frame of a camera other than the colour model's, as these
-are), p50 / p99 / max wall and CPU milliseconds per frame, beside the renders' figures of
-the same run (key ``real``).
+are: the detector measured lean beside the proposals; ``full_detector+proposals`` with
+``lean_beside_proposals: false``), p50 / p99 / max wall and CPU milliseconds per frame,
+beside the renders' figures of the same run (key ``real``).
 
 Figures (one core: ``cv2.setNumThreads(1)``; run it on a quiet machine):
 
@@ -131,9 +132,13 @@ def run_real(args: argparse.Namespace, model) -> dict:
                       # as the node measures a frame when it has fallen behind its camera
                       ('detector_lean', lambda f: det.detect(f, lean=True)),
                       ('proposals', prop.propose),
-                      # the default graph on another camera's frames: the proposals
-                      # reuse the detector's shrunk, white-balanced frame
+                      # the default graph on another camera's frames: the detector
+                      # measures lean beside the proposals, which reuse its shrunk,
+                      # white-balanced frame
                       ('detector+proposals',
+                       lambda f: (det.detect(f, lean=True),
+                                  prop.propose(f, prop.view_of(det)))),
+                      ('full_detector+proposals',
                        lambda f: (det.detect(f), prop.propose(f, prop.view_of(det))))):
         ms, cpu = _time(fn, frames, len(frames))
         out[f'frame_ms_{label}'] = _stats(ms)

@@ -126,7 +126,8 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
             break
         use, props = stage_plan(proposals if proposer is not None else 'off', rules,
                                 det.det.same_camera(img.shape[1], img.shape[0]))
-        dets = [d for d in det(img, None) if d.color == 'orange'] if use else []
+        # beside the proposals the rules measure lean (the node's lean_beside_proposals)
+        dets = [d for d in det.det.detect(img, lean=props) if d.color == 'orange'] if use else []
         if props:
             view = proposer.view_of(det.det) if use else None
             dets += proposals_as_detections(proposer.propose(img, view), dets)

@@ -4,9 +4,9 @@ The chain the nodes run, in process and in frame order, from ``workzone_ros.core
 
 * the colour detector (``core.detect.ColorDetector`` with the trained orange model,
   ``config/models/color_orange.npz``, as ``evaluate tracker`` builds it), and on the frames
-  of any camera other than that model's the recall-first proposals beside it
-  (``core.proposals`` with ``config/models/color_proposals.npz``, as the node's default
-  ``proposals: auto``);
+  of any camera other than that model's the recall-first proposals beside it and the
+  detector measured lean (``core.proposals`` with ``config/models/color_proposals.npz``, as
+  the node's defaults ``proposals: auto``, ``lean_beside_proposals: true``);
 * the mean-shift tracker (``core.track.MultiTracker``, ``TrackerConfig()`` defaults), told
   the classifier's answers on each frame's tracks before the next frame
   (``MultiTracker.confirm``, as the ``tracker`` node hears ``/workzone/signs``);
@@ -182,8 +182,7 @@ class PipelineSource:
                  ) -> tuple[list[Sign], Optional[int]]:
         """Signs of one frame (the classifier node's output) and its channelizer count."""
         t0 = time.perf_counter()
-        dets = self.detector(image, gt)
-        dets = dets + self._proposals(image, dets)
+        dets = self._detect(image, gt)
         t1 = time.perf_counter()
         found = getattr(self.detector.det, 'channelizers', None)
         channel = None if found is None else len(found)
@@ -198,15 +197,17 @@ class PipelineSource:
         self.last_stages = _stage_boxes(dets, tracks, signs)
         return signs, channel
 
-    def _proposals(self, image, dets: list) -> list:
-        """The proposals the node adds on this frame (none on the colour model's camera)."""
+    def _detect(self, image, gt) -> list:
+        """The colour detector node's detections of this frame: on a camera other than the
+        colour model's, the rules measured lean and the proposals beside them."""
         from workzone_ros.core.proposals import proposals_as_detections, stage_plan
         det = getattr(self.detector, 'det', None)
         own = det is None or det.same_camera(image.shape[1], image.shape[0])
         if not stage_plan('auto', 'on', own)[1]:
-            return []
-        return proposals_as_detections(self.proposer.propose(image, self.proposer.view_of(det)),
-                                       dets)
+            return self.detector(image, gt)
+        dets = det.detect(image, lean=True)
+        return dets + proposals_as_detections(
+            self.proposer.propose(image, self.proposer.view_of(det)), dets)
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""

@@ -10,9 +10,10 @@ that is not a sign:
 * a candidate overlapping a labelled sign box of the crop index (``--index``, any class, the
   box interpolated between labelled frames) is skipped.
 
-With ``--labels CSV ...`` (keyframe boxes of every orange sign in the clips, the format of
-``tools/data/real_sign_boxes.csv``; the shipped ``real_sign_boxes.csv`` and
-``real_sign_boxes_more.csv`` together label every one of the six clips') the frames inside
+With ``--labels CSV ...`` (keyframe boxes of every sign in the clips, the format of
+``tools/data/real_sign_boxes.csv``; the shipped ``real_sign_boxes.csv``,
+``real_sign_boxes_more.csv`` and ``real_general_sign_boxes.csv`` with the crop index label
+every sign of the six clips a proposal can take) the frames inside
 the ranges are mined too, away from those boxes (each held ``HOLD`` frames before and after
 its labels: a sign entering or leaving the frame is often unlabelled there): the negatives in
 a sign's own scene (a yellow regulatory sign beside it, the brick behind it, the drums after
@@ -158,8 +159,8 @@ def main(argv: Optional[list[str]] = None) -> int:
     p.add_argument('--index', type=Path, default=INDEX, help='labelled crops (their sign boxes)')
     p.add_argument('--ranges', type=Path, default=RANGES, help='work-zone sign frame ranges')
     p.add_argument('--labels', type=Path, nargs='+', metavar='CSV',
-                   help='keyframe boxes of every orange sign (real_sign_boxes.csv format): '
-                        'mine inside the ranges too, away from these boxes')
+                   help='keyframe boxes of every sign (real_sign_boxes.csv format): mine '
+                        'inside the ranges too, away from these boxes')
     p.add_argument('--videos', type=Path, default=VIDEOS, help='folder of the clips')
     p.add_argument('--exclude-clip', nargs='*', default=[], metavar='CLIP')
     p.add_argument('--step', type=int, default=6, help='every this many frames (6)')

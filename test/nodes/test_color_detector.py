@@ -273,7 +273,9 @@ def test_by_default_another_camera_gets_proposals_beside_the_rule_checked_detect
     repeating the detection's box."""
     node, d = _detections_of(ros, cv2.resize(_patched_frame(), (722, 406)),
                              model_path=model_path)
-    assert dict(node.extra_diagnostics())[LEAN_KEY] == '0' and node._detector.lean
+    figures = dict(node.extra_diagnostics())
+    assert figures[LEAN_KEY] == '0' and node._detector.lean
+    assert figures['stages'] == 'rules (lean) + proposals'
     rules = [x for x in d.detections if not x.proposal]
     assert len(rules) == 1 and rules[0].box.iou(Box(429, 93, 90, 68)) > 0.5
     assert any(x.proposal for x in d.detections)
@@ -285,7 +287,9 @@ def test_by_default_another_camera_gets_proposals_beside_the_rule_checked_detect
 def test_the_models_own_camera_gets_proposals_only_when_asked(ros, model_path, mode, flagged):
     """On the colour model's own camera (its frame size here) the rule-based detector alone
     runs unless ``proposals`` is on."""
-    _, d = _detections_of(ros, _patched_frame(), model_path=model_path, proposals=mode)
+    node, d = _detections_of(ros, _patched_frame(), model_path=model_path, proposals=mode)
+    assert dict(node.extra_diagnostics())['stages'] == (
+        'rules (lean) + proposals' if flagged else 'rules')
     assert any(not x.proposal for x in d.detections)
     assert any(x.proposal for x in d.detections) == flagged
 

@@ -146,6 +146,8 @@ class ColorDetectorNode(WorkzoneNode):
         self._rois: collections.OrderedDict[int, list[interfaces.Roi]] = \
             collections.OrderedDict()
         self._frames = 0
+        #: what the last frame went through (``/diagnostics`` key ``stages``)
+        self._stages = 'no frame yet'
         self._held_counts = collections.Counter()
         # when the middleware received the last images (system clock ns): the frame interval
         self._arrivals: collections.deque[int] = collections.deque(maxlen=11)
@@ -219,10 +221,13 @@ class ColorDetectorNode(WorkzoneNode):
             self._intrinsics = intrinsics
             self._detector.set_camera(intrinsics)
             same = self._detector.same_camera(int(msg.width), int(msg.height))
+            rules, props = stage_plan(self.params.proposals, self.params.rules, same)
+            stages = ' + '.join(n for n, on in (('rules', rules), ('proposals', props)) if on)
             self.get_logger().info(
                 f'camera {msg.width}x{msg.height} fx {intrinsics[0]:.1f}: '
                 + ("the model's camera (its prior and mounting row apply)" if same else
-                   "not the model's camera: location-free prior, no fixed mounting row"))
+                   "not the model's camera: location-free prior, no fixed mounting row")
+                + f'; colour stages: {stages or "none"}')
 
     def _on_rois(self, msg: String) -> None:
         rois = conv.string_to_payload(msg, interfaces.Rois)
@@ -292,8 +297,11 @@ class ColorDetectorNode(WorkzoneNode):
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
         dets, channelizers = [], None      # None: not counted on this frame
         rules, props = self._plan(bgr)
+        by_design = props and self.params.lean_beside_proposals
+        self._stages = ' + '.join(
+            name for name, on in (('rules' + (' (lean)' if by_design else ''), rules),
+                                  ('proposals', props)) if on) or 'none'
         if rules:
-            by_design = props and self.params.lean_beside_proposals
             dets = self._detector.detect(bgr, rois or (), lean or by_design)
             self._lean_frames += lean
             channelizers = len(self._detector.channelizers)
@@ -310,11 +318,13 @@ class ColorDetectorNode(WorkzoneNode):
     def extra_diagnostics(self) -> list[tuple[str, str]]:
         """Images held for their ROIs by how the wait ended, the frames whose budget of
         costly measurements (``max_blur_fits``, ``max_grown``, ``max_shifted``) ran out, and
-        the frames detected and of them measured lean (``lean_behind``)."""
+        the frames detected and of them measured lean (``lean_behind``), and the stages the
+        last frame went through (``stages``: rules, proposals or both, by ``proposals``,
+        ``rules`` and the camera)."""
         return [(k if k.startswith('frames') else f'images held: {k}', str(v))
                 for k, v in sorted(self._held_counts.items())] + [
             ('frames detected', str(self._frames)),
-            (LEAN_KEY, str(self._lean_frames))]
+            (LEAN_KEY, str(self._lean_frames)), ('stages', self._stages)]
 
 
 NODE_CLASS = ColorDetectorNode

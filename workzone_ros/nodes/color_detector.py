@@ -222,12 +222,11 @@ class ColorDetectorNode(WorkzoneNode):
             self._detector.set_camera(intrinsics)
             same = self._detector.same_camera(int(msg.width), int(msg.height))
             rules, props = stage_plan(self.params.proposals, self.params.rules, same)
-            stages = ' + '.join(n for n, on in (('rules', rules), ('proposals', props)) if on)
             self.get_logger().info(
                 f'camera {msg.width}x{msg.height} fx {intrinsics[0]:.1f}: '
                 + ("the model's camera (its prior and mounting row apply)" if same else
                    "not the model's camera: location-free prior, no fixed mounting row")
-                + f'; colour stages: {stages or "none"}')
+                + f'; colour stages: {_stages_text(rules, props, False)}')
 
     def _on_rois(self, msg: String) -> None:
         rois = conv.string_to_payload(msg, interfaces.Rois)
@@ -298,9 +297,7 @@ class ColorDetectorNode(WorkzoneNode):
         dets, channelizers = [], None      # None: not counted on this frame
         rules, props = self._plan(bgr)
         by_design = props and self.params.lean_beside_proposals
-        self._stages = ' + '.join(
-            name for name, on in (('rules' + (' (lean)' if by_design else ''), rules),
-                                  ('proposals', props)) if on) or 'none'
+        self._stages = _stages_text(rules, props, by_design)
         if rules:
             dets = self._detector.detect(bgr, rois or (), lean or by_design)
             self._lean_frames += lean
@@ -325,6 +322,12 @@ class ColorDetectorNode(WorkzoneNode):
                 for k, v in sorted(self._held_counts.items())] + [
             ('frames detected', str(self._frames)),
             (LEAN_KEY, str(self._lean_frames)), ('stages', self._stages)]
+
+
+def _stages_text(rules: bool, proposals: bool, lean: bool) -> str:
+    """'rules', 'rules (lean) + proposals', 'proposals' or 'none'."""
+    return ' + '.join(name for name, on in (('rules' + (' (lean)' if lean else ''), rules),
+                                            ('proposals', proposals)) if on) or 'none'
 
 
 NODE_CLASS = ColorDetectorNode

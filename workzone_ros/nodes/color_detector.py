@@ -226,7 +226,8 @@ class ColorDetectorNode(WorkzoneNode):
                 f'camera {msg.width}x{msg.height} fx {intrinsics[0]:.1f}: '
                 + ("the model's camera (its prior and mounting row apply)" if same else
                    "not the model's camera: location-free prior, no fixed mounting row")
-                + f'; colour stages: {_stages_text(rules, props, False)}')
+                + '; colour stages: '
+                + _stages_text(rules, props, props and self.params.lean_beside_proposals))
 
     def _on_rois(self, msg: String) -> None:
         rois = conv.string_to_payload(msg, interfaces.Rois)

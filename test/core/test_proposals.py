@@ -13,6 +13,7 @@ from workzone_ros.core.proposals import (
     Ranker,
     SignProposer,
     candidate_labels,
+    detect_frame,
     fit_ranker,
     proposals_as_detections,
     stage_plan,
@@ -163,3 +164,47 @@ def test_which_stages_see_a_frame(proposals, rules, own, expected):
 def test_an_unknown_stage_mode_is_a_one_line_error():
     with pytest.raises(ValueError, match="proposals must be one of auto, on, off, got 'yes'"):
         stage_plan('yes', 'on', True)
+
+
+class _Rules:
+    """A stand-in rule detector: one detection; remembers how it was asked to measure."""
+
+    frame_view = None
+
+    def __init__(self, own: bool) -> None:
+        self.own, self.calls = own, []
+
+    def same_camera(self, width, height):
+        return self.own
+
+    def detect(self, bgr, rois, lean):
+        self.calls.append(lean)
+        return [Detection(box=Box(10, 10, 20, 20), confidence=0.9)]
+
+
+class _Proposer:
+    def view_of(self, detector):
+        return 'view'
+
+    def propose(self, bgr, view):
+        self.view = view
+        return [Proposal((10, 10, 20, 20), 0.8), Proposal((60, 10, 20, 20), 0.7)]
+
+
+@pytest.mark.parametrize('own,lean_beside,expected', [
+    (False, True, ([True], 2, True)),       # another camera: lean rules, proposals beside
+    (False, False, ([False], 2, True)),
+    (True, True, ([False], 1, False)),      # the model's camera: the rules alone, in full
+])
+def test_a_frame_goes_through_the_stages_the_node_runs(own, lean_beside, expected):
+    rules, prop = _Rules(own), _Proposer()
+    dets, ran_rules, ran_props = detect_frame(rules, prop, np.zeros((4, 4, 3), np.uint8),
+                                              lean_beside=lean_beside)
+    assert (rules.calls, len(dets), ran_props) == expected and ran_rules
+    if ran_props:            # the proposal repeating the rule box is left out; view reused
+        assert [d.proposal for d in dets] == [False, True] and prop.view == 'view'
+
+
+def test_without_a_proposer_no_frame_is_proposed():
+    dets, _, ran_props = detect_frame(_Rules(False), None, np.zeros((4, 4, 3), np.uint8))
+    assert len(dets) == 1 and not ran_props

@@ -44,7 +44,8 @@ from workzone_ros.core.kernels import components_with_stats
 from workzone_ros.core.proposal_kernels import component_sums
 
 __all__ = ['ProposalConfig', 'Proposal', 'SignProposer', 'FEATURES', 'Ranker', 'fit_ranker',
-           'candidate_labels', 'proposals_as_detections', 'MODES', 'stage_plan']
+           'candidate_labels', 'proposals_as_detections', 'MODES', 'stage_plan',
+           'detect_frame']
 
 #: The values of the colour detector's ``proposals`` and ``rules`` parameters.
 MODES = ('auto', 'on', 'off')
@@ -334,6 +335,24 @@ def proposals_as_detections(proposals: list[Proposal], detections: list,
         out.append(Detection(box=Box(*p.box), confidence=min(max(p.score, 0.0), 1.0),
                              proposal=True))
     return out
+
+
+def detect_frame(detector, proposer: Optional['SignProposer'], bgr: np.ndarray,
+                 proposals: str = 'auto', rules: str = 'on', rois=(), lean: bool = False,
+                 lean_beside: bool = True) -> tuple[list, bool, bool]:
+    """One frame through the colour stage as the ``color_detector`` node runs it: the
+    rule-based ``detector`` (a ``ColorDetector``) and the ``proposer`` where
+    :func:`stage_plan` says (no ``proposer``: no proposals), the rules measured lean
+    beside the proposals when ``lean_beside`` (or always when ``lean``), and the proposals
+    reusing the detector's shrunk frame.  Returns the detections and whether the rules and
+    the proposals ran."""
+    own = detector.same_camera(bgr.shape[1], bgr.shape[0])
+    use_rules, props = stage_plan(proposals if proposer is not None else 'off', rules, own)
+    dets = detector.detect(bgr, rois, lean or (props and lean_beside)) if use_rules else []
+    if props:
+        view = proposer.view_of(detector) if use_rules else None
+        dets = dets + proposals_as_detections(proposer.propose(bgr, view), dets)
+    return dets, use_rules, props
 
 
 def candidate_labels(boxes: list, truth: list, iou: float = 0.3) -> np.ndarray:

@@ -34,7 +34,7 @@ from workzone_ros.core.proposals import (
     MODES,
     ProposalConfig,
     SignProposer,
-    proposals_as_detections,
+    detect_frame,
     stage_plan,
 )
 from workzone_ros.nodes import conversions as conv
@@ -177,12 +177,6 @@ class ColorDetectorNode(WorkzoneNode):
         det.set_camera(self._intrinsics)
         return det
 
-    def _plan(self, bgr) -> tuple[bool, bool]:
-        """Whether this frame goes through the rules and the proposals (``stage_plan``)."""
-        own = self._detector.same_camera(bgr.shape[1], bgr.shape[0])
-        rules, props = stage_plan(self.params.proposals, self.params.rules, own)
-        return rules, props and self._proposer is not None
-
     def _make_proposer(self) -> Optional[SignProposer]:
         p = self.params
         if p.proposals == 'off':
@@ -295,19 +289,16 @@ class ColorDetectorNode(WorkzoneNode):
     def _process(self, bgr, header, lean: bool = False) -> None:
         head = conv.header_to_payload(header)
         rois: Optional[list] = self._rois.get(head.stamp.to_ns())
-        dets, channelizers = [], None      # None: not counted on this frame
-        rules, props = self._plan(bgr)
-        by_design = props and self.params.lean_beside_proposals
-        self._stages = _stages_text(rules, props, by_design)
+        p = self.params
+        dets, rules, props = detect_frame(self._detector, self._proposer, bgr, p.proposals,
+                                          p.rules, rois or (), lean, p.lean_beside_proposals)
+        self._stages = _stages_text(rules, props, props and p.lean_beside_proposals)
+        channelizers = None                 # None: not counted on this frame
         if rules:
-            dets = self._detector.detect(bgr, rois or (), lean or by_design)
             self._lean_frames += lean
             channelizers = len(self._detector.channelizers)
             for kind in self._detector.budget_spent:
                 self._held_counts[f'frames over the {kind} budget'] += 1
-        if props:
-            view = self._proposer.view_of(self._detector) if rules else None
-            dets = dets + proposals_as_detections(self._proposer.propose(bgr, view), dets)
         self._pub.publish(conv.payload_to_string(interfaces.Detections(
             header=head, detections=dets, channelizers=channelizers)))
         self._frames += 1

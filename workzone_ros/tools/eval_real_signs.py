@@ -104,7 +104,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
     """
     import cv2
 
-    from workzone_ros.core.proposals import proposals_as_detections, stage_plan
+    from workzone_ros.core.proposals import detect_frame
     from workzone_ros.core.recognition import RecognitionConfig, SignRecognizer
     from workzone_ros.core.sign_distance import focal_from_fov
     from workzone_ros.core.track import MultiTracker, TrackerConfig
@@ -124,13 +124,7 @@ def evaluate_clip(path: Path, model, hfov_deg: float, max_frames: int = 0,
         ok, img = cap.read()
         if not ok:
             break
-        use, props = stage_plan(proposals if proposer is not None else 'off', rules,
-                                det.det.same_camera(img.shape[1], img.shape[0]))
-        # beside the proposals the rules measure lean (the node's lean_beside_proposals)
-        dets = [d for d in det.det.detect(img, lean=props) if d.color == 'orange'] if use else []
-        if props:
-            view = proposer.view_of(det.det) if use else None
-            dets += proposals_as_detections(proposer.propose(img, view), dets)
+        dets = detect_frame(det.det, proposer, img, proposals, rules)[0]
         cands += len(dets)
         shown = [box for box, visible in frames.get(k, ()) if visible]
         for d in dets:

@@ -200,14 +200,11 @@ class PipelineSource:
     def _detect(self, image, gt) -> list:
         """The colour detector node's detections of this frame: on a camera other than the
         colour model's, the rules measured lean and the proposals beside them."""
-        from workzone_ros.core.proposals import proposals_as_detections, stage_plan
+        from workzone_ros.core.proposals import detect_frame
         det = getattr(self.detector, 'det', None)
-        own = det is None or det.same_camera(image.shape[1], image.shape[0])
-        if not stage_plan('auto', 'on', own)[1]:
+        if det is None:                         # a stand-in detector: no camera to judge
             return self.detector(image, gt)
-        dets = det.detect(image, lean=True)
-        return dets + proposals_as_detections(
-            self.proposer.propose(image, self.proposer.view_of(det)), dets)
+        return detect_frame(det, self.proposer, image)[0]
 
     def classify(self, frame, items, focal: Optional[float]) -> list[Sign]:
         """As ``nodes/classifier.py`` (the same ``core.recognition`` rules), no LiDAR."""
